@@ -1,0 +1,682 @@
+"""Compiled FDEM step: interfaces, tetrahedra, tools, time integration.
+
+State is flat arrays grouped in named tuples (see ``state.py``). The exploded mesh gives each tet
+its own 4 nodes (node 4e+k is corner k of tet e), so one step is two parallel passes with no
+races and no atomics:
+
+1. over interfaces: kinematics, Guo-Munjiza law or (once failed) penalty contact with Coulomb
+   friction; the traction force on each of the 3 B-side nodes goes to ``ifs.force`` (the A side
+   gets its negative);
+2. over tets: St Venant-Kirchhoff forces, gather of the interface forces of the tet's 4 faces,
+   pressures, tool contact, damping, gravity, central-difference update of the tet's 4 nodes.
+
+Every energy term is accumulated per node or per interface (never into a shared scalar), and
+summed in a fixed order between chunks: results do not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .law import (
+    LAW_GF1,
+    LAW_GF2,
+    LAW_A,
+    LAW_B,
+    LAW_CS,
+    LAW_FT,
+    LAW_IZ,
+    LAW_MU,
+    critical_opening,
+    normal_stress,
+    peak_curve,
+    peak_curve_energy,
+    shear_strength,
+    softening,
+)
+
+# Interface states.
+INTACT, FAILED, PRECRACK = 0, 1, 2
+# Failure modes recorded in events.csv.
+MODE_NAMES = ("none", "tension", "shear", "mixed")
+# Tool shapes.
+TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE = 0, 1, 2, 3
+# Node constraints: -1 free, else the index of the node's velocity projector (0: fixed).
+FREE, FIXED = -1, 0
+
+
+@njit(cache=True, inline="always")
+def interp_history(t, times, values, n):
+    """Piecewise-linear history; constant beyond its ends."""
+    if t <= times[0]:
+        return values[0]
+    if t >= times[n - 1]:
+        return values[n - 1]
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if times[mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    w = (t - times[lo]) / (times[hi] - times[lo])
+    return values[lo] + w * (values[hi] - values[lo])
+
+
+@njit(cache=True, inline="always")
+def _mid_normal(x, na, nb, i):
+    """Unit normal of the mid-surface of interface i, pointing from side A to side B."""
+    a0, a1, a2 = na[i, 0], na[i, 1], na[i, 2]
+    b0, b1, b2 = nb[i, 0], nb[i, 1], nb[i, 2]
+    p0x = 0.5 * (x[a0, 0] + x[b0, 0])
+    p0y = 0.5 * (x[a0, 1] + x[b0, 1])
+    p0z = 0.5 * (x[a0, 2] + x[b0, 2])
+    ux = 0.5 * (x[a1, 0] + x[b1, 0]) - p0x
+    uy = 0.5 * (x[a1, 1] + x[b1, 1]) - p0y
+    uz = 0.5 * (x[a1, 2] + x[b1, 2]) - p0z
+    wx = 0.5 * (x[a2, 0] + x[b2, 0]) - p0x
+    wy = 0.5 * (x[a2, 1] + x[b2, 1]) - p0y
+    wz = 0.5 * (x[a2, 2] + x[b2, 2]) - p0z
+    nx = uy * wz - uz * wy
+    ny = uz * wx - ux * wz
+    nz = ux * wy - uy * wx
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx * inv, ny * inv, nz * inv
+
+
+@njit(cache=True, inline="always")
+def _opening(x, na, nb, i, p, nx, ny, nz):
+    """Normal opening and tangential slip vector of point pair p of interface i."""
+    a = na[i, p]
+    b = nb[i, p]
+    dx = x[b, 0] - x[a, 0]
+    dy = x[b, 1] - x[a, 1]
+    dz = x[b, 2] - x[a, 2]
+    dn = dx * nx + dy * ny + dz * nz
+    return dn, dx - dn * nx, dy - dn * ny, dz - dn * nz
+
+
+@njit(cache=True, inline="always")
+def _cohesive_potential(x, ifs, i, law, z, nx, ny, nz):
+    """Sum over the 3 points of A/3 * (Phi_n + Phi_s), the part of the free energy scaled by z."""
+    pn = ifs.pn[i]
+    ps = ifs.ps[i]
+    ft = law[LAW_FT]
+    total = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+        ds = math.sqrt(sx * sx + sy * sy + sz * sz)
+        sigma = normal_stress(dn, pn, z, law)
+        fs = shear_strength(sigma, law)
+        if dn > 0.0:
+            total += peak_curve_energy(dn, ft, 2.0 * ft / pn)
+        total += peak_curve_energy(ds, fs, 2.0 * fs / ps)
+    return total * ifs.area[i] / 3.0
+
+
+@njit(cache=True)
+def _interface(i, t, dt, x, v, ifs):
+    law = ifs.law_table[ifs.law[i]]
+    pn = ifs.pn[i]
+    ps = ifs.ps[i]
+    a3 = ifs.area[i] / 3.0
+    nx, ny, nz = _mid_normal(x, ifs.na, ifs.nb, i)
+
+    if ifs.state[i] == INTACT:
+        # Damage from the centroid opening and slip (eq. 8), irreversible.
+        dn_c = 0.0
+        sx_c = 0.0
+        sy_c = 0.0
+        sz_c = 0.0
+        for p in range(3):
+            dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+            dn_c += dn / 3.0
+            sx_c += sx / 3.0
+            sy_c += sy / 3.0
+            sz_c += sz / 3.0
+        ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+        a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
+        d_old = ifs.damage[i]
+        z_old = softening(d_old, a, b, c)
+        ft = law[LAW_FT]
+        dnp = 2.0 * ft / pn
+        dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ])
+        fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
+        dsp = 2.0 * fs_c / ps
+        dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ])
+        d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
+        d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
+        d_new = math.sqrt(d_n * d_n + d_s * d_s)
+        if d_new > 1.0:
+            d_new = 1.0
+        z = z_old
+        if d_new > d_old:
+            z = softening(d_new, a, b, c)
+            ifs.damage[i] = d_new
+            # Energy released by the damage step at the current opening.
+            ifs.e_damage[i] += (z_old - z) * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
+            if d_new >= 1.0:
+                ifs.state[i] = FAILED
+                ifs.fail_time[i] = t
+                angle = math.atan2(d_s, d_n)
+                if angle < math.radians(15.0):
+                    ifs.fail_mode[i] = 1
+                elif angle > math.radians(75.0):
+                    ifs.fail_mode[i] = 2
+                else:
+                    ifs.fail_mode[i] = 3
+        if ifs.state[i] == INTACT:
+            for p in range(3):
+                dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                sigma = normal_stress(dn, pn, z, law)
+                fs = shear_strength(sigma, law)
+                ds = math.sqrt(sx * sx + sy * sy + sz * sz)
+                tau_over_ds = 0.0
+                if ds > 0.0:
+                    tau_over_ds = z * peak_curve(ds, fs, 2.0 * fs / ps) / ds
+                ifs.force[i, p, 0] = -(sigma * nx + tau_over_ds * sx) * a3
+                ifs.force[i, p, 1] = -(sigma * ny + tau_over_ds * sy) * a3
+                ifs.force[i, p, 2] = -(sigma * nz + tau_over_ds * sz) * a3
+            return
+
+    # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
+    mu = law[LAW_MU]
+    reach2 = ifs.reach[i] * ifs.reach[i]
+    for p in range(3):
+        dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+        if dn >= 0.0 or sx * sx + sy * sy + sz * sz > reach2:
+            ifs.traction_t[i, p, 0] = 0.0
+            ifs.traction_t[i, p, 1] = 0.0
+            ifs.traction_t[i, p, 2] = 0.0
+            ifs.force[i, p, 0] = 0.0
+            ifs.force[i, p, 1] = 0.0
+            ifs.force[i, p, 2] = 0.0
+            continue
+        sigma = pn * dn
+        a = ifs.na[i, p]
+        b = ifs.nb[i, p]
+        ux = v[b, 0] - v[a, 0]
+        uy = v[b, 1] - v[a, 1]
+        uz = v[b, 2] - v[a, 2]
+        un = ux * nx + uy * ny + uz * nz
+        ux -= un * nx
+        uy -= un * ny
+        uz -= un * nz
+        # Carry the stick traction into the current tangent plane, keeping its magnitude.
+        tx = ifs.traction_t[i, p, 0]
+        ty = ifs.traction_t[i, p, 1]
+        tz = ifs.traction_t[i, p, 2]
+        t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
+        tn = tx * nx + ty * ny + tz * nz
+        tx -= tn * nx
+        ty -= tn * ny
+        tz -= tn * nz
+        t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
+        if t_proj > 0.0:
+            scale = t_old / t_proj
+            tx *= scale
+            ty *= scale
+            tz *= scale
+        tx += ps * ux * dt
+        ty += ps * uy * dt
+        tz += ps * uz * dt
+        t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
+        cap = -mu * sigma
+        if t_trial > cap:
+            # Slip: return to the Coulomb cone; the plastic slip times the friction stress is lost.
+            ifs.e_friction[i] += (t_trial - cap) / ps * cap * a3
+            scale = cap / t_trial
+            tx *= scale
+            ty *= scale
+            tz *= scale
+        ifs.traction_t[i, p, 0] = tx
+        ifs.traction_t[i, p, 1] = ty
+        ifs.traction_t[i, p, 2] = tz
+        ifs.force[i, p, 0] = -(sigma * nx + tx) * a3
+        ifs.force[i, p, 1] = -(sigma * ny + ty) * a3
+        ifs.force[i, p, 2] = -(sigma * nz + tz) * a3
+
+
+@njit(cache=True, inline="always")
+def tool_gap(j, px, py, pz, tools):
+    """Signed distance of a point to tool j's surface (negative inside) and the outward normal."""
+    g = tools.geom[j]
+    kind = tools.kind[j]
+    cx = g[0] + tools.disp[j, 0]
+    cy = g[1] + tools.disp[j, 1]
+    cz = g[2] + tools.disp[j, 2]
+    qx = px - cx
+    qy = py - cy
+    qz = pz - cz
+    if kind == TOOL_PLANE:
+        return qx * g[3] + qy * g[4] + qz * g[5], g[3], g[4], g[5]
+    if kind == TOOL_SPHERE:
+        d = math.sqrt(qx * qx + qy * qy + qz * qz)
+        if d == 0.0:
+            return -g[3], 0.0, 0.0, 1.0
+        return d - g[3], qx / d, qy / d, qz / d
+    if kind == TOOL_CYLINDER:
+        s = qx * g[3] + qy * g[4] + qz * g[5]
+        rx = qx - s * g[3]
+        ry = qy - s * g[4]
+        rz = qz - s * g[5]
+        rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+        radial = rho - g[6]
+        axial = abs(s) - g[7]
+        if radial >= 0.0 or axial >= 0.0:
+            # Outside: positive distance (exact enough for a contact test).
+            return max(radial, axial), 0.0, 0.0, 0.0
+        if -radial <= -axial:
+            if rho == 0.0:
+                return radial, 1.0, 0.0, 0.0
+            return radial, rx / rho, ry / rho, rz / rho
+        sg = 1.0 if s >= 0.0 else -1.0
+        return axial, sg * g[3], sg * g[4], sg * g[5]
+    # Box: centre, half extents g[3:6], axes g[6:9], g[9:12], third axis = first x second.
+    e1x, e1y, e1z = g[6], g[7], g[8]
+    e2x, e2y, e2z = g[9], g[10], g[11]
+    e3x = e1y * e2z - e1z * e2y
+    e3y = e1z * e2x - e1x * e2z
+    e3z = e1x * e2y - e1y * e2x
+    q1 = qx * e1x + qy * e1y + qz * e1z
+    q2 = qx * e2x + qy * e2y + qz * e2z
+    q3 = qx * e3x + qy * e3y + qz * e3z
+    o1 = abs(q1) - g[3]
+    o2 = abs(q2) - g[4]
+    o3 = abs(q3) - g[5]
+    if o1 >= 0.0 or o2 >= 0.0 or o3 >= 0.0:
+        return max(o1, max(o2, o3)), 0.0, 0.0, 0.0
+    # Inside: leave through the nearest face.
+    if o1 >= o2 and o1 >= o3:
+        sg = 1.0 if q1 >= 0.0 else -1.0
+        return o1, sg * e1x, sg * e1y, sg * e1z
+    if o2 >= o3:
+        sg = 1.0 if q2 >= 0.0 else -1.0
+        return o2, sg * e2x, sg * e2y, sg * e2z
+    sg = 1.0 if q3 >= 0.0 else -1.0
+    return o3, sg * e3x, sg * e3y, sg * e3z
+
+
+@njit(cache=True, inline="always")
+def _tet_forces(e, x, tets, f):
+    """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes)."""
+    n0 = 4 * e
+    x0, y0, z0 = x[n0, 0], x[n0, 1], x[n0, 2]
+    a11 = x[n0 + 1, 0] - x0
+    a21 = x[n0 + 1, 1] - y0
+    a31 = x[n0 + 1, 2] - z0
+    a12 = x[n0 + 2, 0] - x0
+    a22 = x[n0 + 2, 1] - y0
+    a32 = x[n0 + 2, 2] - z0
+    a13 = x[n0 + 3, 0] - x0
+    a23 = x[n0 + 3, 1] - y0
+    a33 = x[n0 + 3, 2] - z0
+    m = tets.dm_inv[e]
+    # F = Ds Dm^-1
+    f11 = a11 * m[0, 0] + a12 * m[1, 0] + a13 * m[2, 0]
+    f12 = a11 * m[0, 1] + a12 * m[1, 1] + a13 * m[2, 1]
+    f13 = a11 * m[0, 2] + a12 * m[1, 2] + a13 * m[2, 2]
+    f21 = a21 * m[0, 0] + a22 * m[1, 0] + a23 * m[2, 0]
+    f22 = a21 * m[0, 1] + a22 * m[1, 1] + a23 * m[2, 1]
+    f23 = a21 * m[0, 2] + a22 * m[1, 2] + a23 * m[2, 2]
+    f31 = a31 * m[0, 0] + a32 * m[1, 0] + a33 * m[2, 0]
+    f32 = a31 * m[0, 1] + a32 * m[1, 1] + a33 * m[2, 1]
+    f33 = a31 * m[0, 2] + a32 * m[1, 2] + a33 * m[2, 2]
+    # Green-Lagrange strain E = (F^T F - I) / 2
+    e11 = 0.5 * (f11 * f11 + f21 * f21 + f31 * f31 - 1.0)
+    e22 = 0.5 * (f12 * f12 + f22 * f22 + f32 * f32 - 1.0)
+    e33 = 0.5 * (f13 * f13 + f23 * f23 + f33 * f33 - 1.0)
+    e12 = 0.5 * (f11 * f12 + f21 * f22 + f31 * f32)
+    e13 = 0.5 * (f11 * f13 + f21 * f23 + f31 * f33)
+    e23 = 0.5 * (f12 * f13 + f22 * f23 + f32 * f33)
+    lam = tets.lam[e]
+    mu2 = 2.0 * tets.mu[e]
+    tr = lam * (e11 + e22 + e33)
+    s11 = tr + mu2 * e11
+    s22 = tr + mu2 * e22
+    s33 = tr + mu2 * e33
+    s12 = mu2 * e12
+    s13 = mu2 * e13
+    s23 = mu2 * e23
+    # P = F S
+    p11 = f11 * s11 + f12 * s12 + f13 * s13
+    p12 = f11 * s12 + f12 * s22 + f13 * s23
+    p13 = f11 * s13 + f12 * s23 + f13 * s33
+    p21 = f21 * s11 + f22 * s12 + f23 * s13
+    p22 = f21 * s12 + f22 * s22 + f23 * s23
+    p23 = f21 * s13 + f22 * s23 + f23 * s33
+    p31 = f31 * s11 + f32 * s12 + f33 * s13
+    p32 = f31 * s12 + f32 * s22 + f33 * s23
+    p33 = f31 * s13 + f32 * s23 + f33 * s33
+    # H = -V P Dm^-T: column k is the force on corner k+1
+    vol = -tets.vol[e]
+    for k in range(3):
+        hx = vol * (p11 * m[k, 0] + p12 * m[k, 1] + p13 * m[k, 2])
+        hy = vol * (p21 * m[k, 0] + p22 * m[k, 1] + p23 * m[k, 2])
+        hz = vol * (p31 * m[k, 0] + p32 * m[k, 1] + p33 * m[k, 2])
+        f[n0 + k + 1, 0] = hx
+        f[n0 + k + 1, 1] = hy
+        f[n0 + k + 1, 2] = hz
+    f[n0, 0] = -(f[n0 + 1, 0] + f[n0 + 2, 0] + f[n0 + 3, 0])
+    f[n0, 1] = -(f[n0 + 1, 1] + f[n0 + 2, 1] + f[n0 + 3, 1])
+    f[n0, 2] = -(f[n0 + 1, 2] + f[n0 + 2, 2] + f[n0 + 3, 2])
+
+
+@njit(cache=True, inline="always")
+def face_corners(face):
+    """Local corners of face `face` (the face opposite corner `face`), outward-ordered."""
+    if face == 0:
+        return 1, 2, 3
+    if face == 1:
+        return 0, 3, 2
+    if face == 2:
+        return 0, 1, 3
+    return 0, 2, 1
+
+
+@njit(cache=True)
+def _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
+    x = nodes.x
+    f = nodes.force
+    fe = nodes.force_ext
+    _tet_forces(e, x, tets, f)
+    n0 = 4 * e
+    for k in range(4):
+        fe[n0 + k, 0] = 0.0
+        fe[n0 + k, 1] = 0.0
+        fe[n0 + k, 2] = 0.0
+    # Surface area attached to each corner: where tools can touch.
+    ta0 = 0.0
+    ta1 = 0.0
+    ta2 = 0.0
+    ta3 = 0.0
+    for face in range(4):
+        c0, c1, c2 = face_corners(face)
+        iface = tets.face_iface[e, face]
+        surface = True
+        if iface >= 0:
+            side_b = tets.face_side[e, face] == 1
+            sign = 1.0 if side_b else -1.0
+            for c in (c0, c1, c2):
+                g = n0 + c
+                for p in range(3):
+                    owner = ifs.nb[iface, p] if side_b else ifs.na[iface, p]
+                    if owner == g:
+                        f[g, 0] += sign * ifs.force[iface, p, 0]
+                        f[g, 1] += sign * ifs.force[iface, p, 1]
+                        f[g, 2] += sign * ifs.force[iface, p, 2]
+            surface = ifs.state[iface] != INTACT
+        if not surface:
+            continue
+        share = tets.face_area[e, face] / 3.0
+        if face != 0:
+            ta0 += share
+        if face != 1:
+            ta1 += share
+        if face != 2:
+            ta2 += share
+        if face != 3:
+            ta3 += share
+        pid = tets.face_pressure[e, face]
+        if pid >= 0:
+            # Follower pressure on the current face, pushing into the tet.
+            g0, g1, g2 = n0 + c0, n0 + c1, n0 + c2
+            ux = x[g1, 0] - x[g0, 0]
+            uy = x[g1, 1] - x[g0, 1]
+            uz = x[g1, 2] - x[g0, 2]
+            wx = x[g2, 0] - x[g0, 0]
+            wy = x[g2, 1] - x[g0, 1]
+            wz = x[g2, 2] - x[g0, 2]
+            scale = -pressure_now[pid] / 6.0  # area vector / 2, shared by 3 corners
+            px = scale * (uy * wz - uz * wy)
+            py = scale * (uz * wx - ux * wz)
+            pz = scale * (ux * wy - uy * wx)
+            for g in (g0, g1, g2):
+                fe[g, 0] += px
+                fe[g, 1] += py
+                fe[g, 2] += pz
+
+    gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
+    alpha = ctrl.damping[0]
+    for k in range(4):
+        g = n0 + k
+        m = nodes.mass[g]
+        vx0, vy0, vz0 = nodes.v[g, 0], nodes.v[g, 1], nodes.v[g, 2]
+        # External forces that work on the node's own motion: pressure and gravity.
+        ex = fe[g, 0] + m * gx
+        ey = fe[g, 1] + m * gy
+        ez = fe[g, 2] + m * gz
+        tributary = ta0 if k == 0 else (ta1 if k == 1 else (ta2 if k == 2 else ta3))
+        cx = 0.0
+        cy = 0.0
+        cz = 0.0
+        tool_work = 0.0
+        touching = -1
+        if tributary > 0.0:
+            for j in range(tools.kind.shape[0]):
+                gap, nx, ny, nz = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], tools)
+                if gap >= 0.0:
+                    continue
+                kn = tools.penalty[j] * tributary
+                fn = -kn * gap
+                fx = fn * nx
+                fy = fn * ny
+                fz = fn * nz
+                tvx = 0.5 * (tool_v_prev[j, 0] + tool_v_next[j, 0])
+                tvy = 0.5 * (tool_v_prev[j, 1] + tool_v_next[j, 1])
+                tvz = 0.5 * (tool_v_prev[j, 2] + tool_v_next[j, 2])
+                if touching < 0:
+                    touching = j
+                    # Coulomb friction with a stick spring of the normal stiffness.
+                    rx = vx0 - tvx
+                    ry = vy0 - tvy
+                    rz = vz0 - tvz
+                    rn = rx * nx + ry * ny + rz * nz
+                    rx -= rn * nx
+                    ry -= rn * ny
+                    rz -= rn * nz
+                    tx = nodes.friction[g, 0]
+                    ty = nodes.friction[g, 1]
+                    tz = nodes.friction[g, 2]
+                    t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    tn = tx * nx + ty * ny + tz * nz
+                    tx -= tn * nx
+                    ty -= tn * ny
+                    tz -= tn * nz
+                    t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    if t_proj > 0.0:
+                        s = t_old / t_proj
+                        tx *= s
+                        ty *= s
+                        tz *= s
+                    tx -= kn * rx * dt
+                    ty -= kn * ry * dt
+                    tz -= kn * rz * dt
+                    t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    cap = tools.mu[j] * fn
+                    if t_trial > cap:
+                        nodes.d_friction[g] += (t_trial - cap) / kn * cap
+                        s = cap / t_trial
+                        tx *= s
+                        ty *= s
+                        tz *= s
+                    nodes.friction[g, 0] = tx
+                    nodes.friction[g, 1] = ty
+                    nodes.friction[g, 2] = tz
+                    fx += tx
+                    fy += ty
+                    fz += tz
+                cx += fx
+                cy += fy
+                cz += fz
+                tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
+        if touching < 0:
+            nodes.friction[g, 0] = 0.0
+            nodes.friction[g, 1] = 0.0
+            nodes.friction[g, 2] = 0.0
+        nodes.tool[g] = touching
+        # Mass-proportional damping on the previous half-step velocity.
+        dx = -alpha * m * vx0
+        dy = -alpha * m * vy0
+        dz = -alpha * m * vz0
+        inv_m = dt / m
+        vx = vx0 + (f[g, 0] + ex + cx + dx) * inv_m
+        vy = vy0 + (f[g, 1] + ey + cy + dy) * inv_m
+        vz = vz0 + (f[g, 2] + ez + cz + dz) * inv_m
+        con = nodes.constraint[g]
+        if con >= 0:
+            pr = nodes.constraint_projection[con]
+            px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
+            py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
+            pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
+            vx, vy, vz = px, py, pz
+        # Work over the step with the mean of the two half-step velocities: the exact discrete
+        # counterpart of the kinetic-energy change of the central-difference scheme.
+        mx = 0.5 * (vx0 + vx) * dt
+        my = 0.5 * (vy0 + vy) * dt
+        mz = 0.5 * (vz0 + vz) * dt
+        nodes.w_external[g] += ex * mx + ey * my + ez * mz + tool_work
+        nodes.w_damping[g] -= dx * mx + dy * my + dz * mz
+        nodes.v[g, 0] = vx
+        nodes.v[g, 1] = vy
+        nodes.v[g, 2] = vz
+        x[g, 0] += vx * dt
+        x[g, 1] += vy * dt
+        x[g, 2] += vz * dt
+
+
+@njit(parallel=True, cache=True)
+def advance(n_steps, t0, dt, nodes, tets, ifs, tools, pressures, ctrl):
+    """Run n_steps central-difference steps from time t0; arrays are updated in place."""
+    n_if = ifs.na.shape[0]
+    n_tet = tets.vol.shape[0]
+    n_tool = tools.kind.shape[0]
+    n_press = pressures.n.shape[0]
+    pressure_now = np.zeros(max(n_press, 1))
+    tool_v_prev = np.zeros((max(n_tool, 1), 3))
+    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    for step in range(n_steps):
+        t = t0 + step * dt
+        for q in range(n_press):
+            pressure_now[q] = interp_history(t, pressures.times[q], pressures.values[q], pressures.n[q])
+        for j in range(n_tool):
+            sp = interp_history(t - 0.5 * dt, tools.times[j], tools.speeds[j], tools.n[j])
+            sn = interp_history(t + 0.5 * dt, tools.times[j], tools.speeds[j], tools.n[j])
+            for d in range(3):
+                tool_v_prev[j, d] = sp * tools.direction[j, d]
+                tool_v_next[j, d] = sn * tools.direction[j, d]
+        for i in prange(n_if):
+            _interface(i, t, dt, nodes.x, nodes.v, ifs)
+        for e in prange(n_tet):
+            _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_next, ctrl)
+        for j in range(n_tool):
+            for d in range(3):
+                tools.disp[j, d] += tool_v_next[j, d] * dt
+
+
+# ---------------------------------------------------------------------------------------------
+# Diagnostics evaluated between chunks (not in the step loop).
+
+
+@njit(parallel=True, cache=True)
+def tet_energy_and_stress(x, tets, energy, stress):
+    """Per-tet St Venant-Kirchhoff energy V0 W(E) and Cauchy stress (xx, yy, zz, xy, yz, xz)."""
+    for e in prange(tets.vol.shape[0]):
+        n0 = 4 * e
+        m = tets.dm_inv[e]
+        F = np.empty((3, 3))
+        for r in range(3):
+            a1 = x[n0 + 1, r] - x[n0, r]
+            a2 = x[n0 + 2, r] - x[n0, r]
+            a3 = x[n0 + 3, r] - x[n0, r]
+            for col in range(3):
+                F[r, col] = a1 * m[0, col] + a2 * m[1, col] + a3 * m[2, col]
+        E = 0.5 * (F.T @ F - np.eye(3))
+        lam = tets.lam[e]
+        mu = tets.mu[e]
+        tr = E[0, 0] + E[1, 1] + E[2, 2]
+        energy[e] = tets.vol[e] * (0.5 * lam * tr * tr + mu * np.sum(E * E))
+        S = 2.0 * mu * E
+        for r in range(3):
+            S[r, r] += lam * tr
+        J = np.linalg.det(F)
+        sig = F @ S @ F.T / J
+        stress[e, 0] = sig[0, 0]
+        stress[e, 1] = sig[1, 1]
+        stress[e, 2] = sig[2, 2]
+        stress[e, 3] = sig[0, 1]
+        stress[e, 4] = sig[1, 2]
+        stress[e, 5] = sig[0, 2]
+
+
+@njit(parallel=True, cache=True)
+def interface_energy(x, ifs, cohesive, contact):
+    """Stored energy per interface: cohesive (intact) or contact penalty (failed / pre-crack)."""
+    for i in prange(ifs.na.shape[0]):
+        law = ifs.law_table[ifs.law[i]]
+        nx, ny, nz = _mid_normal(x, ifs.na, ifs.nb, i)
+        pn = ifs.pn[i]
+        a3 = ifs.area[i] / 3.0
+        cohesive[i] = 0.0
+        contact[i] = 0.0
+        if ifs.state[i] == INTACT:
+            z = softening(ifs.damage[i], law[LAW_A], law[LAW_B], law[LAW_CS])
+            comp = 0.0
+            for p in range(3):
+                dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                if dn < 0.0:
+                    comp += 0.5 * pn * dn * dn * a3
+            cohesive[i] = comp + z * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
+        else:
+            reach2 = ifs.reach[i] * ifs.reach[i]
+            for p in range(3):
+                dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                if dn < 0.0 and sx * sx + sy * sy + sz * sz <= reach2:
+                    t2 = ifs.traction_t[i, p, 0] ** 2 + ifs.traction_t[i, p, 1] ** 2 + ifs.traction_t[i, p, 2] ** 2
+                    contact[i] += (0.5 * pn * dn * dn + 0.5 * t2 / ifs.ps[i]) * a3
+
+
+@njit(cache=True)
+def tool_contact_state(nodes, tets, ifs, tools, forces, energy):
+    """Per-tool contact force on the specimen (N) and stored contact energy, at the current state.
+
+    Serial on purpose: a fixed summation order keeps the history bit-identical for any thread
+    count, and it runs only at output times.
+    """
+    forces[:] = 0.0
+    energy[:] = 0.0
+    n_tool = tools.kind.shape[0]
+    if n_tool == 0:
+        return
+    for e in range(tets.vol.shape[0]):
+        n0 = 4 * e
+        for k in range(4):
+            tributary = 0.0
+            for face in range(4):
+                if face == k:
+                    continue
+                iface = tets.face_iface[e, face]
+                if iface < 0 or ifs.state[iface] != INTACT:
+                    tributary += tets.face_area[e, face] / 3.0
+            if tributary == 0.0:
+                continue
+            g = n0 + k
+            for j in range(n_tool):
+                gap, nx, ny, nz = tool_gap(j, nodes.x[g, 0], nodes.x[g, 1], nodes.x[g, 2], tools)
+                if gap >= 0.0:
+                    continue
+                kn = tools.penalty[j] * tributary
+                fn = -kn * gap
+                forces[j, 0] += fn * nx
+                forces[j, 1] += fn * ny
+                forces[j, 2] += fn * nz
+                energy[j] += 0.5 * kn * gap * gap
+                if nodes.tool[g] == j:
+                    for d in range(3):
+                        forces[j, d] += nodes.friction[g, d]
+                    t2 = nodes.friction[g, 0] ** 2 + nodes.friction[g, 1] ** 2 + nodes.friction[g, 2] ** 2
+                    energy[j] += 0.5 * t2 / kn

@@ -1,0 +1,371 @@
+"""Assemble an FDEM model: exploded mesh, interfaces, tools, supports, pressures.
+
+All state lives in flat numpy arrays grouped in named tuples that the numba kernels read by
+attribute (``nodes.x``, ``ifs.damage``...).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import namedtuple
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import TetMesh, internal_faces
+from ..loading import Precrack, Pressure, Selection, Support, Tool
+from ..materials import Material, process_zone
+from .kernels import FAILED, FIXED, FREE, INTACT, PRECRACK, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE
+from .law import (
+    LAW_A,
+    LAW_B,
+    LAW_C,
+    LAW_COLUMNS,
+    LAW_CS,
+    LAW_FT,
+    LAW_GF1,
+    LAW_GF2,
+    LAW_IZ,
+    LAW_MU,
+    LAW_TANPHI,
+)
+
+Nodes = namedtuple(
+    "Nodes",
+    "x v mass force force_ext constraint constraint_projection friction tool w_external w_damping d_friction",
+)
+Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
+Interfaces = namedtuple(
+    "Interfaces",
+    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t e_damage e_friction",
+)
+Tools = namedtuple("Tools", "kind geom disp direction times speeds n mu penalty")
+Pressures = namedtuple("Pressures", "times values n")
+Controls = namedtuple("Controls", "gravity damping")
+
+# Local corners of face f (opposite corner f), ordered so that the normal points out of the tet.
+FACE_CORNERS = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+_SHAPE_CODES = {"plane": TOOL_PLANE, "box": TOOL_BOX, "cylinder": TOOL_CYLINDER, "sphere": TOOL_SPHERE}
+
+
+@dataclass
+class FdemModel:
+    """An assembled FDEM model: arrays for the kernels plus what outputs need."""
+
+    mesh: TetMesh
+    materials: list[Material]
+    tet_material: np.ndarray
+    nodes: Nodes
+    tets: Tets
+    ifs: Interfaces
+    tools: Tools
+    pressures: Pressures
+    controls: Controls
+    tool_specs: list[Tool]
+    pressure_specs: list[Pressure]
+    x0: np.ndarray  # reference positions of the exploded nodes
+    stable_dt: float  # largest stable step (no safety factor)
+    element_size: float
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_tets(self) -> int:
+        return self.mesh.n_tets
+
+    @property
+    def n_interfaces(self) -> int:
+        return len(self.ifs.area)
+
+    def iface_centroids(self, x: np.ndarray | None = None) -> np.ndarray:
+        x = self.x0 if x is None else x
+        return 0.5 * (x[self.ifs.na].mean(axis=1) + x[self.ifs.nb].mean(axis=1))
+
+
+def build_fdem_model(
+    mesh: TetMesh,
+    materials: Material | list[Material],
+    tet_material: np.ndarray | None = None,
+    tools: list[Tool] = (),
+    supports: list[Support] = (),
+    pressures: list[Pressure] = (),
+    precracks: list[Precrack] = (),
+    gravity=(0.0, 0.0, 0.0),
+    damping: float = 0.0,
+    initial_velocity=None,
+) -> FdemModel:
+    """Explode `mesh`, put an interface on every internal face and set up the loads.
+
+    `damping` is a mass-proportional coefficient alpha (1/s): force -alpha m v per node.
+    `initial_velocity` is a (3,) vector or an (n_points, 3) array on the mesh points.
+    """
+    materials = [materials] if isinstance(materials, Material) else list(materials)
+    if not materials or any(m.interface is None for m in materials):
+        raise ValueError("every FDEM material needs an interface law")
+    points, conn = mesh.points, mesh.tets
+    m = len(conn)
+    tet_material = np.zeros(m, dtype=np.int64) if tet_material is None else np.asarray(tet_material, np.int64)
+    model_warnings: list[str] = []
+
+    # Exploded nodes: node 4e+k is corner k of tet e.
+    x0 = points[conn].reshape(-1, 3).copy()
+    corner_point = conn.reshape(-1)
+    dm = np.stack([points[conn[:, k]] - points[conn[:, 0]] for k in (1, 2, 3)], axis=2)
+    vol = np.linalg.det(dm) / 6.0
+    if np.any(vol <= 0):
+        raise ValueError("the mesh has inverted or degenerate tets; run geometry.check_tets on it")
+    dm_inv = np.linalg.inv(dm)
+    face_area = np.empty((m, 4))
+    for f in range(4):
+        c = FACE_CORNERS[f]
+        p0, p1, p2 = (points[conn[:, c[i]]] for i in range(3))
+        face_area[:, f] = 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    altitude = 3.0 * vol[:, None] / face_area  # height of each tet over each of its faces
+
+    E = np.array([mat.youngs_modulus for mat in materials])[tet_material]
+    G = np.array([mat.shear_modulus for mat in materials])[tet_material]
+    lam = np.array([mat.lame_lambda for mat in materials])[tet_material]
+    mu = G.copy()
+    rho = np.array([mat.density for mat in materials])[tet_material]
+    mass = np.repeat(rho * vol / 4.0, 4)
+
+    # Interfaces on internal faces.
+    topo = internal_faces(conn)
+    ta, tb = topo.face_tet[:, 0], topo.face_tet[:, 1]
+    fa, fb = topo.face_local[:, 0], topo.face_local[:, 1]
+    corners_a = FACE_CORNERS[fa]  # (k, 3) local corners of A's face, outward from A
+    na = 4 * ta[:, None] + corners_a
+    point_a = conn[ta[:, None], corners_a]
+    # B's corner sitting on the same mesh point as each A corner.
+    conn_b = conn[tb]  # (k, 4)
+    match = conn_b[:, None, :] == point_a[:, :, None]  # (k, 3, 4)
+    corners_b = np.argmax(match, axis=2)
+    nb = 4 * tb[:, None] + corners_b
+    n_if = len(ta)
+    area = face_area[ta, fa]
+    h_if = np.minimum(altitude[ta, fa], altitude[tb, fb])
+    law_of_material = []
+    law_rows = []
+    for mat in materials:
+        law = mat.interface
+        row = np.zeros(LAW_COLUMNS)
+        row[LAW_FT] = law.tensile_strength
+        row[LAW_C] = law.cohesion
+        row[LAW_TANPHI] = np.tan(np.radians(law.friction_angle))
+        row[LAW_GF1] = law.fracture_energy
+        row[LAW_GF2] = law.gf_shear
+        row[LAW_A], row[LAW_B], row[LAW_CS] = law.softening
+        row[LAW_IZ] = law.softening_area
+        row[LAW_MU] = law.friction
+        law_of_material.append(len(law_rows))
+        law_rows.append(row)
+    law_table = np.array(law_rows)
+    # The weaker side's law governs an interface between two materials.
+    mat_a, mat_b = tet_material[ta], tet_material[tb]
+    ft_of = law_table[:, LAW_FT]
+    iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int16)
+    penalty = np.array([mat.interface.penalty_factor for mat in materials])
+    p_side = np.minimum(penalty[mat_a], penalty[mat_b])
+    pn = p_side * np.minimum(E[ta], E[tb]) / h_if
+    ps = p_side * np.minimum(G[ta], G[tb]) / h_if
+    edge = np.stack(
+        [np.linalg.norm(x0[na[:, i]] - x0[na[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1
+    )
+    reach = edge.max(axis=1)
+    state = np.full(n_if, INTACT, dtype=np.int8)
+    damage = np.zeros(n_if)
+
+    # Pre-cracks: the selected interfaces start failed (contact only, no cohesion).
+    centroid = x0[na].mean(axis=1)
+    scale = float(np.max(mesh.bounds()[1] - mesh.bounds()[0]))
+    precrack_mask = np.zeros(n_if, dtype=bool)
+    for crack in precracks:
+        n = np.asarray(crack.normal, float)
+        n = n / np.linalg.norm(n)
+        tol = crack.tol if crack.tol is not None else 1e-6 * scale
+        on_plane = np.all(np.abs((x0[na] - np.asarray(crack.point, float)) @ n) <= tol, axis=1)
+        inside = np.all((centroid >= np.asarray(crack.box_min) - tol) & (centroid <= np.asarray(crack.box_max) + tol), axis=1)
+        precrack_mask |= on_plane & inside
+    if precracks and not precrack_mask.any():
+        raise ValueError("no internal face lies on the pre-crack plane inside its box: check [[precracks]] point/normal/box")
+    state[precrack_mask] = PRECRACK
+    damage[precrack_mask] = 1.0
+
+    face_iface = np.full((m, 4), -1, dtype=np.int32)
+    face_side = np.zeros((m, 4), dtype=np.int8)
+    face_iface[ta, fa] = np.arange(n_if)
+    face_iface[tb, fb] = np.arange(n_if)
+    face_side[tb, fb] = 1
+
+    # Pressures on faces.
+    face_pressure = np.full((m, 4), -1, dtype=np.int16)
+    for pid, load in enumerate(pressures):
+        if isinstance(load.faces, str):
+            if load.faces != "precrack":
+                raise ValueError(f"pressure faces must be 'precrack' or a selection, not {load.faces!r}")
+            face_pressure[ta[precrack_mask], fa[precrack_mask]] = pid
+            face_pressure[tb[precrack_mask], fb[precrack_mask]] = pid
+        else:
+            sel = load.faces.mask(points, scale)
+            bt, bf = topo.boundary_faces[:, 0], topo.boundary_faces[:, 1]
+            chosen = np.all(sel[conn[bt[:, None], FACE_CORNERS[bf]]], axis=1)
+            if not chosen.any():
+                raise ValueError(f"pressure {pid}: its selection holds no boundary face")
+            face_pressure[bt[chosen], bf[chosen]] = pid
+    ptimes, pvalues, pn_count = _tables([p.history for p in pressures])
+
+    # Supports: each node keeps the velocity projection of all the supports that hold it.
+    normals_of = {}
+    for sup in supports:
+        sel = sup.where.mask(x0, scale)
+        if not sel.any():
+            raise ValueError(f"a {sup.kind} support selects no node: check its plane or box")
+        if sup.kind == "fixed":
+            blocked = np.eye(3)
+        elif sup.kind == "roller":
+            blocked = np.asarray(sup.normal, float)[None, :]
+        else:
+            raise ValueError(f"support kind must be 'fixed' or 'roller', not {sup.kind!r}")
+        for node in np.flatnonzero(sel):
+            normals_of.setdefault(int(node), []).append(blocked)
+    constraint = np.full(4 * m, FREE, dtype=np.int16)
+    projections = [np.zeros((3, 3))]  # index 0: fixed
+    known = {projections[0].round(12).tobytes(): 0}
+    for node, blocks in normals_of.items():
+        proj = _velocity_projection(np.concatenate(blocks))
+        key = proj.round(12).tobytes()
+        if key not in known:
+            known[key] = len(projections)
+            projections.append(proj)
+        constraint[node] = known[key]
+
+    # Tools: penalty per unit contact area defaults to the median interface normal penalty.
+    default_penalty = float(np.median(pn)) if n_if else float(np.max(E)) / mesh.element_size()
+    tool_kind = np.array([_SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
+    tool_geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
+    tool_dir = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
+    ttimes, tspeeds, tn = _tables([t.speed for t in tools])
+    tool_mu = np.array([t.friction for t in tools], dtype=float)
+    tool_pen = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
+
+    v = np.zeros((4 * m, 3))
+    if initial_velocity is not None:
+        iv = np.asarray(initial_velocity, dtype=float)
+        v[:] = iv if iv.shape == (3,) else iv[corner_point]
+
+    nodes = Nodes(
+        x=x0.copy(),
+        v=v,
+        mass=mass,
+        force=np.zeros((4 * m, 3)),
+        force_ext=np.zeros((4 * m, 3)),
+        constraint=constraint,
+        constraint_projection=np.array(projections),
+        friction=np.zeros((4 * m, 3)),
+        tool=np.full(4 * m, -1, dtype=np.int8),
+        w_external=np.zeros(4 * m),
+        w_damping=np.zeros(4 * m),
+        d_friction=np.zeros(4 * m),
+    )
+    tets = Tets(dm_inv, vol, lam, mu, face_area, face_iface, face_side, face_pressure)
+    ifs = Interfaces(
+        na=na.astype(np.int64),
+        nb=nb.astype(np.int64),
+        area=area,
+        pn=pn,
+        ps=ps,
+        reach=reach,
+        law=iface_law,
+        law_table=law_table,
+        damage=damage,
+        state=state,
+        fail_time=np.full(n_if, np.nan),
+        fail_mode=np.zeros(n_if, dtype=np.int8),
+        force=np.zeros((n_if, 3, 3)),
+        traction_t=np.zeros((n_if, 3, 3)),
+        e_damage=np.zeros(n_if),
+        e_friction=np.zeros(n_if),
+    )
+    tool_arrays = Tools(tool_kind, tool_geom, np.zeros((len(tools), 3)), tool_dir, ttimes, tspeeds, tn, tool_mu, tool_pen)
+    controls = Controls(np.asarray(gravity, dtype=float), np.array([float(damping)]))
+
+    # Stable step: per node, bulk tet + interfaces + tool springs (eigenvalue bounds).
+    grads = np.concatenate([-dm_inv.sum(axis=1, keepdims=True), dm_inv], axis=1)  # (m, 4, 3) grad N_k
+    gtg = np.einsum("mki,mkj->mij", grads, grads)
+    lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
+    omega2_tet = 4.0 * (3.0 * lam + 2.0 * mu) * lam_max_g / rho  # lambda_max(M^-1 K_e) bound
+    k_node = np.zeros(4 * m)
+    share = 2.0 * np.maximum(pn, ps) * area / 3.0
+    np.add.at(k_node, na.ravel(), np.repeat(share, 3))
+    np.add.at(k_node, nb.ravel(), np.repeat(share, 3))
+    if len(tools):
+        # Every face counted as if on the surface: a bound that holds after any fracture.
+        tributary = np.zeros((m, 4))
+        for f in range(4):
+            tributary[:, FACE_CORNERS[f]] += face_area[:, f, None] / 3.0
+        k_node += tool_pen.max() * tributary.ravel()
+    omega2 = np.repeat(omega2_tet, 4) + k_node / mass
+    stable_dt = float(2.0 / np.sqrt(omega2.max()))
+
+    element_size = mesh.element_size()
+    for mat in materials:
+        law = mat.interface
+        pz = process_zone(mat.youngs_modulus, law.fracture_energy, law.tensile_strength)
+        if element_size > pz.advised_element_size:
+            model_warnings.append(
+                f"element size {element_size * 1e3:.3g} mm is coarser than the advised "
+                f"{pz.advised_element_size * 1e3:.3g} mm for material '{mat.name}' (a third of the "
+                f"long-crack plastic zone {pz.plastic_zone_long * 1e3:.3g} mm): the fracture process "
+                "zone is under-resolved and peak loads will be over-estimated"
+            )
+    for msg in model_warnings:
+        warnings.warn(msg, stacklevel=2)
+
+    return FdemModel(
+        mesh=mesh,
+        materials=materials,
+        tet_material=tet_material,
+        nodes=nodes,
+        tets=tets,
+        ifs=ifs,
+        tools=tool_arrays,
+        pressures=Pressures(ptimes, pvalues, pn_count),
+        controls=controls,
+        tool_specs=list(tools),
+        pressure_specs=list(pressures),
+        x0=x0,
+        stable_dt=stable_dt,
+        element_size=element_size,
+        warnings=model_warnings,
+    )
+
+
+def _tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pad piecewise-linear histories into (k, n) time and value tables plus point counts."""
+    k = len(histories)
+    n = max((len(h.times) for h in histories), default=1)
+    times = np.zeros((k, n))
+    values = np.zeros((k, n))
+    counts = np.zeros(k, dtype=np.int64)
+    for i, h in enumerate(histories):
+        c = len(h.times)
+        times[i, :c] = h.times
+        values[i, :c] = h.values
+        times[i, c:] = h.times[-1]
+        values[i, c:] = h.values[-1]
+        counts[i] = c
+    return times, values, counts
+
+
+def _velocity_projection(blocked: np.ndarray) -> np.ndarray:
+    """Projector removing the velocity components along the blocked directions (rows)."""
+    basis = []
+    for n in blocked:
+        w = n / np.linalg.norm(n)
+        for b in basis:
+            w = w - np.dot(w, b) * b
+        if np.linalg.norm(w) > 1e-9:
+            basis.append(w / np.linalg.norm(w))
+    proj = np.eye(3)
+    for b in basis:
+        proj -= np.outer(b, b)
+    return proj

@@ -1,0 +1,609 @@
+"""Tetrahedral meshes for FDEM: generation, import, validation and topology.
+
+Everything here works on linear 4-node tetrahedra. Lengths are in metres.
+
+Conventions
+-----------
+* ``TetMesh.points`` is ``(n, 3)`` float64, ``TetMesh.tets`` is ``(m, 4)``
+  int64 with every tet positively oriented: ``det([p1-p0, p2-p0, p3-p0]) > 0``.
+* Local face ``f`` of a tet is the face *opposite* local vertex ``f``; its
+  vertices are ``tets[t, LOCAL_FACE_VERTICES[f]]``.  The vertex order in
+  ``LOCAL_FACE_VERTICES`` makes every face normal point *out* of a positively
+  oriented tet (right-hand rule).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "LOCAL_FACE_VERTICES",
+    "FaceTopology",
+    "MeshError",
+    "TetMesh",
+    "check_tets",
+    "disc",
+    "gmsh_box",
+    "gmsh_cylinder",
+    "gmsh_from_surface",
+    "internal_faces",
+    "nodes_in_box",
+    "nodes_on_plane",
+    "read_mesh",
+    "structured_box",
+    "tet_volumes",
+]
+
+# Face f is opposite vertex f; ordered so the normal points outwards for a
+# positively oriented tet.
+LOCAL_FACE_VERTICES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]], dtype=np.int64)
+
+# The six edges of a tet as local vertex pairs.
+_LOCAL_EDGES = np.array(list(itertools.combinations(range(4), 2)), dtype=np.int64)
+
+# A tet is "degenerate" if |V| <= _DEGENERATE_TOL * (longest edge)^3.  A regular
+# tet has V / l^3 ~ 0.118 and even bad Delaunay slivers stay far above 1e-6, so
+# this only catches genuinely flat / collapsed elements (repeated or coplanar
+# nodes) while being independent of the mesh scale and of grading.
+_DEGENERATE_TOL = 1e-9
+
+
+class MeshError(ValueError):
+    """A mesh cannot be built, read or used; the message says why and how to fix it."""
+
+
+# --------------------------------------------------------------------------- #
+# Core data structure
+# --------------------------------------------------------------------------- #
+def tet_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Signed volumes ``det([p1-p0, p2-p0, p3-p0]) / 6`` of every tet."""
+    p = np.asarray(points, dtype=np.float64)
+    t = np.asarray(tets, dtype=np.int64)
+    p0 = p[t[:, 0]]
+    a = p[t[:, 1]] - p0
+    b = p[t[:, 2]] - p0
+    c = p[t[:, 3]] - p0
+    # Triple product a . (b x c), written out to avoid building (m,3,3) arrays.
+    return np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
+
+
+@dataclass
+class TetMesh:
+    """A linear tetrahedral mesh with positively oriented elements."""
+
+    points: np.ndarray  # (n, 3) float64, metres
+    tets: np.ndarray  # (m, 4) int64, indices into points
+
+    def __post_init__(self) -> None:
+        self.points = np.ascontiguousarray(self.points, dtype=np.float64)
+        self.tets = np.ascontiguousarray(self.tets, dtype=np.int64)
+        if self.points.ndim != 2 or self.points.shape[1] != 3:
+            raise MeshError(f"TetMesh.points must have shape (n, 3), got {self.points.shape}")
+        if self.tets.ndim != 2 or self.tets.shape[1] != 4:
+            raise MeshError(f"TetMesh.tets must have shape (m, 4), got {self.tets.shape}")
+
+    @property
+    def n_tets(self) -> int:
+        return int(self.tets.shape[0])
+
+    @property
+    def n_points(self) -> int:
+        return int(self.points.shape[0])
+
+    def volumes(self) -> np.ndarray:
+        """Signed tet volumes (m,), positive for a valid mesh."""
+        return tet_volumes(self.points, self.tets)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounding box ``(min_xyz, max_xyz)``."""
+        return self.points.min(axis=0), self.points.max(axis=0)
+
+    def edges(self) -> np.ndarray:
+        """Unique edges (e, 2), each stored with the smaller node index first."""
+        e = np.sort(self.tets[:, _LOCAL_EDGES].reshape(-1, 2), axis=1)
+        # Unique on a 1-D int64 key is far faster than np.unique(axis=0).
+        n = np.int64(max(self.n_points, 1))
+        key = np.unique(e[:, 0] * n + e[:, 1])
+        return np.column_stack([key // n, key % n])
+
+    def element_size(self) -> float:
+        """Mean length of the unique edges of the mesh."""
+        e = self.edges()
+        return float(np.linalg.norm(self.points[e[:, 1]] - self.points[e[:, 0]], axis=1).mean())
+
+
+def _fix_orientation(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Swap two vertices of negatively oriented tets (for generated meshes only)."""
+    tets = tets.copy()
+    neg = tet_volumes(points, tets) < 0.0
+    tets[neg, 2], tets[neg, 3] = tets[neg, 3], tets[neg, 2].copy()
+    return tets
+
+
+def _compact(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop points no tet uses and renumber the tet connectivity."""
+    used = np.zeros(points.shape[0], dtype=bool)
+    used[tets.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    return points[used], new_index[tets]
+
+
+# --------------------------------------------------------------------------- #
+# Structured box: 24 tets per brick cell
+# --------------------------------------------------------------------------- #
+# Corners of a unit cell per face, in cyclic order; ``axis``/``side`` pick the
+# face-centre node (the face at i or i+1 along that axis).
+_CELL_FACES = [
+    # (axis, side, 4 corner offsets (di, dj, dk) in cyclic order)
+    (0, 0, [(0, 0, 0), (0, 1, 0), (0, 1, 1), (0, 0, 1)]),
+    (0, 1, [(1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)]),
+    (1, 0, [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)]),
+    (1, 1, [(0, 1, 0), (1, 1, 0), (1, 1, 1), (0, 1, 1)]),
+    (2, 0, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]),
+    (2, 1, [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]),
+]
+
+
+def _cell_template() -> list[tuple[tuple[int, int, int], tuple[int, int, int], int, int]]:
+    """The 24 tets of a unit cell as (corner a, corner b, face axis, face side).
+
+    Each tet is (a, b, face centre, cell centre); a and b are swapped where
+    needed so that the tet is positively oriented.  All cells are congruent
+    axis-aligned bricks, so orientation decided on the unit cube holds for all.
+    """
+    template = []
+    for axis, side, corners in _CELL_FACES:
+        centre = np.full(3, 0.5)
+        centre[axis] = side
+        for a, b in zip(corners, corners[1:] + corners[:1]):
+            vol = np.linalg.det(np.array([np.subtract(b, a), centre - a, 0.5 - np.array(a)]))
+            template.append((a, b, axis, side) if vol > 0 else (b, a, axis, side))
+    return template
+
+
+_TEMPLATE = _cell_template()
+
+
+def structured_box(
+    size: tuple[float, float, float],
+    element_size: float,
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TetMesh:
+    """Conforming tet mesh of a box, 24 tets per brick cell.
+
+    The box ``size = (Lx, Ly, Lz)`` is split into ``n_i = max(1, round(L_i / h))``
+    cells per axis (cells may be non-cubic bricks).  Each cell is cut into 24
+    tets about its centre and its six face centres: every face gives 4
+    triangles (two neighbouring corners + face centre) and each triangle plus
+    the cell centre is one tet.  Nodes are shared between cells, so the mesh
+    is conforming: corners, face centres and cell centres each appear once.
+    """
+    L = np.asarray(size, dtype=np.float64).reshape(3)
+    o = np.asarray(origin, dtype=np.float64).reshape(3)
+    if np.any(L <= 0) or not element_size > 0:
+        raise MeshError(
+            "structured_box needs positive size and element_size, "
+            f"got size={tuple(L.tolist())}, element_size={element_size}"
+        )
+    n = np.maximum(1, np.round(L / element_size)).astype(np.int64)
+    nx, ny, nz = (int(v) for v in n)
+
+    # Node coordinates along each axis: grid lines and cell mid-planes.
+    lines = [np.linspace(o[d], o[d] + L[d], n[d] + 1) for d in range(3)]
+    mids = [0.5 * (g[1:] + g[:-1]) for g in lines]
+
+    def block(xs, ys, zs):
+        # All (x, y, z) combinations with x varying fastest (matches numbering below).
+        X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
+        return np.column_stack([X.ravel(order="F"), Y.ravel(order="F"), Z.ravel(order="F")])
+
+    # Node blocks: corners, x-face centres, y-face centres, z-face centres, cell centres.
+    # Face centres on axis d live on grid line i_d and at mid-planes on the other axes.
+    blocks = [
+        block(lines[0], lines[1], lines[2]),
+        block(lines[0], mids[1], mids[2]),
+        block(mids[0], lines[1], mids[2]),
+        block(mids[0], mids[1], lines[2]),
+        block(mids[0], mids[1], mids[2]),
+    ]
+    # Grid shapes of each block, used to turn (i, j, k) into a flat node index.
+    shapes = [
+        (nx + 1, ny + 1, nz + 1),
+        (nx + 1, ny, nz),
+        (nx, ny + 1, nz),
+        (nx, ny, nz + 1),
+        (nx, ny, nz),
+    ]
+    offsets = np.cumsum([0] + [b.shape[0] for b in blocks])
+    points = np.concatenate(blocks)
+
+    def node(blk, i, j, k):
+        sx, sy, _ = shapes[blk]
+        return offsets[blk] + i + sx * (j + sy * k)
+
+    # Cell indices, x fastest.
+    grids = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+    I, J, K = (g.ravel(order="F") for g in grids)
+    ijk = (I, J, K)
+    centre = node(4, I, J, K)
+
+    tets = np.empty((I.size, 24, 4), dtype=np.int64)
+    for t, (a, b, axis, side) in enumerate(_TEMPLATE):
+        face_ijk = [ijk[d] + (side if d == axis else 0) for d in range(3)]
+        tets[:, t, 0] = node(0, I + a[0], J + a[1], K + a[2])
+        tets[:, t, 1] = node(0, I + b[0], J + b[1], K + b[2])
+        tets[:, t, 2] = node(1 + axis, *face_ijk)
+        tets[:, t, 3] = centre
+    return TetMesh(points, tets.reshape(-1, 4))
+
+
+# --------------------------------------------------------------------------- #
+# gmsh meshing
+# --------------------------------------------------------------------------- #
+# Options set for every gmsh call: quiet, linear elements, and single-threaded
+# with a fixed seed so that the same call always gives the same mesh.
+_GMSH_OPTIONS = {
+    "General.Terminal": 0,
+    "General.Verbosity": 2,
+    "General.NumThreads": 1,
+    "Mesh.MaxNumThreads1D": 1,
+    "Mesh.MaxNumThreads2D": 1,
+    "Mesh.MaxNumThreads3D": 1,
+    "Mesh.RandomSeed": 1,
+    "Mesh.Algorithm3D": 1,  # Delaunay
+    "Mesh.Optimize": 1,
+    "Mesh.ElementOrder": 1,
+    "Mesh.MeshSizeMin": 0.0,
+}
+
+
+@contextlib.contextmanager
+def _gmsh_model(element_size: float):
+    """A fresh gmsh model with quiet, deterministic options.
+
+    Initialises gmsh if needed and always finalises it again on exit (also on
+    error).  If the caller already had gmsh running, their session is left
+    alone: we work in a separate model, remove only that, and restore the
+    options and current model we changed.
+    """
+    import gmsh
+
+    owns_session = not gmsh.isInitialized()
+    if owns_session:
+        # interruptible=False: no SIGINT handler, so this also works off the main thread.
+        gmsh.initialize(readConfigFiles=False, interruptible=False)
+        saved_options, saved_model = {}, None
+    else:
+        saved_options = {name: gmsh.option.getNumber(name) for name in [*_GMSH_OPTIONS, "Mesh.MeshSizeMax"]}
+        saved_model = gmsh.model.getCurrent()
+    model_name = f"crackle_{os.getpid()}_{id(object())}"
+    try:
+        for name, value in {**_GMSH_OPTIONS, "Mesh.MeshSizeMax": float(element_size)}.items():
+            gmsh.option.setNumber(name, value)
+        gmsh.model.add(model_name)
+        yield gmsh
+    finally:
+        try:
+            if owns_session:
+                gmsh.finalize()
+            else:
+                gmsh.model.setCurrent(model_name)
+                gmsh.model.remove()
+                for name, value in saved_options.items():
+                    gmsh.option.setNumber(name, value)
+                if saved_model:
+                    gmsh.model.setCurrent(saved_model)
+        except Exception:  # never mask the original error while cleaning up
+            pass
+
+
+def _gmsh_tets(gmsh, what: str = "the geometry") -> TetMesh:
+    """Collect the linear tets (gmsh element type 4) of the current model."""
+    _, elem_nodes = gmsh.model.mesh.getElementsByType(4)
+    if len(elem_nodes) == 0:
+        raise MeshError(
+            f"gmsh produced no tetrahedra for {what}; make sure it encloses a closed, "
+            "watertight volume and that element_size is smaller than the part"
+        )
+    node_tags, coords, _ = gmsh.model.mesh.getNodes(returnParametricCoord=False)
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    coords = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
+    # gmsh node tags need not be contiguous: map tag -> row via a lookup table.
+    lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
+    lookup[node_tags] = np.arange(node_tags.size)
+    tets = lookup[np.asarray(elem_nodes, dtype=np.int64).reshape(-1, 4)]
+    points, tets = _compact(coords, tets)
+    return TetMesh(points, _fix_orientation(points, tets))
+
+
+def _check_h(element_size: float) -> None:
+    if not element_size > 0:
+        raise MeshError(f"element_size must be positive, got {element_size}")
+
+
+def gmsh_box(
+    size: tuple[float, float, float],
+    element_size: float,
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TetMesh:
+    """Unstructured tet mesh of a box ``size = (Lx, Ly, Lz)`` with corner at ``origin``."""
+    _check_h(element_size)
+    Lx, Ly, Lz = (float(v) for v in size)
+    x, y, z = (float(v) for v in origin)
+    with _gmsh_model(element_size) as gmsh:
+        gmsh.model.occ.addBox(x, y, z, Lx, Ly, Lz)
+        gmsh.model.occ.synchronize()
+        gmsh.model.mesh.generate(3)
+        return _gmsh_tets(gmsh)
+
+
+def gmsh_cylinder(
+    radius: float,
+    length: float,
+    element_size: float,
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> TetMesh:
+    """Unstructured tet mesh of a cylinder centred at ``center`` along ``axis``."""
+    _check_h(element_size)
+    ax = np.asarray(axis, dtype=np.float64)
+    if not np.linalg.norm(ax) > 0:
+        raise MeshError(f"cylinder axis must be a non-zero vector, got {tuple(axis)}")
+    ax = ax / np.linalg.norm(ax) * float(length)
+    base = np.asarray(center, dtype=np.float64) - 0.5 * ax  # gmsh wants the base centre
+    with _gmsh_model(element_size) as gmsh:
+        gmsh.model.occ.addCylinder(*base.tolist(), *ax.tolist(), float(radius))
+        gmsh.model.occ.synchronize()
+        gmsh.model.mesh.generate(3)
+        return _gmsh_tets(gmsh)
+
+
+def disc(
+    diameter: float,
+    thickness: float,
+    element_size: float,
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> TetMesh:
+    """A disc (e.g. Brazilian test specimen): a short cylinder of given diameter and thickness."""
+    return gmsh_cylinder(0.5 * float(diameter), thickness, element_size, center=center, axis=axis)
+
+
+def gmsh_from_surface(path: str | os.PathLike, element_size: float, remesh_surface: bool = True) -> TetMesh:
+    """Tet-mesh the volume enclosed by a closed triangulated surface.
+
+    ``path`` is an STL file or any file meshio can read that contains triangles.
+    With ``remesh_surface=True`` gmsh classifies the triangles into patches
+    (feature angle 40 degrees), rebuilds a geometry and remeshes both surface
+    and volume at ``element_size``; with ``False`` the input triangles are kept
+    as the boundary and only the interior is meshed at ``element_size``.
+
+    Limits: the surface must be a single closed, watertight, non-self-intersecting
+    shell (no holes, no internal cavities, no multiple bodies); remeshing needs
+    reasonably shaped input triangles.  Repair the surface first otherwise.
+    """
+    _check_h(element_size)
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(f"surface file {path} does not exist")
+
+    with contextlib.ExitStack() as stack:
+        stl_path = path
+        if path.suffix.lower() != ".stl":
+            # gmsh reads STL directly; convert other formats via meshio.
+            tmpdir = stack.enter_context(tempfile.TemporaryDirectory())
+            stl_path = Path(tmpdir) / "surface.stl"
+            _surface_to_stl(path, stl_path)
+
+        gmsh = stack.enter_context(_gmsh_model(element_size))
+        try:
+            gmsh.merge(str(stl_path))
+            if remesh_surface:
+                gmsh.model.mesh.classifySurfaces(np.deg2rad(40.0), True, True, np.pi)
+                gmsh.model.mesh.createGeometry()
+            else:
+                gmsh.model.mesh.createTopology()
+            surfaces = [tag for _, tag in gmsh.model.getEntities(2)]
+            loop = gmsh.model.geo.addSurfaceLoop(surfaces)
+            gmsh.model.geo.addVolume([loop])
+            gmsh.model.geo.synchronize()
+            gmsh.model.mesh.generate(3)
+        except Exception as exc:
+            raise MeshError(
+                f"gmsh could not mesh the volume enclosed by {path}: {exc}. "
+                "Make sure the surface is closed, watertight and not self-intersecting "
+                "(or try remesh_surface=False)"
+            ) from exc
+        return _gmsh_tets(gmsh, what=f"the surface in {path}")
+
+
+def _surface_to_stl(src: Path, dst: Path) -> None:
+    """Write the triangles of any meshio-readable file as an STL."""
+    import meshio
+
+    m = _meshio_read(src, hint="export the closed surface as STL")
+    tris = [c.data for c in m.cells if c.type == "triangle"]
+    if not tris:
+        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
+        raise MeshError(
+            f"surface file {src} has no triangles (cell types found: {found}); "
+            "export the closed surface as triangles (e.g. STL)"
+        )
+    pts = np.asarray(m.points, dtype=np.float64)
+    if pts.shape[1] == 2:
+        raise MeshError(f"surface file {src} is 2D; a closed 3D surface is needed")
+    meshio.write(dst, meshio.Mesh(pts, [("triangle", np.concatenate(tris))]), file_format="stl")
+
+
+# --------------------------------------------------------------------------- #
+# Import and validation
+# --------------------------------------------------------------------------- #
+def _meshio_read(path: Path, hint: str):
+    """meshio.read with its failures turned into one MeshError.
+
+    meshio prints the per-format reasons and then calls sys.exit(1) when no
+    reader accepts a file, so capture its output and catch SystemExit too.
+    """
+    import io
+
+    import meshio
+
+    out = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            return meshio.read(path)
+    except (Exception, SystemExit) as exc:
+        reason = " ".join(out.getvalue().split())
+        if not isinstance(exc, SystemExit):
+            reason = f"{reason} {type(exc).__name__}: {exc}".strip()
+        raise MeshError(f"meshio cannot read mesh file {path} ({reason or 'unknown reason'}); {hint}") from None
+
+
+def read_mesh(path: str | os.PathLike) -> TetMesh:
+    """Read a 4-node tet mesh with meshio (.msh, .vtu, .vtk, Abaqus .inp, ...).
+
+    Only "tetra" cells are kept and unused points are dropped.  The mesh is
+    validated with :func:`check_tets`; inverted tets are an error, not fixed.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(
+            f"mesh file {path} does not exist; check the path (relative paths are taken from {Path.cwd()})"
+        )
+    m = _meshio_read(path, hint="export it as .msh, .vtu, .vtk or Abaqus .inp")
+
+    blocks = [c.data for c in m.cells if c.type == "tetra"]
+    if not blocks:
+        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
+        raise MeshError(
+            f"mesh file {path} has no 4-node tetrahedra (cell types found: {found}); "
+            "mesh the volume with linear tets (gmsh: 3D mesh, element order 1; Abaqus: C3D4)"
+        )
+    points = np.asarray(m.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise MeshError(f"mesh file {path} has {points.shape[-1]}D points; a 3D mesh is needed")
+    tets = np.concatenate(blocks).astype(np.int64)
+    if tets.size and (tets.min() < 0 or tets.max() >= points.shape[0]):
+        raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
+    points, tets = _compact(points, tets)
+    mesh = TetMesh(points, tets)
+    check_tets(mesh, source=f"mesh file {path}")
+    return mesh
+
+
+def check_tets(mesh: TetMesh, source: str = "mesh") -> None:
+    """Raise :class:`MeshError` if any tet is degenerate (flat) or inverted.
+
+    Degenerate: ``|V| <= 1e-9 * l_max^3`` with ``l_max`` the tet's longest edge.
+    Inverted: ``V < 0``.  ``source`` (e.g. the file name) is put in the message.
+    """
+    if mesh.n_tets == 0:
+        raise MeshError(f"{source} contains no tetrahedra")
+    if mesh.tets.min() < 0 or mesh.tets.max() >= mesh.n_points:
+        raise MeshError(f"{source} has tet node indices outside 0..{mesh.n_points - 1}")
+    if not np.all(np.isfinite(mesh.points)):
+        raise MeshError(f"{source} has non-finite (NaN/inf) point coordinates")
+
+    vol = mesh.volumes()
+    p = mesh.points[mesh.tets]  # (m, 4, 3)
+    edge_vec = p[:, _LOCAL_EDGES[:, 1]] - p[:, _LOCAL_EDGES[:, 0]]
+    l_max = np.sqrt(np.einsum("ijk,ijk->ij", edge_vec, edge_vec).max(axis=1))
+    degenerate = np.abs(vol) <= _DEGENERATE_TOL * l_max**3
+    inverted = (vol < 0) & ~degenerate
+
+    problems = []
+    if degenerate.any():
+        problems.append(
+            f"{int(degenerate.sum())} degenerate (zero-volume) tets, first is tet {int(np.argmax(degenerate))}; "
+            "remove duplicate/coplanar nodes and remesh"
+        )
+    if inverted.any():
+        problems.append(
+            f"{int(inverted.sum())} inverted (negative-volume) tets, first is tet {int(np.argmax(inverted))}; "
+            "re-export the mesh with consistent positive orientation "
+            "(det([p1-p0, p2-p0, p3-p0]) > 0 for every tet)"
+        )
+    if problems:
+        raise MeshError(f"{source}: " + " and ".join(problems))
+
+
+# --------------------------------------------------------------------------- #
+# Node selections (for supports and loads)
+# --------------------------------------------------------------------------- #
+def nodes_on_plane(points: np.ndarray, point, normal, tol: float) -> np.ndarray:
+    """Mask of points within distance ``tol`` of the plane through ``point`` with ``normal``."""
+    n = np.asarray(normal, dtype=np.float64)
+    norm = np.linalg.norm(n)
+    if not norm > 0:
+        raise MeshError(f"plane normal must be a non-zero vector, got {tuple(normal)}")
+    dist = (np.asarray(points, dtype=np.float64) - np.asarray(point, dtype=np.float64)) @ (n / norm)
+    return np.abs(dist) <= tol
+
+
+def nodes_in_box(points: np.ndarray, lo, hi) -> np.ndarray:
+    """Mask of points inside the axis-aligned box ``lo <= p <= hi`` (bounds included)."""
+    p = np.asarray(points, dtype=np.float64)
+    return np.all((p >= np.asarray(lo, dtype=np.float64)) & (p <= np.asarray(hi, dtype=np.float64)), axis=1)
+
+
+# --------------------------------------------------------------------------- #
+# Face topology
+# --------------------------------------------------------------------------- #
+class FaceTopology(NamedTuple):
+    """Internal and boundary faces of a tet mesh (local face f is opposite vertex f)."""
+
+    face_tet: np.ndarray  # (k, 2) the two tets sharing each internal face, smaller index first
+    face_local: np.ndarray  # (k, 2) local face index of that face in each of the two tets
+    boundary_faces: np.ndarray  # (b, 2) columns (tet, local face) of faces owned by one tet
+
+
+def internal_faces(tets: np.ndarray) -> FaceTopology:
+    """Find faces shared by two tets (internal) and by one tet (boundary).
+
+    Raises :class:`MeshError` if a face is shared by more than two tets
+    (non-manifold mesh).  Internal faces are ordered by their sorted node triple.
+    """
+    tets = np.asarray(tets, dtype=np.int64)
+    m = tets.shape[0]
+    # Row 4*t + f is face f of tet t, with its nodes sorted so shared faces match.
+    faces = np.sort(tets[:, LOCAL_FACE_VERTICES].reshape(-1, 3), axis=1)
+
+    n_nodes = int(tets.max()) + 1 if m else 0
+    if n_nodes < 2**21:
+        # Three node ids fit in one int64 key -> a single stable argsort.
+        key = (faces[:, 0] << 42) | (faces[:, 1] << 21) | faces[:, 2]
+        order = np.argsort(key)
+        k = key[order]
+        new_group = np.concatenate(([True], k[1:] != k[:-1]))
+    else:
+        order = np.lexsort((faces[:, 2], faces[:, 1], faces[:, 0]))
+        f = faces[order]
+        new_group = np.concatenate(([True], np.any(f[1:] != f[:-1], axis=1)))
+
+    starts = np.flatnonzero(new_group)
+    counts = np.diff(np.append(starts, order.size))
+    if np.any(counts > 2):
+        bad = int(np.argmax(counts > 2))
+        nodes = faces[order[starts[bad]]].tolist()
+        raise MeshError(
+            f"non-manifold mesh: {int((counts > 2).sum())} faces are shared by more than two tets "
+            f"(e.g. face with nodes {nodes} is shared by {int(counts[bad])}); remove overlapping/duplicate tets"
+        )
+
+    pair_start = starts[counts == 2]
+    a, b = order[pair_start], order[pair_start + 1]
+    # Put the smaller tet first (the sort need not be stable).
+    first, second = np.minimum(a, b), np.maximum(a, b)
+    face_tet = np.column_stack([first // 4, second // 4])
+    face_local = np.column_stack([first % 4, second % 4])
+    single = order[starts[counts == 1]]
+    boundary = np.column_stack([single // 4, single % 4])
+    return FaceTopology(face_tet, face_local, boundary)

@@ -1,0 +1,42 @@
+"""Run outputs: history/events CSV, summary JSON, ParaView fields, plots, progress."""
+
+from .fields import FieldWriter, read_pvd
+from .outputs import (
+    EVENT_COLUMNS,
+    FAILURE_MODES,
+    EventWriter,
+    HistoryWriter,
+    format_number,
+    read_events_csv,
+    read_history_csv,
+    to_json_compatible,
+    write_summary,
+)
+from .plots import (
+    plot_crack_pattern,
+    plot_energies,
+    plot_load_displacement,
+    tool_names,
+    write_standard_plots,
+)
+from .progress import Progress
+
+__all__ = [
+    "EVENT_COLUMNS",
+    "FAILURE_MODES",
+    "EventWriter",
+    "FieldWriter",
+    "HistoryWriter",
+    "Progress",
+    "format_number",
+    "plot_crack_pattern",
+    "plot_energies",
+    "plot_load_displacement",
+    "read_events_csv",
+    "read_history_csv",
+    "read_pvd",
+    "to_json_compatible",
+    "tool_names",
+    "write_standard_plots",
+    "write_summary",
+]

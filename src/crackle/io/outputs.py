@@ -1,0 +1,218 @@
+"""Tabular run outputs: history.csv, events.csv and summary.json.
+
+Floats are written with ``repr`` (the shortest string that reads back to the
+same double), so two runs can be compared bit for bit from their files alone.
+Every row is flushed as soon as it is written: a run that crashes keeps all
+the rows it produced.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+EVENT_COLUMNS = ("time", "x", "y", "z", "mode", "id")
+FAILURE_MODES = ("tension", "shear", "mixed")
+
+
+def format_number(value: Any) -> str:
+    """Exact text for one CSV value: integers as integers, floats via repr."""
+    if isinstance(value, (bool, np.bool_)):
+        return "1" if value else "0"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    # float() of any numpy float is exact; repr(float) round-trips exactly,
+    # keeps the sign of -0.0 and writes nan/inf as 'nan'/'inf'.
+    return repr(float(value))
+
+
+def _check_names(names: Sequence[str]) -> list[str]:
+    names = [str(n) for n in names]
+    for name in names:
+        if not name or any(c in name for c in ',"\r\n'):
+            raise ValueError(f"invalid CSV column name {name!r}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"duplicate column names in {names}")
+    return names
+
+
+class HistoryWriter:
+    """Writes ``history.csv``: ``time`` first, then one column per series.
+
+    ``append`` takes a dict (missing columns are written as nan, unknown
+    keys raise KeyError so that typos show up at the first row) or a
+    sequence of values in column order.
+    """
+
+    def __init__(self, path: str | os.PathLike, columns: Sequence[str]):
+        self.columns = _check_names(columns)
+        if not self.columns or self.columns[0] != "time":
+            raise ValueError("history columns must start with 'time'")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._index = {name: i for i, name in enumerate(self.columns)}
+        self._file = open(self.path, "w", encoding="utf-8", newline="")
+        self._write_line(self.columns)
+
+    def _write_line(self, fields: Sequence[str]) -> None:
+        self._file.write(",".join(fields) + "\n")
+        self._file.flush()
+
+    def append(self, row: Mapping[str, Any] | Sequence[Any]) -> None:
+        if isinstance(row, Mapping):
+            unknown = [k for k in row if k not in self._index]
+            if unknown:
+                raise KeyError(f"unknown history columns {unknown}")
+            values = ["nan"] * len(self.columns)
+            for key, value in row.items():
+                values[self._index[key]] = format_number(value)
+        else:
+            row = list(row)
+            if len(row) != len(self.columns):
+                raise ValueError(
+                    f"history row has {len(row)} values, expected {len(self.columns)}"
+                )
+            values = [format_number(v) for v in row]
+        self._write_line(values)
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+    def __enter__(self) -> HistoryWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class EventWriter:
+    """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id``."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "w", encoding="utf-8", newline="")
+        self._file.write(",".join(EVENT_COLUMNS) + "\n")
+        self._file.flush()
+
+    def append_many(self, times, xyz, modes, ids) -> None:
+        """Append k events. ``modes`` may also be one string for all of them."""
+        times = np.atleast_1d(np.asarray(times))
+        xyz = np.asarray(xyz).reshape(-1, 3)
+        k = len(times)
+        if isinstance(modes, str):
+            modes = [modes] * k
+        modes = [str(m) for m in np.ravel(np.asarray(modes, dtype=object))]
+        ids = np.atleast_1d(np.asarray(ids))
+        if not (len(xyz) == len(modes) == len(ids) == k):
+            raise ValueError(
+                f"event arrays differ in length: times {k}, xyz {len(xyz)}, "
+                f"modes {len(modes)}, ids {len(ids)}"
+            )
+        bad = sorted(set(modes) - set(FAILURE_MODES))
+        if bad:
+            raise ValueError(f"unknown failure modes {bad}; expected {FAILURE_MODES}")
+        if k == 0:
+            return
+        if not np.issubdtype(ids.dtype, np.integer):
+            raise TypeError(f"event ids must be integers, got dtype {ids.dtype}")
+        lines = [
+            ",".join(
+                (format_number(t), format_number(p[0]), format_number(p[1]),
+                 format_number(p[2]), m, str(int(i)))
+            )
+            for t, p, m, i in zip(times, xyz, modes, ids)
+        ]
+        self._file.write("\n".join(lines) + "\n")
+        self._file.flush()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+    def __enter__(self) -> EventWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _complete_lines(path: Path) -> tuple[list[str], list[str]]:
+    """Header fields and data lines.
+
+    Writers end every row with a newline, so text after the last newline is
+    a row torn by a crash mid-write and is dropped.
+    """
+    with open(path, encoding="utf-8", newline="") as f:
+        header = f.readline().rstrip("\r\n").split(",")
+        lines = f.read().split("\n")[:-1]
+    return header, [ln.rstrip("\r") for ln in lines if ln.strip()]
+
+
+def read_history_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read ``history.csv`` into ``{column: float64 array}`` (column order kept)."""
+    header, lines = _complete_lines(Path(path))
+    if not lines:
+        return {name: np.zeros(0) for name in header}
+    # numpy's parser converts decimal strings to the correctly rounded double,
+    # so the values are bit-identical to what was written.
+    table = np.loadtxt(lines, delimiter=",", dtype=np.float64, ndmin=2)
+    return {name: table[:, i].copy() for i, name in enumerate(header)}
+
+
+def read_events_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read ``events.csv`` into arrays: time, x, y, z (float), mode (str), id (int)."""
+    _, lines = _complete_lines(Path(path))
+    rows = list(csv.reader(lines))
+    floats = np.array([[float(v) for v in r[:4]] for r in rows], dtype=np.float64)
+    floats = floats.reshape(-1, 4)
+    return {
+        "time": floats[:, 0].copy(),
+        "x": floats[:, 1].copy(),
+        "y": floats[:, 2].copy(),
+        "z": floats[:, 3].copy(),
+        "mode": np.array([r[4] for r in rows], dtype=str),
+        "id": np.array([int(r[5]) for r in rows], dtype=np.int64),
+    }
+
+
+def to_json_compatible(value: Any) -> Any:
+    """Convert numpy types, tuples and paths to plain JSON types; NaN/inf -> None."""
+    if isinstance(value, Mapping):
+        return {str(k): to_json_compatible(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return to_json_compatible(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [to_json_compatible(v) for v in value]
+    if isinstance(value, (set, frozenset)):
+        return [to_json_compatible(v) for v in sorted(value)]
+    if isinstance(value, np.generic):
+        return to_json_compatible(value.item())
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"cannot write {type(value).__name__} to JSON: {value!r}")
+
+
+def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
+    """Write ``summary.json`` (indent=2, sorted keys, strict JSON)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(
+        to_json_compatible(summary), indent=2, sort_keys=True, allow_nan=False
+    )
+    # Write then rename, so a reader never sees a half-written summary.
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text + "\n", encoding="utf-8")
+    os.replace(tmp, path)

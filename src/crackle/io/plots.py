@@ -1,0 +1,207 @@
+"""Standard plots of a run: load-displacement, energy history, crack pattern.
+
+Figures are built on matplotlib's Agg canvas directly (no pyplot), so they
+never open a window, never touch the global backend and are freed with the
+Figure object. Inputs are in SI units; plots show kN, mm and µs/ms.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ._units import time_unit
+from .outputs import read_events_csv, read_history_csv
+
+_TOOL_COLUMN = re.compile(r"^tool\.(.+)\.(fx|fy|fz|ux|uy|uz)$")
+_MODE_MARKERS = {"tension": "o", "shear": "^", "mixed": "s"}
+
+
+def _columns(table) -> dict[str, np.ndarray]:
+    """Accept a dict of arrays, a CSV path, a DataFrame or a structured array."""
+    if table is None:
+        return {}
+    if isinstance(table, (str, os.PathLike)):
+        return read_history_csv(table)
+    if isinstance(table, Mapping):
+        return {str(k): np.asarray(v) for k, v in table.items()}
+    if hasattr(table, "columns"):  # pandas DataFrame
+        return {str(c): np.asarray(table[c]) for c in table.columns}
+    names = getattr(getattr(table, "dtype", None), "names", None)
+    if names:  # numpy structured array
+        return {n: np.asarray(table[n]) for n in names}
+    raise TypeError(f"cannot read columns from {type(table).__name__}")
+
+
+def _new_figure(**kwargs):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(layout="constrained", **kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    fig.clear()  # drop artists now rather than at garbage collection
+    return path
+
+
+def tool_names(history) -> list[str]:
+    """Tools that have at least one force and one displacement column."""
+    found: dict[str, set[str]] = {}
+    for name in _columns(history):
+        m = _TOOL_COLUMN.match(name)
+        if m:
+            found.setdefault(m.group(1), set()).add(m.group(2))
+    return [
+        tool for tool, comps in found.items()
+        if comps & {"fx", "fy", "fz"} and comps & {"ux", "uy", "uz"}
+    ]
+
+
+def _magnitude(cols: dict, prefix: str, components: tuple[str, ...]) -> np.ndarray:
+    # Missing components (e.g. a tool loading along one axis only) count as zero.
+    parts = [np.asarray(cols[prefix + c], float) for c in components if prefix + c in cols]
+    return np.sqrt(sum(p**2 for p in parts))
+
+
+def plot_load_displacement(history, path) -> Path:
+    """Force magnitude (kN) against displacement magnitude (mm), one curve per tool."""
+    cols = _columns(history)
+    fig = _new_figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    tools = tool_names(cols)
+    for tool in tools:
+        prefix = f"tool.{tool}."
+        force = _magnitude(cols, prefix, ("fx", "fy", "fz"))
+        disp = _magnitude(cols, prefix, ("ux", "uy", "uz"))
+        ax.plot(disp * 1e3, force * 1e-3, label=tool)
+    if tools:
+        ax.legend(title="tool")
+    else:
+        ax.text(0.5, 0.5, "no tool data", transform=ax.transAxes, ha="center")
+    ax.set_xlabel("displacement [mm]")
+    ax.set_ylabel("force [kN]")
+    ax.set_title("Load-displacement")
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_energies(history, path) -> Path:
+    """Every ``energy.*`` column against time, plus the imbalance (dashed).
+
+    imbalance = external - sum of all other energy terms; it should stay
+    near zero in a well-resolved run.
+    """
+    cols = _columns(history)
+    energy_names = [n for n in cols if n.startswith("energy.")]
+    fig = _new_figure(figsize=(7, 4.5))
+    ax = fig.add_subplot()
+    time = np.asarray(cols.get("time", np.zeros(0)), float)
+    scale, unit = time_unit(np.nanmax(np.abs(time)) if time.size else 0.0)
+    if energy_names and time.size:
+        for name in energy_names:
+            ax.plot(time * scale, np.asarray(cols[name], float), label=name[7:])
+        if "energy.external" in cols:
+            others = [np.asarray(cols[n], float) for n in energy_names if n != "energy.external"]
+            imbalance = np.asarray(cols["energy.external"], float) - sum(others, np.zeros_like(time))
+            ax.plot(time * scale, imbalance, "k--", label="imbalance")
+        ax.legend(fontsize="small", ncol=2)
+    else:
+        ax.text(0.5, 0.5, "no energy data", transform=ax.transAxes, ha="center")
+    ax.set_xlabel(f"time [{unit}]")
+    ax.set_ylabel("energy [J]")
+    ax.set_title("Energy history")
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+def _events(events) -> dict[str, np.ndarray]:
+    """Event arrays time, x, y, z, mode from a dict, a table or events.csv."""
+    if isinstance(events, (str, os.PathLike)):
+        cols = read_events_csv(events)
+    else:
+        cols = _columns(events)
+    time = np.asarray(cols.get("time", []), float).ravel()
+    out = {"time": time}
+    for axis in ("x", "y", "z"):
+        out[axis] = np.asarray(cols.get(axis, np.zeros(len(time))), float).ravel()
+    out["mode"] = np.asarray(cols.get("mode", ["unknown"] * len(time)), dtype=str).ravel()
+    return out
+
+
+def plot_crack_pattern(events, bounds, path) -> Path:
+    """Failure points in three projections (xy, xz, yz), coloured by time.
+
+    ``events`` holds arrays ``time, x, y, z, mode`` (a dict, or the path of
+    events.csv); ``bounds`` is ``(lo, hi)`` of the specimen, drawn as a
+    rectangle in each view (or None). Coordinates are shown in mm.
+    """
+    from matplotlib.colors import Normalize
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Rectangle
+
+    ev = _events(events)
+    n = len(ev["time"])
+    xyz_mm = np.stack([ev["x"], ev["y"], ev["z"]], axis=1) * 1e3
+    scale, unit = time_unit(np.nanmax(np.abs(ev["time"])) if n else 0.0)
+    t = ev["time"] * scale
+    norm = Normalize(vmin=np.nanmin(t), vmax=np.nanmax(t)) if n else Normalize(0, 1)
+    if n and norm.vmin == norm.vmax:
+        norm = Normalize(norm.vmin - 0.5, norm.vmax + 0.5)
+
+    fig = _new_figure(figsize=(14, 4.8))
+    axes = fig.subplots(1, 3)
+    scatter = None
+    for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)]):
+        if bounds is not None:
+            lo = np.asarray(bounds[0], float) * 1e3
+            hi = np.asarray(bounds[1], float) * 1e3
+            ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j],
+                                   fill=False, edgecolor="0.3", linewidth=1.2))
+        for mode in np.unique(ev["mode"]):
+            sel = ev["mode"] == mode
+            scatter = ax.scatter(xyz_mm[sel, i], xyz_mm[sel, j], c=t[sel], norm=norm,
+                                 cmap="viridis", marker=_MODE_MARKERS.get(mode, "x"),
+                                 s=14, linewidths=0.3 if mode in _MODE_MARKERS else 1.0)
+        if n == 0:
+            ax.text(0.5, 0.5, "no failures", transform=ax.transAxes,
+                    ha="center", va="center", color="0.4")
+        ax.autoscale_view()
+        ax.margins(0.05)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"{'xyz'[i]} [mm]")
+        ax.set_ylabel(f"{'xyz'[j]} [mm]")
+        ax.set_title(f"{'xyz'[i]}{'xyz'[j]} projection")
+    if scatter is not None:
+        fig.colorbar(scatter, ax=list(axes), label=f"failure time [{unit}]", shrink=0.9)
+        handles = [Line2D([], [], linestyle="", marker=_MODE_MARKERS.get(m, "x"),
+                          color="0.3", label=m) for m in np.unique(ev["mode"])]
+        fig.legend(handles=handles, title="failure mode", loc="outside lower center",
+                   ncol=len(handles), fontsize="small")
+    fig.suptitle(f"Crack pattern ({n} failures)")
+    return _save(fig, path)
+
+
+def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
+    """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
+
+    Load-displacement is skipped when the history has no tool columns.
+    Returns the paths written.
+    """
+    plots_dir = Path(out_dir) / "plots"
+    cols = _columns(history)
+    paths = []
+    if tool_names(cols):
+        paths.append(plot_load_displacement(cols, plots_dir / "load_displacement.png"))
+    paths.append(plot_energies(cols, plots_dir / "energies.png"))
+    paths.append(plot_crack_pattern(events, bounds, plots_dir / "crack_pattern.png"))
+    return paths

@@ -1,0 +1,120 @@
+"""Progress bar for long runs, drawn with rich only on an interactive terminal."""
+
+from __future__ import annotations
+
+import sys
+from time import monotonic
+
+from ._units import time_unit
+
+
+def _stdout_is_terminal() -> bool:
+    try:
+        return sys.stdout.isatty()
+    except (AttributeError, ValueError):  # replaced or closed stdout
+        return False
+
+
+class Progress:
+    """Shows simulated time, steps/s, broken count and ETA.
+
+    ``enabled=None`` means: only when stdout is a terminal, so logs and CI
+    output stay clean. Even when enabled, nothing is drawn before the run
+    has lasted ``delay`` seconds, so short runs print nothing. ``update`` is
+    cheap: between redraws (every ``refresh_interval`` s) it only reads the clock.
+    """
+
+    def __init__(
+        self,
+        end_time: float,
+        enabled: bool | None = None,
+        delay: float = 3.0,
+        refresh_interval: float = 0.1,
+    ):
+        self.end_time = float(end_time)
+        self.enabled = _stdout_is_terminal() if enabled is None else bool(enabled)
+        self.delay = float(delay)
+        self.refresh_interval = float(refresh_interval)
+        self._scale, self._unit = time_unit(self.end_time)
+        self._bar = None
+        self._task = None
+        self._last = (0.0, 0, 0)  # latest (time, steps, broken)
+        self._restart_clock()
+
+    def _restart_clock(self) -> None:
+        self._start = monotonic()
+        self._next_draw = self._start + self.delay
+        self._rate = None
+        self._rate_mark = (self._start, 0)  # (wall time, steps) of the last redraw
+
+    def __enter__(self) -> Progress:
+        self._restart_clock()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def update(self, time: float, steps: int, broken: int) -> None:
+        if not self.enabled:
+            return
+        self._last = (time, steps, broken)
+        now = monotonic()
+        if now < self._next_draw:
+            return
+        self._next_draw = now + self.refresh_interval
+        if self._bar is None:
+            self._open_bar()
+        self._draw(now)
+
+    def _open_bar(self) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            TaskProgressColumn,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+        from rich.progress import Progress as RichProgress
+
+        self._bar = RichProgress(
+            TextColumn("t = {task.fields[sim_time]}"),
+            BarColumn(),
+            TaskProgressColumn(),
+            TextColumn("{task.fields[rate]} steps/s"),
+            TextColumn("broken {task.fields[broken]}"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=Console(file=sys.stdout),
+            auto_refresh=False,  # we redraw from update(): no background thread
+        )
+        self._task = self._bar.add_task(
+            "run", total=self.end_time, sim_time="", rate="", broken=0
+        )
+        self._bar.start()
+
+    def _draw(self, now: float) -> None:
+        time, steps, broken = self._last
+        mark_time, mark_steps = self._rate_mark
+        if now > mark_time:
+            rate = (steps - mark_steps) / (now - mark_time)
+            # Smooth the rate so the number is readable while it changes.
+            self._rate = rate if self._rate is None else 0.7 * self._rate + 0.3 * rate
+            self._rate_mark = (now, steps)
+        self._bar.update(
+            self._task,
+            completed=min(float(time), self.end_time),
+            sim_time=f"{float(time) * self._scale:.4g} / "
+                     f"{self.end_time * self._scale:.4g} {self._unit}",
+            rate=f"{self._rate or 0.0:,.0f}",
+            broken=int(broken),
+        )
+        self._bar.refresh()
+
+    def close(self) -> None:
+        """Draw the final state (if the bar was shown) and release the terminal."""
+        if self._bar is not None:
+            self._draw(monotonic())
+            self._bar.stop()
+            self._bar = None

@@ -1,0 +1,177 @@
+"""Loading: rigid tools with analytic surfaces, supports, pressure histories.
+
+Method-agnostic descriptions; each method turns them into its own arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class History:
+    """A piecewise-linear function of time, constant beyond its ends."""
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def __post_init__(self):
+        if len(self.times) != len(self.values) or len(self.times) == 0:
+            raise ValueError("a history needs as many times as values, at least one")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("history times must increase strictly")
+
+    @classmethod
+    def constant(cls, value: float) -> "History":
+        return cls((0.0,), (float(value),))
+
+    @classmethod
+    def ramp(cls, value: float, ramp_time: float) -> "History":
+        """Linear from 0 at t = 0 to `value` at `ramp_time`, then constant."""
+        if ramp_time <= 0:
+            return cls.constant(value)
+        return cls((0.0, float(ramp_time)), (0.0, float(value)))
+
+    @classmethod
+    def rate(cls, rate: float, end_time: float) -> "History":
+        """Linear growth at `rate` per second from 0 at t = 0 (extended to `end_time`)."""
+        return cls((0.0, float(end_time)), (0.0, float(rate) * float(end_time)))
+
+    def __call__(self, t):
+        return np.interp(t, self.times, self.values)
+
+    def integral(self, t: float) -> float:
+        """Integral from 0 to t (exact for the piecewise-linear form)."""
+        ts = np.asarray(self.times, dtype=float)
+        vs = np.asarray(self.values, dtype=float)
+        knots = np.concatenate(([0.0], ts[(ts > 0.0) & (ts < t)], [t]))
+        vals = np.interp(knots, ts, vs)
+        return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(knots)))
+
+
+TOOL_SHAPES = ("plane", "box", "cylinder", "sphere")
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A rigid tool moving by translation along `direction` at speed `speed(t)`.
+
+    Shapes (the tool is the solid region; specimen nodes inside it are pushed out):
+      plane:    `point` on the plane, `normal` pointing out of the tool (towards the specimen)
+      box:      `center`, `size` (full edge lengths), `axes` (two orthonormal in-plane axes)
+      cylinder: `center` on the axis, `axis`, `radius`, `length` (inf for an endless roller)
+      sphere:   `center`, `radius`
+    """
+
+    name: str
+    shape: str
+    direction: tuple[float, float, float]
+    speed: History
+    friction: float = 0.0
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    size: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    axes: tuple[tuple[float, float, float], tuple[float, float, float]] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    radius: float = 0.0
+    length: float = float("inf")
+    penalty: float | None = None  # N/m^3 per unit contact area; default from the specimen
+
+    def geometry_row(self) -> np.ndarray:
+        """The 12 numbers the contact kernels read (see fdem.kernels.tool_gap)."""
+        row = np.zeros(12)
+        row[0:3] = self.center
+        if self.shape == "plane":
+            row[3:6] = _unit(self.normal)
+        elif self.shape == "sphere":
+            row[3] = self.radius
+        elif self.shape == "cylinder":
+            row[3:6] = _unit(self.axis)
+            row[6] = self.radius
+            row[7] = 0.5 * self.length
+        elif self.shape == "box":
+            a1 = _unit(self.axes[0])
+            a2 = np.asarray(self.axes[1], dtype=float)
+            a2 = _unit(a2 - np.dot(a2, a1) * a1)
+            row[3:6] = 0.5 * np.asarray(self.size, dtype=float)
+            row[6:9] = a1
+            row[9:12] = a2
+        else:
+            raise ValueError(f"unknown tool shape {self.shape!r}; choose one of {TOOL_SHAPES}")
+        return row
+
+    def velocity(self, t: float) -> np.ndarray:
+        return float(self.speed(t)) * _unit(self.direction)
+
+    def displacement(self, t: float) -> np.ndarray:
+        return self.speed.integral(t) * _unit(self.direction)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Nodes or faces chosen by geometry: on a plane (within tol) or inside an axis-aligned box."""
+
+    plane_point: tuple[float, float, float] | None = None
+    plane_normal: tuple[float, float, float] | None = None
+    box_min: tuple[float, float, float] | None = None
+    box_max: tuple[float, float, float] | None = None
+    tol: float | None = None  # default: 1e-6 of the specimen size
+
+    def mask(self, points: np.ndarray, scale: float) -> np.ndarray:
+        p = np.asarray(points, dtype=float)
+        keep = np.ones(len(p), dtype=bool)
+        tol = self.tol if self.tol is not None else 1e-6 * scale
+        if self.plane_point is not None:
+            n = _unit(self.plane_normal)
+            keep &= np.abs((p - np.asarray(self.plane_point)) @ n) <= tol
+        if self.box_min is not None:
+            keep &= np.all(p >= np.asarray(self.box_min) - tol, axis=1)
+        if self.box_max is not None:
+            keep &= np.all(p <= np.asarray(self.box_max) + tol, axis=1)
+        return keep
+
+
+@dataclass(frozen=True)
+class Support:
+    """fixed: no motion; roller: no motion along `normal` (slides in the plane)."""
+
+    kind: str
+    where: Selection
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """A pressure history (Pa, positive pushes into the solid) on a set of faces.
+
+    `faces` is "precrack" (both faces of every pre-crack) or a Selection of boundary faces (a
+    face is selected when its three corners are).
+    """
+
+    history: History
+    faces: str | Selection = "precrack"
+
+
+@dataclass(frozen=True)
+class Precrack:
+    """A planar crack present from the start: internal faces lying on the plane (within tol)
+    whose centroids fall in the box [box_min, box_max] start separated (no cohesion)."""
+
+    point: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    box_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
+    box_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
+    tol: float | None = None
+
+
+def _unit(v) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    n = np.linalg.norm(a)
+    if n == 0:
+        raise ValueError("direction vector must be non-zero")
+    return a / n
+
+
+__all__ = ["History", "Precrack", "Pressure", "Selection", "Support", "TOOL_SHAPES", "Tool"]

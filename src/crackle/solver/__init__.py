@@ -1,0 +1,208 @@
+"""Explicit time integration driver shared by every method.
+
+A method supplies a simulation object with:
+  stable_dt, time, steps, broken            (attributes)
+  advance(n_steps, dt)                      compiled steps, arrays updated in place
+  sample(dt) -> dict                        one history row (without `time`)
+  new_events() -> (times, xyz, modes, ids)  failures since the last call
+  fields() -> dict                          arrays for a ParaView snapshot
+  tool_names(), bounds(), summary()         set-up facts for outputs
+The driver chooses the step, runs compiled chunks between outputs, applies the stop conditions,
+audits energy, and writes every output of the contract as it goes: a run that goes unstable or
+is interrupted keeps everything written so far.
+"""
+
+from __future__ import annotations
+
+import math
+import time as wallclock
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
+
+
+class UnstableRunError(RuntimeError):
+    """The run blew up (non-finite or runaway energy); outputs up to that point are kept."""
+
+
+@dataclass
+class StopConditions:
+    """Stop before end_time when a tool has moved `tool_displacement` metres (tool `tool`, or
+    any tool when None), or when, after at least one failure, the largest tool force has fallen
+    below `force_drop` times its peak."""
+
+    tool_displacement: float | None = None
+    tool: str | None = None
+    force_drop: float | None = None
+
+
+@dataclass
+class RunControl:
+    end_time: float
+    dt: float | None = None  # None: safety * stable step
+    safety: float = 0.8
+    history_samples: int = 400  # rows in history.csv over end_time
+    field_frames: int = 10  # VTU snapshots over end_time (0: none)
+    stop: StopConditions = field(default_factory=StopConditions)
+    plots: bool = True
+    progress: bool | None = None  # None: only on a terminal
+
+
+def choose_time_step(stable_dt: float, control: RunControl) -> float:
+    """The step to use; refuses one larger than safety x stable."""
+    limit = control.safety * stable_dt
+    if control.dt is None:
+        return limit
+    if control.dt > limit:
+        raise ValueError(
+            f"run.dt = {control.dt:.3e} s is larger than the stable step {limit:.3e} s "
+            f"(safety {control.safety} x {stable_dt:.3e} s); remove run.dt or set it at most {limit:.3e}"
+        )
+    return control.dt
+
+
+@dataclass
+class RunResult:
+    out_dir: Path
+    summary: dict
+    history: dict[str, np.ndarray]
+
+
+def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") -> RunResult:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    dt = choose_time_step(sim.stable_dt, control)
+    total_steps = max(1, int(math.ceil(control.end_time / dt - 1e-9)))
+    chunk = max(1, total_steps // max(1, control.history_samples))
+    field_every = max(1, total_steps // control.field_frames) if control.field_frames > 0 else 0
+
+    first = {"time": sim.time, **sim.sample(dt)}
+    columns = list(first)
+    tool_names = sim.tool_names()
+    peak_force = 0.0
+    status = "completed"
+    message = ""
+    started = wallclock.perf_counter()
+    fields = FieldWriter(out) if field_every else None
+    next_field = 0
+
+    with HistoryWriter(out / "history.csv", columns) as history, EventWriter(out / "events.csv") as events, Progress(
+        control.end_time, enabled=control.progress
+    ) as progress:
+        history.append(first)
+        if fields is not None:
+            _write_fields(fields, sim)
+            next_field = field_every
+        scale = max(1.0, abs(first.get("energy.external", 0.0)))
+        try:
+            while sim.steps < total_steps:
+                n = min(chunk, total_steps - sim.steps)
+                if fields is not None:
+                    n = min(n, next_field - sim.steps)
+                sim.advance(n, dt)
+                row = {"time": sim.time, **sim.sample(dt)}
+                history.append(row)
+                t, xyz, modes, ids = sim.new_events()
+                if len(ids):
+                    events.append_many(t, xyz, modes, ids)
+                if fields is not None and sim.steps >= next_field:
+                    _write_fields(fields, sim)
+                    next_field += field_every
+                progress.update(sim.time, sim.steps, sim.broken)
+
+                energy_terms = [v for k, v in row.items() if k.startswith("energy.")]
+                if not all(math.isfinite(v) for v in row.values()):
+                    raise UnstableRunError(
+                        f"the run went unstable at t = {sim.time:.4e} s (non-finite values); "
+                        "reduce run.dt or run.safety, or check loads and penalties"
+                    )
+                external = abs(row.get("energy.external", 0.0))
+                scale = max(scale, external)
+                if energy_terms and sum(abs(v) for v in energy_terms) > 1e6 * scale + 1e-3:
+                    raise UnstableRunError(
+                        f"the run went unstable at t = {sim.time:.4e} s (energy grew without work "
+                        "put in); reduce run.dt or run.safety"
+                    )
+                force = max((_tool_force(row, name) for name in tool_names), default=0.0)
+                peak_force = max(peak_force, force)
+                reason = _stop_reason(control.stop, row, tool_names, force, peak_force, sim.broken)
+                if reason:
+                    status, message = "stopped", reason
+                    break
+        except UnstableRunError as err:
+            status, message = "unstable", str(err)
+        except KeyboardInterrupt:
+            status, message = "interrupted", "interrupted by the user"
+        if fields is not None and status != "unstable" and sim.steps % field_every:
+            _write_fields(fields, sim)
+
+    hist = read_history_csv(out / "history.csv")
+    summary = {
+        "method": sim.method,
+        "scenario": scenario_name,
+        "status": status,
+        "message": message,
+        "steps": sim.steps,
+        "dt": dt,
+        "stable_dt": sim.stable_dt,
+        "end_time": sim.time,
+        "wall_time": wallclock.perf_counter() - started,
+        "broken": sim.broken,
+        "peak_force": peak_force,
+        "energy_error": energy_error(hist),
+        "crackle_version": __version__,
+        **sim.summary(),
+    }
+    write_summary(out / "summary.json", summary)
+    if control.plots:
+        write_standard_plots(out, hist, out / "events.csv", sim.bounds())
+    if status == "unstable":
+        raise UnstableRunError(message + f" (outputs so far are in {out})")
+    return RunResult(out, summary, hist)
+
+
+def energy_error(history: dict[str, np.ndarray]) -> float:
+    """Relative imbalance at the end: (external - sum of the other terms) / largest energy seen."""
+    keys = [k for k in history if k.startswith("energy.") and k != "energy.external"]
+    if "energy.external" not in history or not keys:
+        return 0.0
+    ext = history["energy.external"]
+    rest = sum(history[k] for k in keys)
+    scale = max(float(np.max(np.abs(ext))), float(np.max(np.abs(rest))), 1e-300)
+    return float((ext[-1] - rest[-1]) / scale)
+
+
+def _tool_force(row: dict, name: str) -> float:
+    return math.sqrt(sum(row.get(f"tool.{name}.f{a}", 0.0) ** 2 for a in "xyz"))
+
+
+def _stop_reason(stop: StopConditions, row, tool_names, force, peak_force, broken) -> str:
+    if stop.tool_displacement is not None:
+        names = [stop.tool] if stop.tool else tool_names
+        for name in names:
+            u = math.sqrt(sum(row.get(f"tool.{name}.u{a}", 0.0) ** 2 for a in "xyz"))
+            if u >= stop.tool_displacement:
+                return f"tool {name} moved {u:.4g} m"
+    if stop.force_drop is not None and broken > 0 and peak_force > 0 and force < stop.force_drop * peak_force:
+        return f"tool force fell to {force / peak_force:.1%} of its peak {peak_force:.4g} N"
+    return ""
+
+
+def _write_fields(writer: FieldWriter, sim) -> None:
+    f = sim.fields()
+    writer.write(
+        sim.time,
+        f["points"],
+        f["tets"],
+        point_data=f["point_data"],
+        cell_data=f["cell_data"],
+        triangles=f.get("triangles"),
+        triangle_data=f.get("triangle_data"),
+    )
+
+
+__all__ = ["RunControl", "RunResult", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "run"]
