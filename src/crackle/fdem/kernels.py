@@ -513,6 +513,10 @@ def _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_
                 cx += fx
                 cy += fy
                 cz += fz
+                # Per-tet impulse: the sampled tool force is its mean over the output interval.
+                tools.impulse[j, e, 0] += fx * dt
+                tools.impulse[j, e, 1] += fy * dt
+                tools.impulse[j, e, 2] += fz * dt
                 tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
         if touching < 0:
             nodes.friction[g, 0] = 0.0
@@ -576,6 +580,14 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, tools, pressures, ctrl):
         for j in range(n_tool):
             for d in range(3):
                 tools.disp[j, d] += tool_v_next[j, d] * dt
+
+
+@njit(parallel=True, cache=True)
+def interface_forces(t, dt, x, v, ifs):
+    """The interface pass alone (law and contact forces at positions x): for unit tests of the law
+    under prescribed openings, as in a one-element test."""
+    for i in prange(ifs.na.shape[0]):
+        _interface(i, t, dt, x, v, ifs)
 
 
 # ---------------------------------------------------------------------------------------------

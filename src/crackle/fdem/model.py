@@ -39,7 +39,7 @@ Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t e_damage e_friction",
 )
-Tools = namedtuple("Tools", "kind geom disp direction times speeds n mu penalty")
+Tools = namedtuple("Tools", "kind geom disp direction times speeds n mu penalty impulse")
 Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
 
@@ -285,7 +285,10 @@ def build_fdem_model(
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
     )
-    tool_arrays = Tools(tool_kind, tool_geom, np.zeros((len(tools), 3)), tool_dir, ttimes, tspeeds, tn, tool_mu, tool_pen)
+    tool_arrays = Tools(
+        tool_kind, tool_geom, np.zeros((len(tools), 3)), tool_dir, ttimes, tspeeds, tn, tool_mu, tool_pen,
+        impulse=np.zeros((len(tools), m, 3)),
+    )
     controls = Controls(np.asarray(gravity, dtype=float), np.array([float(damping)]))
 
     # Stable step: per node, bulk tet + interfaces + tool springs (eigenvalue bounds).

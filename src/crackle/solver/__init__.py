@@ -32,12 +32,14 @@ class UnstableRunError(RuntimeError):
 @dataclass
 class StopConditions:
     """Stop before end_time when a tool has moved `tool_displacement` metres (tool `tool`, or
-    any tool when None), or when, after at least one failure, the largest tool force has fallen
-    below `force_drop` times its peak."""
+    any tool when None), or when, after at least one failure, the largest tool force has stayed
+    below `force_drop` times its peak for `force_drop_hold` seconds (default 5 % of end_time, so
+    that contact chatter before the break does not end the run)."""
 
     tool_displacement: float | None = None
     tool: str | None = None
     force_drop: float | None = None
+    force_drop_hold: float | None = None
 
 
 @dataclass
@@ -89,6 +91,7 @@ def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") 
     started = wallclock.perf_counter()
     fields = FieldWriter(out) if field_every else None
     next_field = 0
+    low_since = None  # time since which the tool force has stayed low after a failure
 
     with HistoryWriter(out / "history.csv", columns) as history, EventWriter(out / "events.csv") as events, Progress(
         control.end_time, enabled=control.progress
@@ -129,7 +132,11 @@ def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") 
                     )
                 force = max((_tool_force(row, name) for name in tool_names), default=0.0)
                 peak_force = max(peak_force, force)
-                reason = _stop_reason(control.stop, row, tool_names, force, peak_force, sim.broken)
+                if force >= (control.stop.force_drop or 0.0) * peak_force or sim.broken == 0:
+                    low_since = None
+                elif low_since is None:
+                    low_since = sim.time
+                reason = _stop_reason(control, row, tool_names, peak_force, low_since, sim.time)
                 if reason:
                     status, message = "stopped", reason
                     break
@@ -180,15 +187,18 @@ def _tool_force(row: dict, name: str) -> float:
     return math.sqrt(sum(row.get(f"tool.{name}.f{a}", 0.0) ** 2 for a in "xyz"))
 
 
-def _stop_reason(stop: StopConditions, row, tool_names, force, peak_force, broken) -> str:
+def _stop_reason(control: RunControl, row, tool_names, peak_force, low_since, now) -> str:
+    stop = control.stop
     if stop.tool_displacement is not None:
         names = [stop.tool] if stop.tool else tool_names
         for name in names:
             u = math.sqrt(sum(row.get(f"tool.{name}.u{a}", 0.0) ** 2 for a in "xyz"))
             if u >= stop.tool_displacement:
                 return f"tool {name} moved {u:.4g} m"
-    if stop.force_drop is not None and broken > 0 and peak_force > 0 and force < stop.force_drop * peak_force:
-        return f"tool force fell to {force / peak_force:.1%} of its peak {peak_force:.4g} N"
+    if stop.force_drop is not None and low_since is not None:
+        hold = stop.force_drop_hold if stop.force_drop_hold is not None else 0.05 * control.end_time
+        if now - low_since >= hold:
+            return f"tool force stayed below {stop.force_drop:.0%} of its peak {peak_force:.4g} N for {now - low_since:.3g} s"
     return ""
 
 

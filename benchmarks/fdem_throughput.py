@@ -1,0 +1,272 @@
+"""Throughput of the complete FDEM step (bulk, interfaces, tool contact, integration).
+
+Set-up, per size: a structured_box beam (24 tets per cell, square cross-section, length about
+four times the depth) of the paper-001 rock, in four-point bending: two rigid box platens resting
+on the top face move down with a ramped speed (so they are in contact during the timing), the
+bottom is held by a fixed line support at one end and a roller line support at the other.
+dt = 0.8 * model.stable_dt.
+
+Procedure, per size: build the model, warm up (the first call compiles or loads the numba cache
+and is not timed), estimate the step time, then time `steps` steps `--repeats` times and keep the
+median. Each size runs in its own Python process by default, so that `peak_rss_mb` (getrusage
+maxrss, model build included) belongs to that size alone; --in-process turns this off.
+
+Output: one human-readable line per size, then LAST one JSON object on one line:
+
+    {"sizes": [{"tets": ..., "interfaces": ..., "steps": ..., "seconds_per_step": ...,
+                "tet_steps_per_s": ..., "bytes_per_tet": ..., "peak_rss_mb": ...,
+                "threads": ...}, ...], "threads": N}
+
+--breakdown adds, per size, the interface pass alone (crackle.fdem.kernels.interface_forces at
+the current state, median of the same repeats): `interface_seconds_per_step` and
+`interface_fraction` (its share of the complete step).
+
+Examples:
+
+    python benchmarks/fdem_throughput.py --threads 2
+    python benchmarks/fdem_throughput.py --sizes 50000 --repeats 5 --seconds 2 --breakdown
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+import warnings
+
+# Targets from the issue (200k tets on 2 cores).
+TARGET_TET_STEPS_PER_S = 5.0e6
+TARGET_BYTES_PER_TET = 2048.0
+
+TETS_PER_CELL = 24
+ASPECT = 4  # beam length / depth (cells)
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=[50000, 200000],
+                   help="approximate tet counts (default: 50000 200000)")
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per size, median kept (default 3)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="numba threads (numba.set_num_threads); default: numba's default")
+    p.add_argument("--seconds", type=float, default=3.0,
+                   help="target duration of one timed repeat, sets the step count (default 3)")
+    p.add_argument("--steps", type=int, default=None, help="fixed step count per repeat (overrides --seconds)")
+    p.add_argument("--cell", type=float, default=4e-3,
+                   help="cell edge of the structured box in m (default 4 mm; 24 tets per cell)")
+    p.add_argument("--breakdown", action="store_true",
+                   help="also time the interface pass alone (interface_forces)")
+    p.add_argument("--in-process", action="store_true",
+                   help="run all sizes in this process (peak_rss_mb is then cumulative)")
+    p.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.repeats < 1:
+        p.error("--repeats must be >= 1")
+    if args.threads is not None and args.threads < 1:
+        p.error("--threads must be >= 1")
+    if any(s < TETS_PER_CELL for s in args.sizes):
+        p.error(f"--sizes must be >= {TETS_PER_CELL}")
+    return args
+
+
+def beam_cells(target_tets: int) -> tuple[int, int, int]:
+    """Cells (nx, ny, nz) of a beam with square section, nx ~ ASPECT * ny, ~target_tets tets."""
+    cells = target_tets / TETS_PER_CELL
+    n = max(1, round((cells / ASPECT) ** (1.0 / 3.0)))
+    nx = max(1, round(cells / (n * n)))
+    return nx, n, n
+
+
+def build(target_tets: int, cell: float):
+    """Four-point bending of a rock beam: model and time step."""
+    from crackle.fdem.model import build_fdem_model
+    from crackle.geometry import structured_box
+    from crackle.loading import History, Selection, Support, Tool
+    from crackle.materials import GuoMunjizaLaw, Material
+
+    rock = Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
+    nx, ny, nz = beam_cells(target_tets)
+    L, W, H = nx * cell, ny * cell, nz * cell
+    mesh = structured_box((L, W, H), cell)
+
+    tol = 1e-3 * cell
+    # Line supports along y on the bottom face, one cell in from each end.
+    xs_left, xs_right = (cell, L - cell) if nx >= 3 else (0.0, L)
+    supports = [
+        Support("fixed", Selection(plane_point=(0, 0, 0), plane_normal=(0, 0, 1),
+                                   box_min=(xs_left - tol, -1, -1), box_max=(xs_left + tol, 1, 1), tol=tol)),
+        Support("roller", Selection(plane_point=(0, 0, 0), plane_normal=(0, 0, 1),
+                                    box_min=(xs_right - tol, -1, -1), box_max=(xs_right + tol, 1, 1), tol=tol),
+                normal=(0.0, 0.0, 1.0)),
+    ]
+    # Two platens at the thirds, resting on the top face (bottom face at z = H), wider than the
+    # beam, moving down at a speed ramped from 0 to 0.05 m/s over 1 ms.
+    speed = History.ramp(0.05, 1e-3)
+    tools = [
+        Tool(name=name, shape="box", direction=(0.0, 0.0, -1.0), speed=speed, friction=0.3,
+             center=(xc, 0.5 * W, H + cell), size=(2.0 * cell, W + 4.0 * cell, 2.0 * cell))
+        for name, xc in (("left", L / 3.0), ("right", 2.0 * L / 3.0))
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # process-zone resolution advice: irrelevant here
+        model = build_fdem_model(mesh, rock, tools=tools, supports=supports)
+    return model, 0.8 * model.stable_dt, (nx, ny, nz)
+
+
+def model_bytes(model) -> int:
+    """Bytes of every numpy array in the model's state tuples, plus x0."""
+    import numpy as np
+
+    total = model.x0.nbytes
+    for group in (model.nodes, model.tets, model.ifs, model.tools, model.pressures, model.controls):
+        total += sum(a.nbytes for a in group if isinstance(a, np.ndarray))
+    return total
+
+
+def peak_rss_mb() -> float:
+    # ru_maxrss is in KiB on Linux (bytes on macOS).
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
+
+
+def run_size(target_tets: int, args) -> dict:
+    import numba
+
+    from crackle.fdem.kernels import interface_forces
+    from crackle.fdem.simulation import FdemSimulation
+
+    t_build = time.perf_counter()
+    model, dt, cells = build(target_tets, args.cell)
+    sim = FdemSimulation(model)
+    build_s = time.perf_counter() - t_build
+
+    # Warm-up: the first call compiles (or loads the cache); a second short call settles caches.
+    sim.advance(1, dt)
+    sim.advance(2, dt)
+    if args.steps is not None:
+        steps = max(1, args.steps)
+    else:
+        probe = 3
+        t0 = time.perf_counter()
+        sim.advance(probe, dt)
+        per_step = (time.perf_counter() - t0) / probe
+        steps = max(5, int(math.ceil(args.seconds / max(per_step, 1e-9))))
+
+    timings = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        sim.advance(steps, dt)
+        timings.append(time.perf_counter() - t0)
+    seconds_per_step = statistics.median(timings) / steps
+    n_tets = model.n_tets
+    tool_nodes = int((model.nodes.tool >= 0).sum())
+
+    row = {
+        "tets": n_tets,
+        "interfaces": model.n_interfaces,
+        "steps": steps,
+        "seconds_per_step": seconds_per_step,
+        "tet_steps_per_s": n_tets / seconds_per_step,
+        "bytes_per_tet": model_bytes(model) / n_tets,
+        "peak_rss_mb": peak_rss_mb(),
+        "threads": numba.get_num_threads(),
+        "cells": list(cells),
+        "dt": dt,
+        "tool_contact_nodes": tool_nodes,
+        "build_s": build_s,
+        "repeat_seconds": timings,
+    }
+
+    if args.breakdown:
+        ifs, x, v = model.ifs, model.nodes.x, model.nodes.v
+        interface_forces(sim.time, dt, x, v, ifs)  # compile / load
+        itimings = []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                interface_forces(sim.time, dt, x, v, ifs)
+            itimings.append(time.perf_counter() - t0)
+        if_per_step = statistics.median(itimings) / steps
+        row["interface_seconds_per_step"] = if_per_step
+        row["interface_fraction"] = if_per_step / seconds_per_step
+        row["peak_rss_mb"] = peak_rss_mb()
+    return row
+
+
+def human_line(r: dict) -> str:
+    line = (
+        f"{r['tets']:>8d} tets {r['interfaces']:>8d} ifaces | {r['steps']:>5d} steps x{len(r['repeat_seconds'])} | "
+        f"{r['seconds_per_step'] * 1e3:8.3f} ms/step | {r['tet_steps_per_s'] / 1e6:6.2f} M tet-steps/s | "
+        f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
+        f"{r['tool_contact_nodes']} nodes on tools"
+    )
+    if "interface_seconds_per_step" in r:
+        line += (f" | interface pass {r['interface_seconds_per_step'] * 1e3:.3f} ms/step "
+                 f"({100 * r['interface_fraction']:.0f}%)")
+    return line
+
+
+def child_argv(size: int, args) -> list[str]:
+    argv = [sys.executable, os.path.abspath(__file__), "--_child", "--sizes", str(size),
+            "--repeats", str(args.repeats), "--seconds", str(args.seconds), "--cell", str(args.cell)]
+    if args.threads is not None:
+        argv += ["--threads", str(args.threads)]
+    if args.steps is not None:
+        argv += ["--steps", str(args.steps)]
+    if args.breakdown:
+        argv.append("--breakdown")
+    return argv
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    if args.threads is not None:
+        # numba caps set_num_threads at NUMBA_NUM_THREADS (default: the core count).
+        current = int(os.environ.get("NUMBA_NUM_THREADS", "0") or 0)
+        if args.threads > (current or os.cpu_count() or 1):
+            os.environ["NUMBA_NUM_THREADS"] = str(args.threads)
+    import numba
+
+    if args.threads is not None:
+        numba.set_num_threads(args.threads)
+    threads = numba.get_num_threads()
+
+    rows = []
+    if args.in_process or args._child:
+        for size in args.sizes:
+            rows.append(run_size(size, args))
+            if not args._child:
+                print(human_line(rows[-1]), flush=True)
+    else:
+        for size in args.sizes:
+            proc = subprocess.run(child_argv(size, args), stdout=subprocess.PIPE, text=True)
+            if proc.returncode != 0:
+                print(f"size {size}: benchmark process failed with code {proc.returncode}", file=sys.stderr)
+                return proc.returncode
+            rows.extend(json.loads(proc.stdout.strip().splitlines()[-1])["sizes"])
+            print(human_line(rows[-1]), flush=True)
+
+    if not args._child:
+        for r in rows:
+            if r["tets"] >= 150000:
+                ok_speed = r["tet_steps_per_s"] >= TARGET_TET_STEPS_PER_S
+                ok_mem = r["bytes_per_tet"] <= TARGET_BYTES_PER_TET
+                print(
+                    f"targets at {r['tets']} tets, {r['threads']} threads: "
+                    f"{r['tet_steps_per_s'] / 1e6:.2f} M tet-steps/s vs >= {TARGET_TET_STEPS_PER_S / 1e6:g} M "
+                    f"({'met' if ok_speed else 'NOT met'}); {r['bytes_per_tet']:.0f} B/tet vs <= "
+                    f"{TARGET_BYTES_PER_TET:.0f} ({'met' if ok_mem else 'NOT met'})",
+                    flush=True,
+                )
+    print(json.dumps({"sizes": rows, "threads": threads}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

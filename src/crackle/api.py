@@ -1,0 +1,142 @@
+"""Python entry points: build a scenario into a simulation and run it."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from . import geometry
+from .geometry import MeshError, TetMesh
+from .loading import History, Precrack, Pressure, Selection, Support, Tool
+from .materials import GuoMunjizaLaw, Material
+from .scenario import Scenario, ScenarioError, load_scenario
+from .solver import RunControl, RunResult, StopConditions, run
+
+
+def build_specimen(spec, base: Path | None) -> TetMesh:
+    try:
+        if spec.shape in ("box", "beam"):
+            make = geometry.structured_box if spec.mesh == "structured" else geometry.gmsh_box
+            return make(spec.size, spec.element_size, origin=spec.origin)
+        if spec.shape in ("disc", "cylinder"):
+            return geometry.gmsh_cylinder(0.5 * spec.diameter, spec.thickness, spec.element_size, center=spec.center, axis=spec.axis)
+        path = Path(spec.file)
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        return geometry.read_mesh(path)
+    except MeshError as err:
+        raise ScenarioError(f"specimen: {err}") from None
+
+
+def build_material(spec) -> Material:
+    law = spec.interface
+    kwargs = {} if law.penalty_factor is None else {"penalty_factor": law.penalty_factor}
+    return Material(
+        density=spec.density,
+        youngs_modulus=spec.youngs_modulus,
+        poissons_ratio=spec.poissons_ratio,
+        name=spec.name,
+        interface=GuoMunjizaLaw(
+            tensile_strength=law.tensile_strength,
+            cohesion=law.cohesion,
+            friction_angle=law.friction_angle,
+            fracture_energy=law.fracture_energy,
+            fracture_energy_shear=law.fracture_energy_shear,
+            softening=tuple(law.softening),
+            friction=law.friction,
+            **kwargs,
+        ),
+    )
+
+
+def _history_of(spec) -> History:
+    if spec.speed_table is not None:
+        return History(tuple(spec.speed_table.time), tuple(spec.speed_table.speed))
+    return History.ramp(spec.speed, spec.ramp_time)
+
+
+def _selection(where) -> Selection:
+    return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol)
+
+
+def build_tools(specs) -> list[Tool]:
+    return [
+        Tool(
+            name=t.name,
+            shape=t.shape,
+            direction=t.direction,
+            speed=_history_of(t),
+            friction=t.friction,
+            center=t.center,
+            normal=t.normal,
+            size=t.size,
+            axes=t.axes,
+            axis=t.axis,
+            radius=t.radius,
+            length=t.length,
+            penalty=t.penalty,
+        )
+        for t in specs
+    ]
+
+
+def build_pressures(specs, end_time: float) -> list[Pressure]:
+    out = []
+    for p in specs:
+        if p.rate is not None:
+            history = History.rate(p.rate, end_time)
+        elif p.table is not None:
+            history = History(tuple(p.table.time), tuple(p.table.speed))
+        else:
+            history = History.ramp(p.value, p.ramp_time)
+        out.append(Pressure(history, "precrack" if p.faces == "precrack" else _selection(p.where)))
+    return out
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None):
+    """The simulation object and run control for a validated scenario."""
+    from .fdem.model import build_fdem_model
+    from .fdem.simulation import FdemSimulation
+
+    mesh = build_specimen(scenario.specimen, base)
+    material = build_material(scenario.material)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the model keeps its warnings for the summary
+            model = build_fdem_model(
+                mesh,
+                material,
+                tools=build_tools(scenario.tools),
+                supports=[Support(s.kind, _selection(s.where), s.normal) for s in scenario.supports],
+                pressures=build_pressures(scenario.pressures, scenario.run.end_time),
+                precracks=[Precrack(c.point, c.normal, c.box_min, c.box_max, c.tol) for c in scenario.precracks],
+                gravity=scenario.run.gravity,
+                damping=scenario.run.damping,
+            )
+    except (ValueError, MeshError) as err:
+        raise ScenarioError(str(err)) from None
+    r = scenario.run
+    control = RunControl(
+        end_time=r.end_time,
+        dt=r.dt,
+        safety=r.safety,
+        history_samples=r.history_samples,
+        field_frames=r.field_frames,
+        stop=StopConditions(r.stop.tool_displacement, r.stop.tool, r.stop.force_drop, r.stop.force_drop_hold),
+    )
+    try:
+        from .solver import choose_time_step
+
+        choose_time_step(model.stable_dt, control)
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
+    return FdemSimulation(model), control
+
+
+def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None) -> RunResult:
+    """Validate, build and run a scenario file or shipped example; returns the result."""
+    scenario, base = load_scenario(source, overrides, quick)
+    sim, control = build_simulation(scenario, base)
+    control.progress = progress
+    out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
+    return run(sim, control, out, scenario_name=scenario.name)

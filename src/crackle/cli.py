@@ -1,0 +1,84 @@
+"""Command line: crackle run | examples | fpz."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def _cmd_run(args) -> int:
+    from .api import run_scenario
+    from .scenario import ScenarioError
+    from .solver import UnstableRunError
+
+    try:
+        result = run_scenario(args.scenario, args.out, args.set, args.quick)
+    except ScenarioError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return 2
+    except UnstableRunError as err:
+        print(f"crackle: {err}", file=sys.stderr)
+        return 3
+    s = result.summary
+    print(
+        f"{s['scenario']}: {s['status']} after {s['steps']} steps ({s['wall_time']:.1f} s), "
+        f"t = {s['end_time']:.4g} s, broken {s['broken']}, peak force {s['peak_force']:.4g} N, "
+        f"energy error {s['energy_error']:.2%}"
+    )
+    if s.get("message"):
+        print(f"  {s['message']}")
+    for w in s.get("warnings", []):
+        print(f"  warning: {w}")
+    print(f"  outputs in {result.out_dir}")
+    return 0
+
+
+def _cmd_examples(args) -> int:
+    from .scenario import list_examples
+
+    for name, text in list_examples().items():
+        print(f"{name:24s} {text}")
+    return 0
+
+
+def _cmd_fpz(args) -> int:
+    from .materials import process_zone
+
+    for name in ("E", "Gf", "ft"):
+        if getattr(args, name) <= 0:
+            print(f"crackle: error: --{name} must be positive", file=sys.stderr)
+            return 2
+    pz = process_zone(args.E, args.Gf, args.ft)
+    if args.json:
+        print(json.dumps(pz.as_dict()))
+    else:
+        print(f"plastic zone, long crack  (3 pi E Gf / 32 ft^2): {pz.plastic_zone_long * 1e3:.3f} mm")
+        print(f"plastic zone, short crack (3 E Gf / 4 ft^2):     {pz.plastic_zone_short * 1e3:.3f} mm")
+        print(f"advised element size (<= long / 3):             {pz.advised_element_size * 1e3:.3f} mm")
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="crackle", description="Dynamic fracture of brittle solids (FDEM).")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("run", help="run a scenario file or a shipped example")
+    p.add_argument("scenario", help="a .toml scenario or the name of a shipped example")
+    p.add_argument("--out", help="output folder (default crackle-out/NAME)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario value, e.g. run.end_time=1e-3")
+    p.add_argument("--quick", action="store_true", help="the example's quick form: coarser, shorter")
+    p.set_defaults(func=_cmd_run)
+    p = sub.add_parser("examples", help="list the shipped examples")
+    p.set_defaults(func=_cmd_examples)
+    p = sub.add_parser("fpz", help="process-zone lengths and the advised element size")
+    p.add_argument("--E", type=float, required=True, help="Young's modulus (Pa)")
+    p.add_argument("--Gf", type=float, required=True, help="fracture energy (J/m^2)")
+    p.add_argument("--ft", type=float, required=True, help="tensile strength (Pa)")
+    p.add_argument("--json", action="store_true", help="print one JSON object (lengths in m)")
+    p.set_defaults(func=_cmd_fpz)
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

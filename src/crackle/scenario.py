@@ -1,0 +1,308 @@
+"""Scenario files: TOML validated against a schema before any work, then built into a run.
+
+A scenario is data: it is parsed with tomllib and validated with pydantic; nothing in it is
+evaluated. Errors name the field and say how to fix it (ScenarioError), and the command line
+turns them into exit code 2.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the field or file and the fix."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Specimen(_Strict):
+    shape: Literal["box", "beam", "disc", "cylinder", "mesh"]
+    element_size: Positive | None = None
+    size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
+    origin: Vec3 = (0.0, 0.0, 0.0)  # box, beam: lower corner
+    mesh: Literal["structured", "unstructured"] = "structured"  # box, beam
+    diameter: Positive | None = None  # disc, cylinder
+    thickness: Positive | None = None  # disc, cylinder: extent along the axis
+    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder
+    axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
+    file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...)
+
+    @model_validator(mode="after")
+    def _needs(self):
+        need = {
+            "box": ("size", "element_size"),
+            "beam": ("size", "element_size"),
+            "disc": ("diameter", "thickness", "element_size"),
+            "cylinder": ("diameter", "thickness", "element_size"),
+            "mesh": ("file",),
+        }[self.shape]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        return self
+
+
+class InterfaceLaw(_Strict):
+    law: Literal["guo-munjiza"] = "guo-munjiza"
+    tensile_strength: Positive
+    cohesion: Positive
+    friction_angle: Annotated[float, Field(ge=0, lt=90)]
+    fracture_energy: Positive
+    fracture_energy_shear: Positive | None = None
+    softening: tuple[Positive, Positive, Positive] = (0.63, 1.8, 6.0)
+    friction: NonNegative = 0.6
+    penalty_factor: Positive | None = None
+
+
+class MaterialSpec(_Strict):
+    name: str = "material"
+    density: Positive
+    youngs_modulus: Positive
+    poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
+    interface: InterfaceLaw
+
+
+class VelocityTable(_Strict):
+    time: list[NonNegative]
+    speed: list[float]
+
+
+class ToolSpec(_Strict):
+    name: str
+    shape: Literal["plane", "box", "cylinder", "sphere"]
+    direction: Vec3
+    speed: float = 0.0  # m/s along direction
+    ramp_time: NonNegative = 0.0  # linear ramp from 0 to speed
+    speed_table: VelocityTable | None = None  # instead of speed/ramp_time
+    friction: NonNegative = 0.0
+    center: Vec3 = (0.0, 0.0, 0.0)
+    normal: Vec3 = (0.0, 0.0, 1.0)
+    size: tuple[Positive, Positive, Positive] = (1.0, 1.0, 1.0)
+    axes: tuple[Vec3, Vec3] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    radius: NonNegative = 0.0
+    length: Positive = math.inf
+    penalty: Positive | None = None
+
+    @model_validator(mode="after")
+    def _shape_needs(self):
+        if self.shape in ("cylinder", "sphere") and self.radius <= 0:
+            raise ValueError(f"a {self.shape} tool needs radius > 0")
+        if all(c == 0 for c in self.direction):
+            raise ValueError("direction must be a non-zero vector")
+        return self
+
+
+class Where(_Strict):
+    plane_point: Vec3 | None = None
+    plane_normal: Vec3 | None = None
+    box_min: Vec3 | None = None
+    box_max: Vec3 | None = None
+    tol: Positive | None = None
+
+    @model_validator(mode="after")
+    def _some(self):
+        if (self.plane_point is None) != (self.plane_normal is None):
+            raise ValueError("give both plane_point and plane_normal")
+        if self.plane_point is None and self.box_min is None and self.box_max is None:
+            raise ValueError("choose nodes with plane_point + plane_normal and/or box_min / box_max")
+        return self
+
+
+class SupportSpec(_Strict):
+    kind: Literal["fixed", "roller"]
+    where: Where
+    normal: Vec3 = (0.0, 0.0, 1.0)  # roller: blocked direction
+
+
+class PrecrackSpec(_Strict):
+    point: Vec3
+    normal: Vec3
+    box_min: Vec3 = (-math.inf, -math.inf, -math.inf)
+    box_max: Vec3 = (math.inf, math.inf, math.inf)
+    tol: Positive | None = None
+
+
+class PressureSpec(_Strict):
+    faces: Literal["precrack", "where"] = "precrack"
+    where: Where | None = None
+    rate: float | None = None  # Pa/s from t = 0
+    value: float | None = None  # constant, or the plateau after ramp_time
+    ramp_time: NonNegative = 0.0
+    table: VelocityTable | None = None  # time / speed columns read as time / pressure
+
+    @model_validator(mode="after")
+    def _one_history(self):
+        given = [k for k in ("rate", "value", "table") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of rate, value (with optional ramp_time) or table")
+        if self.faces == "where" and self.where is None:
+            raise ValueError("faces = 'where' needs a [pressures.where] selection")
+        return self
+
+
+class Stop(_Strict):
+    tool_displacement: Positive | None = None
+    tool: str | None = None
+    force_drop: Annotated[float, Field(gt=0, lt=1)] | None = None
+    force_drop_hold: NonNegative | None = None
+
+
+class RunSpec(_Strict):
+    end_time: Positive
+    dt: Positive | None = None
+    safety: Annotated[float, Field(gt=0, le=1)] = 0.8
+    damping: NonNegative = 0.0  # mass-proportional, 1/s
+    gravity: Vec3 = (0.0, 0.0, 0.0)
+    history_samples: Annotated[int, Field(ge=1)] = 400
+    field_frames: Annotated[int, Field(ge=0)] = 10
+    stop: Stop = Stop()
+
+
+class Scenario(_Strict):
+    name: str = "scenario"
+    description: str = ""
+    method: Literal["fdem"] = "fdem"
+    specimen: Specimen
+    material: MaterialSpec
+    tools: list[ToolSpec] = []
+    supports: list[SupportSpec] = []
+    precracks: list[PrecrackSpec] = []
+    pressures: list[PressureSpec] = []
+    run: RunSpec
+    quick: dict[str, Any] = {}  # dotted-key overrides applied by --quick
+
+    @model_validator(mode="after")
+    def _cross_checks(self):
+        names = [t.name for t in self.tools]
+        if len(set(names)) != len(names):
+            raise ValueError("tool names must be unique")
+        if self.run.stop.tool is not None and self.run.stop.tool not in names:
+            raise ValueError(f"run.stop.tool '{self.run.stop.tool}' is not a tool name ({', '.join(names) or 'no tools'})")
+        if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
+            raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
+        return self
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def examples_dir():
+    return resources.files("crackle") / "examples"
+
+
+def list_examples() -> dict[str, str]:
+    """Shipped example names and their one-line descriptions."""
+    out = {}
+    for entry in sorted(examples_dir().iterdir(), key=lambda p: p.name):
+        if entry.name.endswith(".toml"):
+            data = tomllib.loads(entry.read_text())
+            out[entry.name[:-5]] = data.get("description", "").strip().splitlines()[0] if data.get("description") else ""
+    return out
+
+
+def read_scenario_data(source: str | Path) -> tuple[dict, Path | None]:
+    """Raw TOML data of a file path or shipped example name, and the folder relative paths use."""
+    path = Path(source)
+    if path.suffix == ".toml" or path.exists():
+        if not path.exists():
+            raise ScenarioError(f"scenario file {path} does not exist; check the path or run 'crackle examples'")
+        text, base = path.read_text(), path.parent
+    else:
+        entry = examples_dir() / f"{source}.toml"
+        if not entry.is_file():
+            known = ", ".join(list_examples())
+            raise ScenarioError(f"'{source}' is neither a scenario file nor a shipped example (examples: {known})")
+        text, base = entry.read_text(), None
+    try:
+        return tomllib.loads(text), base
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{source}: broken TOML ({err}); fix the syntax at that line") from None
+
+
+def apply_overrides(data: dict, overrides: dict[str, Any] | list[str]) -> dict:
+    """Set dotted keys (`run.end_time`, `tools.0.speed`) in a copy of the raw data.
+
+    String overrides `key=value` parse their value as a TOML value (`1e-3`, `"text"`, `[1, 2]`);
+    a bare word that is not TOML is taken as a string.
+    """
+    import copy
+
+    data = copy.deepcopy(data)
+    items = overrides.items() if isinstance(overrides, dict) else (_split_override(s) for s in overrides)
+    for key, value in items:
+        parts = key.split(".")
+        node = data
+        for part in parts[:-1]:
+            if isinstance(node, list):
+                node = node[_index(part, key, len(node))]
+            else:
+                node = node.setdefault(part, {})
+        last = parts[-1]
+        if isinstance(node, list):
+            node[_index(last, key, len(node))] = value
+        elif isinstance(node, dict):
+            node[last] = value
+        else:
+            raise ScenarioError(f"--set {key}: '{'.'.join(parts[:-1])}' is not a table")
+    return data
+
+
+def _split_override(text: str) -> tuple[str, Any]:
+    if "=" not in text:
+        raise ScenarioError(f"--set {text!r}: write key=value, e.g. --set run.end_time=1e-3")
+    key, raw = text.split("=", 1)
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.strip(), value
+
+
+def _index(part: str, key: str, n: int) -> int:
+    if not part.isdigit() or int(part) >= n:
+        raise ScenarioError(f"--set {key}: '{part}' is not an index below {n}")
+    return int(part)
+
+
+def load_scenario(source: str | Path, overrides: list[str] | None = None, quick: bool = False) -> tuple[Scenario, Path | None]:
+    """Read, override and validate a scenario; raises ScenarioError with one clear message."""
+    data, base = read_scenario_data(source)
+    if quick:
+        data = apply_overrides(data, data.get("quick", {}))
+    if overrides:
+        data = apply_overrides(data, overrides)
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(_describe(err, source)) from None
+    return scenario, base
+
+
+def _describe(err: ValidationError, source) -> str:
+    first = err.errors()[0]
+    where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    kind = first["type"]
+    if kind == "extra_forbidden":
+        hint = "unknown key: remove it or check its spelling"
+    elif kind == "missing":
+        hint = "required: add it"
+    else:
+        hint = first["msg"]
+        if first.get("input") is not None and kind != "value_error":
+            hint += f" (got {first['input']!r})"
+    more = f" (and {len(err.errors()) - 1} more problem(s))" if len(err.errors()) > 1 else ""
+    return f"{source}: {where}: {hint}{more}"

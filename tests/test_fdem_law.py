@@ -1,0 +1,360 @@
+"""One-interface tests of the Guo-Munjiza law (paper 001, eqs 3 and 6-8) in crackle.fdem.
+
+Like a one-element cohesive test in Abaqus: two positively oriented tets share one triangle, the
+model has exactly one interface, and the openings are prescribed by moving the three B-side nodes
+(no time stepping). `interface_forces` evaluates the law at the prescribed positions; the traction
+on the B side is -(sum of the 3 point forces) / A.
+
+Geometry: triangle (0,0,0), (s,0,0), (0,s,0) in z = 0 (A = s^2/2), apexes above its centroid at
+z = +h (tet A, the lower index) and z = -h (tet B), so the interface normal (A -> B) is -z and
+both altitudes are h: p_n = 200 E / h, p_s = 200 G / h.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from crackle.fdem.kernels import interface_forces
+from crackle.fdem.model import build_fdem_model
+from crackle.geometry import TetMesh
+
+from fdem_helpers import COHESION, FT, GF, MU_FRICTION, PHI_DEG, rock, rotation
+
+S = 0.01  # triangle legs, m
+H = 0.01  # apex heights, m
+AREA = 0.5 * S * S
+DT = 1e-9  # only the failed-contact branch uses dt (stick-spring increment v dt)
+TAN_PHI = math.tan(math.radians(PHI_DEG))
+
+
+def z_paper(d, a=0.63, b=1.8, c=6.0):
+    """Softening factor z(D) of paper 001 eq. 7, written out here independently of src."""
+    d = min(max(d, 0.0), 1.0)
+    decay = 1.0 - (a + b - 1.0) / (a + b) * math.exp(d * (a + c * b) / ((a + b) * (1.0 - a - b)))
+    return decay * (a * (1.0 - d) + b * (1.0 - d) ** c)
+
+
+def sigma_el(delta, peak, delta_p):
+    """Undamaged curve of the law docstring: peak (2x - x^2), x = delta/delta_p, flat beyond."""
+    if delta >= delta_p:
+        return peak
+    x = delta / delta_p
+    return peak * (2.0 * x - x * x)
+
+
+class Cell:
+    """The two-tet specimen and its single interface, driven by prescribed openings."""
+
+    def __init__(self, material=None, pose=None):
+        pts = np.array([[0, 0, 0], [S, 0, 0], [0, S, 0], [S / 3, S / 3, H], [S / 3, S / 3, -H]], float)
+        tets = np.array([[0, 1, 2, 3], [0, 2, 1, 4]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # element-size advice: irrelevant for one interface
+            self.model = build_fdem_model(TetMesh(pts, tets), material or rock())
+        ifs = self.model.ifs
+        assert len(ifs.area) == 1, "two tets sharing one face must give exactly one interface"
+        self.ifs = ifs
+        self.A = float(ifs.area[0])
+        assert self.A == pytest.approx(AREA, rel=1e-12)
+        self.pn = float(ifs.pn[0])
+        self.ps = float(ifs.ps[0])
+        x0 = self.model.x0
+        na, nb = ifs.na[0], ifs.nb[0]
+        # Face normal from A's corner order (outward from A), checked against the tet centroids.
+        nrm = np.cross(x0[na[1]] - x0[na[0]], x0[na[2]] - x0[na[0]])
+        nrm /= np.linalg.norm(nrm)
+        ta, tb = na[0] // 4, nb[0] // 4
+        to_b = x0[4 * tb : 4 * tb + 4].mean(axis=0) - x0[4 * ta : 4 * ta + 4].mean(axis=0)
+        assert np.dot(nrm, to_b) > 0.0, "the interface normal must point from side A to side B"
+        self.n = nrm
+        self.t = np.cross(nrm, [0.0, 1.0, 0.0])
+        self.t /= np.linalg.norm(self.t)
+        self.na, self.nb = na, nb
+        self.x = x0.copy()
+        self.v = np.zeros_like(x0)
+        # A rigid pose (R, c) applied to every prescribed configuration (objectivity test).
+        self.R = np.eye(3) if pose is None else pose[0]
+        self.c = np.zeros(3) if pose is None else np.asarray(pose[1], float)
+
+    def set(self, dn=0.0, ds=0.0, slip_rate=0.0, dt=DT):
+        """Move the B face by dn along the normal and ds along the tangent; evaluate the law.
+
+        Returns (normal traction, tangential traction) on side B, tension / +t positive.
+        """
+        x = self.model.x0.copy()
+        x[self.nb] += dn * self.n + ds * self.t
+        x = x @ self.R.T + self.c
+        self.v[:] = 0.0
+        self.v[self.nb] = slip_rate * (self.R @ self.t)
+        interface_forces(0.0, dt, x, self.v, self.ifs)
+        traction = -self.ifs.force[0].sum(axis=0) / self.A
+        return float(traction @ (self.R @ self.n)), float(traction @ (self.R @ self.t))
+
+    @property
+    def damage(self):
+        return float(self.ifs.damage[0])
+
+    @property
+    def state(self):
+        return int(self.ifs.state[0])
+
+    @property
+    def e_damage(self):
+        return float(self.ifs.e_damage[0])
+
+    @property
+    def e_friction(self):
+        return float(self.ifs.e_friction[0])
+
+
+def graded_path(delta_peak, delta_end, n_fine=300, n_coarse=3000):
+    """Monotonic path from 0: fine steps up to 3 delta_peak, then n_coarse steps to delta_end."""
+    fine = np.linspace(0.0, 3.0 * delta_peak, n_fine + 1)
+    coarse = np.linspace(3.0 * delta_peak, delta_end, n_coarse + 1)[1:]
+    return np.concatenate([fine, coarse])
+
+
+# ---------------------------------------------------------------------------------------------
+# Mode I
+# ---------------------------------------------------------------------------------------------
+def test_mode_one_peak_energy_and_failure():
+    """Monotonic mode-I opening, 0 -> 4 Gf/ft (beyond d_c ~ 8.6 um) in 3300 increments.
+
+    Checks: peak normal traction = f_t = 3 MPa within 1 %; initial slope = p_n within 1 %; no
+    damage before the peak opening 2 f_t / p_n; D never decreases; the interface fails
+    (state 1, fail_mode 1 = tension); dissipated energy e_damage at failure = Gf A within 3 %
+    (and the work of the traction over the path = Gf A within 3 %); zero traction after failure.
+    """
+    cell = Cell()
+    dnp = 2.0 * FT / cell.pn
+    path = graded_path(dnp, 4.0 * GF / FT)
+    sig = np.empty_like(path)
+    dmg = np.empty_like(path)
+    state = np.empty(path.size, int)
+    for k, dn in enumerate(path):
+        sig[k], tau = cell.set(dn=dn)
+        assert abs(tau) < 1e-9 * FT
+        dmg[k] = cell.damage
+        state[k] = cell.state
+
+    peak = sig.max()
+    print(f"mode I: peak/ft = {peak / FT:.5f}")
+    assert peak == pytest.approx(FT, rel=0.01)
+    assert sig[1] / path[1] == pytest.approx(cell.pn, rel=0.01)
+    assert np.all(dmg[path <= dnp] == 0.0)
+    assert np.all(np.diff(dmg) >= 0.0), "damage must never decrease"
+    assert np.any(dmg > 0.0) and np.any(state == 1), "the interface must fail within the path"
+    k_fail = int(np.argmax(state == 1))
+    assert dmg[k_fail] == 1.0
+    assert cell.ifs.fail_mode[0] == 1, "a pure opening must be recorded as a tension failure"
+    assert np.all(sig[k_fail:] == 0.0), "a separated (failed) interface carries no tension"
+    ratio = cell.e_damage / (GF * cell.A)
+    work = np.sum(0.5 * (sig[1:] + sig[:-1]) * np.diff(path)) * cell.A
+    print(f"mode I: e_damage/(Gf A) = {ratio:.5f}, work/(Gf A) = {work / (GF * cell.A):.5f}")
+    assert ratio == pytest.approx(1.0, rel=0.03)
+    assert work / (GF * cell.A) == pytest.approx(1.0, rel=0.03)
+
+
+def test_mode_one_unload_reload_no_healing():
+    """Open to mid-softening (D ~ 0.5), close to 0 and into compression, re-open.
+
+    Checks: on the unload/reload branch the traction is z(D_max) sigma_el(dn) (z from paper
+    eq. 7, within 1e-6 relative) and never above it; D after the cycle == D before (no healing,
+    exact); the traction at the old maximum opening on reload equals the one before unloading
+    within 1 %; closing past zero gives p_n dn (within 1e-9 relative) with no damage growth and
+    no dissipation; past the old maximum the curve rejoins the virgin (monotonic) one within 1 %.
+    """
+    mono = Cell()
+    cell = Cell()
+    pn = cell.pn
+    dnp = 2.0 * FT / pn
+    # Find the mid-softening opening on a monotonic reference path.
+    path = graded_path(dnp, 4.0 * GF / FT)
+    virgin = {}
+    for dn in path:
+        virgin[dn] = mono.set(dn=dn)[0]
+        if mono.damage >= 0.5:
+            dn_max = dn
+            break
+    dn_beyond = path[np.searchsorted(path, dn_max) + 200]
+    sig_beyond_virgin = None
+    for dn in path[path > dn_max]:
+        s = mono.set(dn=dn)[0]
+        if dn == dn_beyond:
+            sig_beyond_virgin = s
+            break
+
+    # Same loading up to dn_max on a fresh cell.
+    for dn in path[path <= dn_max]:
+        sig_max = cell.set(dn=dn)[0]
+    d_max = cell.damage
+    e_before = cell.e_damage
+    z_max = z_paper(d_max)
+    assert 0.4 < d_max < 0.6
+    assert sig_max == pytest.approx(z_max * FT, rel=1e-6), "softening must follow z(D) of eq. 7"
+
+    def check_elastic(dn, sig):
+        bound = z_max * sigma_el(dn, FT, dnp) if dn >= 0.0 else pn * dn
+        assert sig <= bound + 1e-9 * FT
+        assert sig == pytest.approx(bound, rel=1e-6, abs=1e-9 * FT)
+
+    unload = np.linspace(dn_max, 0.0, 501)
+    compress = np.linspace(0.0, -5.0 * dnp, 101)
+    reload = np.linspace(-5.0 * dnp, dn_max, 1001)
+    for dn in np.concatenate([unload, compress, reload]):
+        sig = cell.set(dn=dn)[0]
+        check_elastic(dn, sig)
+        assert cell.damage == d_max, "damage must not grow (or heal) below the old maximum opening"
+    sig_reload = cell.set(dn=dn_max)[0]
+    print(f"unload-reload: D = {d_max:.4f}, sigma_reload/sigma_before = {sig_reload / sig_max:.6f}")
+    assert cell.damage == d_max
+    assert cell.e_damage == e_before, "an elastic unload-reload cycle dissipates nothing"
+    assert sig_reload == pytest.approx(sig_max, rel=0.01)
+    # Compression at the end of the closing branch: the penalty p_n dn.
+    sig_c = cell.set(dn=-5.0 * dnp)[0]
+    assert sig_c == pytest.approx(-5.0 * dnp * pn, rel=1e-9)
+    assert cell.damage == d_max
+    # Beyond the old maximum the damage grows again and the virgin envelope is recovered.
+    for dn in path[(path > dn_max) & (path <= dn_beyond)]:
+        s = cell.set(dn=dn)[0]
+    assert cell.damage > d_max
+    assert s == pytest.approx(sig_beyond_virgin, rel=0.01)
+
+
+# ---------------------------------------------------------------------------------------------
+# Mode II
+# ---------------------------------------------------------------------------------------------
+def slide_to_failure(cell, sigma_n, gf2):
+    """Close to sigma_n (held), then slide along +t to beyond d_sc. Returns (ds, tau, sigma)."""
+    dn0 = sigma_n / cell.pn
+    for dn in np.linspace(0.0, dn0, 11):
+        sig, tau = cell.set(dn=dn)
+        assert cell.damage == 0.0, "compression must not damage"
+    fs = COHESION - sigma_n * TAN_PHI
+    dsp = 2.0 * fs / cell.ps
+    path = graded_path(dsp, dsp + 4.0 * gf2 / fs)
+    taus = np.empty_like(path)
+    sigs = np.empty_like(path)
+    for k, ds in enumerate(path):
+        sigs[k], taus[k] = cell.set(dn=dn0, ds=ds)
+    return path, taus, sigs
+
+
+@pytest.mark.parametrize("sigma_n", [0.0, -5e6, -20e6])
+def test_mode_two_peak_is_mohr_coulomb(sigma_n):
+    """Slide under a held normal stress sigma_n (0, -5, -20 MPa): the peak shear traction is
+    f_s = c - sigma_n tan(phi) (eq. 3: 15, 17.887, 26.547 MPa) within 2 %; the normal stress
+    stays sigma_n (within 1e-9 relative) and the interface ends up failed."""
+    cell = Cell()
+    path, taus, sigs = slide_to_failure(cell, sigma_n, GF)
+    fs = COHESION - sigma_n * TAN_PHI
+    print(f"mode II at sigma_n = {sigma_n / 1e6:g} MPa: peak/fs = {taus.max() / fs:.5f}")
+    assert taus.max() == pytest.approx(fs, rel=0.02)
+    assert np.all(taus >= 0.0), "the shear traction on B must follow the imposed slip direction"
+    np.testing.assert_allclose(sigs, sigma_n, rtol=1e-9, atol=1e-9 * FT)
+    assert cell.state == 1
+
+
+@pytest.mark.parametrize("gf_shear", [None, 30.0])
+def test_mode_two_dissipates_gf_two(gf_shear):
+    """Pure mode II (sigma_n = 0): e_damage at failure = Gf_II A within 3 %, Gf_II = Gf = 10
+    J/m^2 by default or fracture_energy_shear = 30 J/m^2; the work of the shear traction over
+    the slip path is the same within 3 %; the failure is recorded as shear (fail_mode 2)."""
+    material = rock() if gf_shear is None else rock(fracture_energy_shear=gf_shear)
+    gf2 = GF if gf_shear is None else gf_shear
+    cell = Cell(material)
+    path, taus, _ = slide_to_failure(cell, 0.0, gf2)
+    assert cell.state == 1
+    assert cell.ifs.fail_mode[0] == 2
+    ratio = cell.e_damage / (gf2 * cell.A)
+    work = np.sum(0.5 * (taus[1:] + taus[:-1]) * np.diff(path)) * cell.A / (gf2 * cell.A)
+    print(f"mode II Gf_II = {gf2}: e_damage/(Gf_II A) = {ratio:.5f}, work/(Gf_II A) = {work:.5f}")
+    assert ratio == pytest.approx(1.0, rel=0.03)
+    assert work == pytest.approx(1.0, rel=0.03)
+
+
+# ---------------------------------------------------------------------------------------------
+# Failed faces: contact and Coulomb friction
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("sigma_c", [-5e6, -20e6])
+def test_friction_after_failure(sigma_c):
+    """Fail the interface in tension, press the faces to sigma_c = p_n dn (-5, -20 MPa) and
+    slide B along +t at 1 m/s with dt = 5 ns per call, 400 calls (slip 2 um, > 50 times the
+    stick spring's elastic slip mu |sigma| / p_s).
+
+    Checks: normal traction = p_n dn (1e-9 relative); tangential traction capped at
+    mu |sigma_c| (mu = 0.6) within 1 % once sliding, never above it; e_friction grows by
+    mu |sigma_c| A (slip - elastic slip) within 5 %; no tension across the open failed faces.
+    """
+    cell = Cell()
+    for dn in np.linspace(0.0, 4.0 * GF / FT, 2001):
+        cell.set(dn=dn)
+    assert cell.state == 1
+    assert cell.set(dn=1e-6) == (0.0, 0.0)
+    dn_c = sigma_c / cell.pn
+    sig, tau = cell.set(dn=dn_c)
+    assert sig == pytest.approx(sigma_c, rel=1e-9)
+    assert tau == 0.0
+    e0 = cell.e_friction
+    rate, dt, n = 1.0, 5e-9, 400
+    taus = []
+    for k in range(1, n + 1):
+        sig, tau = cell.set(dn=dn_c, ds=k * rate * dt, slip_rate=rate, dt=dt)
+        taus.append(tau)
+    cap = MU_FRICTION * abs(sigma_c)
+    taus = np.array(taus)
+    slip = n * rate * dt
+    elastic_slip = cap / cell.ps
+    print(
+        f"friction sigma = {sigma_c / 1e6:g} MPa: tau/(mu|sigma|) = {taus[-1] / cap:.6f}, "
+        f"e_friction/(mu|sigma| A slip) = {(cell.e_friction - e0) / (cap * cell.A * slip):.5f}"
+    )
+    assert sig == pytest.approx(sigma_c, rel=1e-9)
+    assert np.all(taus <= cap * (1.0 + 1e-9))
+    assert taus[0] == pytest.approx(cell.ps * rate * dt, rel=1e-9), "first increment sticks"
+    assert taus[-1] == pytest.approx(cap, rel=0.01)
+    assert slip > 50.0 * elastic_slip
+    de = cell.e_friction - e0
+    assert de == pytest.approx(cap * cell.A * slip, rel=0.05)
+    assert de == pytest.approx(cap * cell.A * (slip - elastic_slip), rel=1e-3)
+
+
+# ---------------------------------------------------------------------------------------------
+# Objectivity
+# ---------------------------------------------------------------------------------------------
+POSE = (rotation((1.0, -2.0, 3.0), 60.0), (0.3, -0.1, 0.7))
+
+
+def test_rigid_rotation_gives_no_force_or_damage():
+    """Rotate the unopened two-tet assembly by 60 degrees about (1,-2,3) and translate it:
+    the interface force stays ~0 (|f| < 1e-6 f_t A per point) and the damage 0 (exact)."""
+    cell = Cell(pose=POSE)
+    cell.set()
+    f = np.abs(cell.ifs.force[0]).max()
+    print(f"rotated, unopened: max |f| / (ft A) = {f / (FT * cell.A):.3g}")
+    assert f < 1e-6 * FT * cell.A
+    assert cell.damage == 0.0
+    assert cell.e_damage == 0.0
+
+
+def test_rotated_opening_gives_rotated_traction():
+    """An opening dn = 0.6 d_np plus a slip ds = 0.4 d_sp, applied in the reference frame and in
+    the rigidly rotated one (60 degrees about (1,-2,3)): the forces differ exactly by the
+    rotation (1e-9 relative) and so do the tractions in the local (n, t) frame; the normal one
+    equals f_t (2x - x^2) at x = 0.6 within 1e-9 relative."""
+    ref = Cell()
+    rot = Cell(pose=POSE)
+    dnp = 2.0 * FT / ref.pn
+    dsp = 2.0 * COHESION / ref.ps
+    sig_ref, tau_ref = ref.set(dn=0.6 * dnp, ds=0.4 * dsp)
+    sig_rot, tau_rot = rot.set(dn=0.6 * dnp, ds=0.4 * dsp)
+    assert sig_ref == pytest.approx(sigma_el(0.6 * dnp, FT, dnp), rel=1e-9)
+    assert sig_rot == pytest.approx(sig_ref, rel=1e-9)
+    assert tau_rot == pytest.approx(tau_ref, rel=1e-9)
+    f_ref = ref.ifs.force[0] @ POSE[0].T
+    np.testing.assert_allclose(rot.ifs.force[0], f_ref, rtol=0, atol=1e-9 * np.abs(f_ref).max())
+    assert rot.damage == 0.0 and ref.damage == 0.0
