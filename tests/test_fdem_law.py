@@ -283,7 +283,7 @@ def test_mode_two_dissipates_gf_two(gf_shear):
 @pytest.mark.parametrize("sigma_c", [-5e6, -20e6])
 def test_friction_after_failure(sigma_c):
     """Fail the interface in tension, press the faces to sigma_c = p_n dn (-5, -20 MPa) and
-    slide B along +t at 1 m/s with dt = 5 ns per call, 400 calls (slip 2 um, > 50 times the
+    slide B along +t at 1 m/s with dt = 20 ns per call, 400 calls (slip 8 um, > 50 times the
     stick spring's elastic slip mu |sigma| / p_s).
 
     Checks: normal traction = p_n dn (1e-9 relative); tangential traction capped at
@@ -300,7 +300,7 @@ def test_friction_after_failure(sigma_c):
     assert sig == pytest.approx(sigma_c, rel=1e-9)
     assert tau == 0.0
     e0 = cell.e_friction
-    rate, dt, n = 1.0, 5e-9, 400
+    rate, dt, n = 1.0, 2e-8, 400
     taus = []
     for k in range(1, n + 1):
         sig, tau = cell.set(dn=dn_c, ds=k * rate * dt, slip_rate=rate, dt=dt)
@@ -315,7 +315,7 @@ def test_friction_after_failure(sigma_c):
     )
     assert sig == pytest.approx(sigma_c, rel=1e-9)
     assert np.all(taus <= cap * (1.0 + 1e-9))
-    assert taus[0] == pytest.approx(cell.ps * rate * dt, rel=1e-9), "first increment sticks"
+    assert taus[0] == pytest.approx(min(cell.ps * rate * dt, cap), rel=1e-9), "stick spring p_s"
     assert taus[-1] == pytest.approx(cap, rel=0.01)
     assert slip > 50.0 * elastic_slip
     de = cell.e_friction - e0
@@ -343,9 +343,10 @@ def test_rigid_rotation_gives_no_force_or_damage():
 
 def test_rotated_opening_gives_rotated_traction():
     """An opening dn = 0.6 d_np plus a slip ds = 0.4 d_sp, applied in the reference frame and in
-    the rigidly rotated one (60 degrees about (1,-2,3)): the forces differ exactly by the
-    rotation (1e-9 relative) and so do the tractions in the local (n, t) frame; the normal one
-    equals f_t (2x - x^2) at x = 0.6 within 1e-9 relative."""
+    the rigidly rotated one (60 degrees about (1,-2,3)): the forces differ by the rotation
+    (1e-7 relative: round-off of 1e-8 m openings taken from 1e-2 m coordinates) and the tractions
+    in the local (n, t) frame agree within 1e-7; the normal one equals f_t (2x - x^2) at x = 0.6
+    within 1e-9 relative."""
     ref = Cell()
     rot = Cell(pose=POSE)
     dnp = 2.0 * FT / ref.pn
@@ -353,8 +354,9 @@ def test_rotated_opening_gives_rotated_traction():
     sig_ref, tau_ref = ref.set(dn=0.6 * dnp, ds=0.4 * dsp)
     sig_rot, tau_rot = rot.set(dn=0.6 * dnp, ds=0.4 * dsp)
     assert sig_ref == pytest.approx(sigma_el(0.6 * dnp, FT, dnp), rel=1e-9)
-    assert sig_rot == pytest.approx(sig_ref, rel=1e-9)
-    assert tau_rot == pytest.approx(tau_ref, rel=1e-9)
+    assert sig_rot == pytest.approx(sig_ref, rel=1e-7)
+    assert tau_rot == pytest.approx(tau_ref, rel=1e-7)
+    assert abs(tau_ref) > 0.1 * COHESION
     f_ref = ref.ifs.force[0] @ POSE[0].T
-    np.testing.assert_allclose(rot.ifs.force[0], f_ref, rtol=0, atol=1e-9 * np.abs(f_ref).max())
+    np.testing.assert_allclose(rot.ifs.force[0], f_ref, rtol=0, atol=1e-7 * np.abs(f_ref).max())
     assert rot.damage == 0.0 and ref.damage == 0.0

@@ -1,0 +1,126 @@
+"""Command line and scenario validation: bad input ends before any work with exit code 2 and one
+message naming the field or file and the fix (no traceback)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+
+from crackle.cli import main
+from crackle.scenario import examples_dir
+
+BASE = (examples_dir() / "three-point-bending.toml").read_text()
+
+
+def _write(tmp_path, text, name="s.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def _run(capsys, *argv):
+    code = main(["run", *argv])
+    err = capsys.readouterr().err
+    return code, err
+
+
+@pytest.mark.parametrize(
+    "edit, expected",
+    [
+        # unknown key
+        (lambda t: t.replace('name = "top"', 'name = "top"\ncolour = "red"', 1), "tools.0.colour"),
+        # missing key
+        (lambda t: t.replace("density = 2340.0", ""), "material.density"),
+        # non-physical values
+        (lambda t: t.replace("youngs_modulus = 26e9", "youngs_modulus = -1.0"), "material.youngs_modulus"),
+        (lambda t: t.replace("poissons_ratio = 0.2", "poissons_ratio = 0.5"), "material.poissons_ratio"),
+        (lambda t: t.replace("density = 2340.0", "density = 0.0"), "material.density"),
+        (lambda t: t.replace("tensile_strength = 3e6", "tensile_strength = -3e6"), "material.interface.tensile_strength"),
+        (lambda t: t.replace("fracture_energy = 10.0", "fracture_energy = -1.0"), "material.interface.fracture_energy"),
+        # broken TOML
+        (lambda t: t.replace("[run]", "[run"), "broken TOML"),
+        # a stop condition naming a tool that does not exist
+        (lambda t: t.replace("force_drop = 0.1", 'force_drop = 0.1\ntool = "middle"'), "run.stop.tool"),
+        # wrong type
+        (lambda t: t.replace('shape = "beam"', 'shape = "banana"'), "specimen.shape"),
+    ],
+)
+def test_malformed_scenario_exits_2_naming_the_field(tmp_path, capsys, edit, expected):
+    """Each malformed scenario: exit code 2, one line naming the field (`expected`), no traceback."""
+    code, err = _run(capsys, _write(tmp_path, edit(BASE)), "--out", str(tmp_path / "out"))
+    assert code == 2
+    assert expected in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists(), "nothing may be written before validation passes"
+
+
+def test_missing_mesh_file(tmp_path, capsys):
+    text = BASE.replace('shape = "beam"', 'shape = "mesh"\nfile = "nowhere.msh"')
+    code, err = _run(capsys, _write(tmp_path, text), "--out", str(tmp_path / "out"))
+    assert code == 2 and "nowhere.msh" in err and "does not exist" in err
+
+
+def test_inverted_tets_in_mesh_file(tmp_path, capsys):
+    import meshio
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]) * 0.01
+    meshio.write(tmp_path / "bad.vtu", meshio.Mesh(points, [("tetra", np.array([[0, 2, 1, 3]]))]))
+    text = BASE.replace('shape = "beam"', 'shape = "mesh"\nfile = "bad.vtu"')
+    code, err = _run(capsys, _write(tmp_path, text), "--out", str(tmp_path / "out"))
+    assert code == 2 and "bad.vtu" in err and "inverted" in err
+
+
+def test_unknown_example_and_bad_override(tmp_path, capsys):
+    code, err = _run(capsys, "no-such-example")
+    assert code == 2 and "no-such-example" in err and "three-point-bending" in err
+    code, err = _run(capsys, "three-point-bending", "--set", "run.end_time", "--out", str(tmp_path / "o"))
+    assert code == 2 and "key=value" in err
+    code, err = _run(capsys, "three-point-bending", "--set", "run.end_time=-1", "--out", str(tmp_path / "o"))
+    assert code == 2 and "run.end_time" in err
+
+
+def test_time_step_larger_than_stable_is_refused(tmp_path, capsys):
+    """A user dt above safety x stable step is refused before the run, naming run.dt."""
+    code, err = _run(capsys, "three-point-bending", "--quick", "--set", "run.dt=1e-5", "--out", str(tmp_path / "o"))
+    assert code == 2 and "run.dt" in err and "stable" in err
+
+
+def test_real_process_exit_code(tmp_path):
+    """The installed entry point returns exit code 2 for a broken file, with no traceback."""
+    path = _write(tmp_path, "this is [not toml")
+    proc = subprocess.run([sys.executable, "-m", "crackle.cli", "run", path], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "broken TOML" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_examples_listed_and_valid(capsys):
+    """Every shipped example validates, with and without its quick form."""
+    from crackle.scenario import list_examples, load_scenario
+
+    assert main(["examples"]) == 0
+    out = capsys.readouterr().out
+    names = list_examples()
+    assert "three-point-bending" in names and "three-point-bending" in out
+    for name in names:
+        load_scenario(name)
+        load_scenario(name, quick=True)
+
+
+def test_fpz_json_matches_paper_001():
+    """Paper 001 eqs 13-14 for Table 1 (E 26 GPa, Gf 10 J/m2, ft 3 MPa): 8.5 mm and 21.7 mm."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "crackle.cli", "fpz", "--E", "26e9", "--Gf", "10", "--ft", "3e6", "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    data = json.loads(proc.stdout)
+    assert data["plastic_zone_long"] == pytest.approx(8.5e-3, rel=0.01)
+    assert data["plastic_zone_short"] == pytest.approx(21.7e-3, rel=0.01)
+    assert data["advised_element_size"] == pytest.approx(data["plastic_zone_long"] / 3, rel=1e-12)

@@ -1,0 +1,61 @@
+"""The shipped three-point-bending example (paper 001, section 3.2) in its quick form."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from crackle.api import run_scenario
+from crackle.io import read_events_csv, read_history_csv
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("3pb")
+    return run_scenario("three-point-bending", out, quick=True, progress=False)
+
+
+def test_single_fracture_near_mid_span(quick_run):
+    """Paper 001 Fig. 14e: one fracture at mid-span. Every failed interface lies within one
+    element (25 mm) of x = 250 mm, and the crack runs through at least 80 % of the 50 mm height."""
+    ev = read_events_csv(quick_run.out_dir / "events.csv")
+    assert len(ev["time"]) >= 3
+    assert np.all(np.abs(ev["x"] - 0.25) <= 0.025)
+    assert np.ptp(ev["y"]) >= 0.8 * 0.05 * (1 - 2 / 6)  # failure points sit at face centroids
+    # It starts on the tension side (bottom) and ends on the compression side (top).
+    first, last = np.argmin(ev["time"]), np.argmax(ev["time"])
+    assert ev["y"][first] < 0.025 < ev["y"][last]
+    assert set(ev["mode"]) <= {"tension", "mixed"}
+
+
+def test_energy_audited_with_fracture_and_friction(quick_run):
+    """|energy_error| < 3 % in a run with fracture (damage > 0) and platen friction (> 0)."""
+    s = quick_run.summary
+    h = quick_run.history
+    assert h["energy.damage"][-1] > 0
+    assert h["energy.friction"][-1] > 0
+    assert abs(s["energy_error"]) < 0.03
+
+
+def test_outputs_follow_the_contract(quick_run):
+    out = quick_run.out_dir
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("method", "scenario", "steps", "dt", "wall_time", "elements", "broken", "peak_force", "energy_error", "crackle_version"):
+        assert key in summary, key
+    assert summary["method"] == "fdem" and summary["elements"] == 960
+    assert summary["broken"] == len(read_events_csv(out / "events.csv")["time"])
+    hist = read_history_csv(out / "history.csv")
+    for col in ["time", "broken"] + [f"tool.top.{c}" for c in ("fx", "fy", "fz", "ux", "uy", "uz")] + [
+        f"energy.{e}" for e in ("kinetic", "elastic", "cohesive", "damage", "friction", "damping", "external")
+    ]:
+        assert col in hist, col
+    # The top platen moves down at 0.1 m/s after a 0.1 ms ramp: uy(t) = -0.1 (t - 0.05 ms).
+    t, uy = hist["time"][-1], hist["tool.top.uy"][-1]
+    assert uy == pytest.approx(-0.1 * (t - 0.5e-4), rel=1e-6)
+    assert (out / "fields.pvd").exists() and len(list((out / "fields").glob("*.vtu"))) >= 2
+    for plot in ("load_displacement.png", "energies.png", "crack_pattern.png"):
+        assert (out / "plots" / plot).stat().st_size > 1000
+    # Peak load is the largest interval-mean platen force, and it was reached before the break.
+    assert summary["peak_force"] > 100.0
