@@ -59,3 +59,22 @@ def test_outputs_follow_the_contract(quick_run):
         assert (out / "plots" / plot).stat().st_size > 1000
     # Peak load is the largest interval-mean platen force, and it was reached before the break.
     assert summary["peak_force"] > 100.0
+
+
+def test_unstable_run_stops_with_message_and_keeps_outputs(tmp_path):
+    """A step 30x above the stable one blows up: UnstableRunError naming the time, and the
+    history written so far plus summary.json (status 'unstable') stay on disk."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+    from crackle.solver import UnstableRunError, run
+
+    scenario, _ = load_scenario("three-point-bending", quick=True)
+    sim, control = build_simulation(scenario)
+    control.dt = 30 * sim.model.stable_dt
+    sim.model.stable_dt *= 100  # bypass the guard to force the blow-up
+    control.plots = False
+    with pytest.raises(UnstableRunError, match="unstable at t ="):
+        run(sim, control, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "unstable"
+    assert len((tmp_path / "history.csv").read_text().splitlines()) >= 2
