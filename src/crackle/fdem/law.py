@@ -11,9 +11,12 @@ Model (per unit area, for one integration point of an interface):
 * Damage D (eq. 8) from the interface's centroid opening and slip:
   D = sqrt(Dn^2 + Ds^2), Dn = <dn - dnp> / (dnc - dnp), Ds = <ds - dsp> / (dsc - dsp), capped
   at 1 and never decreasing. Stresses are z(D) times the undamaged curves (eq. 7 gives z).
-* Free energy phi = Phi_comp(dn) + z(D) (Phi_n(dn) + Phi_s(ds)), with Phi the integrals of the
+* Stored energy phi = Phi_comp(dn) + z(D) (Phi_n(dn) + Phi_s(ds)), with Phi the integrals of the
   undamaged curves. So unloading is elastic along the damaged curve z(D) sigma_el back to the
   origin, and the dissipation of a damage step is (z(D_old) - z(D_new)) (Phi_n + Phi_s) >= 0.
+  Phi_s depends on f_s and so on the current normal stress: as in the paper, the shear branch is
+  a potential only at constant normal stress, and a closed (dn, ds) loop below the peak under a
+  changing normal stress is not exactly conservative (the audit shows it as imbalance).
 * dnc is set so that a full mode-I separation dissipates exactly Gf:
   (2/3) f_t dnp + f_t (dnc - dnp) Iz = Gf, Iz = integral of z over [0, 1] (0.3863 with the
   default constants; the paper's d_c = 3 Gf / f is the same relation with Iz ~ 1/3 and dnp ~ 0).
