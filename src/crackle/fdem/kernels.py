@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .contact import gathered_contact_force, node_contact, reaction_lists
+from .topology import FAILED, INTACT, PRECRACK, face_corners  # noqa: F401 (re-exported)
 from .law import (
     LAW_GF1,
     LAW_GF2,
@@ -38,8 +40,6 @@ from .law import (
     softening,
 )
 
-# Interface states.
-INTACT, FAILED, PRECRACK = 0, 1, 2
 # Failure modes recorded in events.csv.
 MODE_NAMES = ("none", "tension", "shear", "mixed")
 # Tool shapes.
@@ -366,20 +366,8 @@ def _tet_forces(e, x, tets, f):
     f[n0, 2] = -(f[n0 + 1, 2] + f[n0 + 2, 2] + f[n0 + 3, 2])
 
 
-@njit(cache=True, inline="always")
-def face_corners(face):
-    """Local corners of face `face` (the face opposite corner `face`), outward-ordered."""
-    if face == 0:
-        return 1, 2, 3
-    if face == 1:
-        return 0, 3, 2
-    if face == 2:
-        return 0, 1, 3
-    return 0, 2, 1
-
-
 @njit(cache=True)
-def _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
+def _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
     x = nodes.x
     f = nodes.force
     fe = nodes.force_ext
@@ -523,6 +511,11 @@ def _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_
             nodes.friction[g, 1] = 0.0
             nodes.friction[g, 2] = 0.0
         nodes.tool[g] = touching
+        # Node-to-surface contact between free surfaces: internal to the specimen.
+        sx, sy, sz = gathered_contact_force(g, contact)
+        f[g, 0] += sx
+        f[g, 1] += sy
+        f[g, 2] += sz
         # Mass-proportional damping on the previous half-step velocity.
         dx = -alpha * m * vx0
         dy = -alpha * m * vy0
@@ -554,12 +547,13 @@ def _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, t0, dt, nodes, tets, ifs, tools, pressures, ctrl):
+def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
     """Run n_steps central-difference steps from time t0; arrays are updated in place."""
     n_if = ifs.na.shape[0]
     n_tet = tets.vol.shape[0]
     n_tool = tools.kind.shape[0]
     n_press = pressures.n.shape[0]
+    n_slot = contact.counts[1]
     pressure_now = np.zeros(max(n_press, 1))
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
@@ -575,8 +569,12 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, tools, pressures, ctrl):
                 tool_v_next[j, d] = sn * tools.direction[j, d]
         for i in prange(n_if):
             _interface(i, t, dt, nodes.x, nodes.v, ifs)
+        if n_slot > 0:
+            for s in prange(n_slot):
+                node_contact(s, dt, nodes.x, nodes.v, ifs, contact)
+            reaction_lists(contact)
         for e in prange(n_tet):
-            _tet_step(e, dt, nodes, tets, ifs, tools, pressure_now, tool_v_prev, tool_v_next, ctrl)
+            _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl)
         for j in range(n_tool):
             for d in range(3):
                 tools.disp[j, d] += tool_v_next[j, d] * dt

@@ -15,7 +15,8 @@ import numpy as np
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Selection, Support, Tool
 from ..materials import Material, process_zone
-from .kernels import FAILED, FIXED, FREE, INTACT, PRECRACK, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE
+from .kernels import FIXED, FREE, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE
+from .topology import FACE_CORNERS, INTACT, PRECRACK
 from .law import (
     LAW_A,
     LAW_B,
@@ -43,8 +44,6 @@ Tools = namedtuple("Tools", "kind geom disp direction times speeds n mu penalty 
 Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
 
-# Local corners of face f (opposite corner f), ordered so that the normal points out of the tet.
-FACE_CORNERS = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
 _SHAPE_CODES = {"plane": TOOL_PLANE, "box": TOOL_BOX, "cylinder": TOOL_CYLINDER, "sphere": TOOL_SPHERE}
 
 
@@ -66,6 +65,11 @@ class FdemModel:
     x0: np.ndarray  # reference positions of the exploded nodes
     stable_dt: float  # largest stable step (no safety factor)
     element_size: float
+    contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
+    tet_friction: np.ndarray  # Coulomb coefficient of each tet's material between fracture faces
+    corner_point: np.ndarray  # mesh point of each exploded node
+    contact_enabled: bool = True
+    contact_skin: float = 0.0  # m; the candidate lists stay valid for half of it
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -92,11 +96,15 @@ def build_fdem_model(
     gravity=(0.0, 0.0, 0.0),
     damping: float = 0.0,
     initial_velocity=None,
+    contact: bool = True,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
     `damping` is a mass-proportional coefficient alpha (1/s): force -alpha m v per node.
     `initial_velocity` is a (3,) vector or an (n_points, 3) array on the mesh points.
+    `contact` switches on node-to-surface contact between all free surfaces (fragments, fracture
+    faces that slid apart, self-contact); without it only the paired faces of failed interfaces
+    and the tools touch.
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -238,8 +246,10 @@ def build_fdem_model(
             projections.append(proj)
         constraint[node] = known[key]
 
-    # Tools: penalty per unit contact area defaults to the median interface normal penalty.
-    default_penalty = float(np.median(pn)) if n_if else float(np.max(E)) / mesh.element_size()
+    # Contact (tools and free surfaces): penalty per unit contact area, by default half the
+    # median interface normal penalty, so that a contact spring on an outer face is no stiffer
+    # than an interface pair and does not shorten the stable step.
+    default_penalty = 0.5 * (float(np.median(pn)) if n_if else float(np.max(E)) / mesh.element_size())
     tool_kind = np.array([_SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
     tool_geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
     tool_dir = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
@@ -296,16 +306,20 @@ def build_fdem_model(
     gtg = np.einsum("mki,mkj->mij", grads, grads)
     lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
     omega2_tet = 4.0 * (3.0 * lam + 2.0 * mu) * lam_max_g / rho  # lambda_max(M^-1 K_e) bound
-    k_node = np.zeros(4 * m)
-    share = 2.0 * np.maximum(pn, ps) * area / 3.0
-    np.add.at(k_node, na.ravel(), np.repeat(share, 3))
-    np.add.at(k_node, nb.ravel(), np.repeat(share, 3))
-    if len(tools):
-        # Every face counted as if on the surface: a bound that holds after any fracture.
-        tributary = np.zeros((m, 4))
-        for f in range(4):
-            tributary[:, FACE_CORNERS[f]] += face_area[:, f, None] / 3.0
-        k_node += tool_pen.max() * tributary.ravel()
+    # Springs on each face (Gershgorin row sums per node): an interface face carries its pair
+    # spring (twice, for the two sides' relative motion) and, once failed, the contact spring
+    # instead; an outer face carries surface contact and tool springs.
+    face_spring = np.zeros((m, 4))
+    pair = 2.0 * np.maximum(np.maximum(pn, ps), default_penalty if contact else 0.0) * area / 3.0
+    face_spring[ta, fa] = pair
+    face_spring[tb, fb] = pair
+    outer = face_iface < 0
+    outer_spring = (2.0 * default_penalty if contact else 0.0) + (tool_pen.max() if len(tools) else 0.0)
+    face_spring[outer] = outer_spring * face_area[outer] / 3.0
+    k_node = np.zeros((m, 4))
+    for f in range(4):
+        k_node[:, FACE_CORNERS[f]] += face_spring[:, f, None]
+    k_node = k_node.ravel()
     omega2 = np.repeat(omega2_tet, 4) + k_node / mass
     stable_dt = float(2.0 / np.sqrt(omega2.max()))
 
@@ -338,6 +352,11 @@ def build_fdem_model(
         x0=x0,
         stable_dt=stable_dt,
         element_size=element_size,
+        contact_penalty=default_penalty,
+        tet_friction=np.array([mat.interface.friction for mat in materials])[tet_material],
+        corner_point=corner_point.astype(np.int64),
+        contact_enabled=contact,
+        contact_skin=0.25 * element_size,
         warnings=model_warnings,
     )
 

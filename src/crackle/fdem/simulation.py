@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels import INTACT, MODE_NAMES, PRECRACK, advance, interface_energy, tet_energy_and_stress, tool_contact_state
+from .contact import build_contact, contact_energy, empty_contact, find_candidates
+from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
+from .topology import INTACT, PRECRACK
 from .model import FdemModel
 
 
@@ -26,6 +28,10 @@ class FdemSimulation:
         self._tool_force = np.zeros((n_tools, 3))
         self._tool_energy = np.zeros(n_tools)
         self._last_force_time = 0.0
+        self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
+        self._contact_ref = None  # positions at the last broad phase
+        self._contact_failed = -1
+        self.rebuilds = 0
         # Energy present at t = 0 (initial velocities) counts as work put in.
         self._initial_energy = self._kinetic()
 
@@ -35,12 +41,40 @@ class FdemSimulation:
         return self.model.stable_dt
 
     def advance(self, n_steps: int, dt: float) -> None:
+        """n_steps compiled steps, split where the contact candidate lists must be rebuilt."""
         m = self.model
-        advance(n_steps, self.time, dt, m.nodes, m.tets, m.ifs, m.tools, m.pressures, m.controls)
-        self.steps += n_steps
-        # Exact time of the step count, not an accumulated sum of dt.
+        done = 0
+        while done < n_steps:
+            n = n_steps - done
+            if m.contact_enabled:
+                self._refresh_contact()
+                # No node may move more than half the skin between two broad phases; the
+                # fastest node, allowing it to double its speed, sets the chunk length.
+                vmax = float(np.sqrt(np.max(np.einsum("ij,ij->i", m.nodes.v, m.nodes.v)))) if len(m.nodes.v) else 0.0
+                if vmax > 0.0:
+                    n = min(n, max(1, int(0.25 * m.contact_skin / (2.0 * vmax * dt))))
+            advance(n, self.steps * dt, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls)
+            self.steps += n
+            done += n
         self._dt = dt
+        # Exact time of the step count, not an accumulated sum of dt.
         self.time = self.steps * dt
+
+    def _refresh_contact(self) -> None:
+        """Rebuild the surface after new failures, and the candidates once surface nodes moved
+        half the skin since the last broad phase."""
+        m = self.model
+        failed = int(np.count_nonzero(m.ifs.state != INTACT))
+        if self._contact_ref is None or failed != self._contact_failed:
+            self.contact = build_contact(m, self.contact)
+            self._contact_failed = failed
+        else:
+            d = m.nodes.x[self.contact.slot_node] - self._contact_ref
+            if len(d) == 0 or np.max(np.einsum("ij,ij->i", d, d)) < (0.5 * m.contact_skin) ** 2:
+                return
+        self.contact = find_candidates(m.nodes.x, self.contact, m.contact_skin)
+        self._contact_ref = m.nodes.x[self.contact.slot_node]
+        self.rebuilds += 1
 
     # -- diagnostics --------------------------------------------------------------------------
     def _kinetic(self) -> float:
@@ -82,9 +116,9 @@ class FdemSimulation:
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),
             "energy.cohesive": float(np.sum(self._cohesive)),
-            "energy.contact": float(np.sum(self._contact) + np.sum(self._tool_energy)),
+            "energy.contact": float(np.sum(self._contact) + np.sum(self._tool_energy)) + contact_energy(self.contact),
             "energy.damage": float(np.sum(m.ifs.e_damage)),
-            "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction)),
+            "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
             "energy.damping": float(np.sum(nodes.w_damping)),
             "energy.external": float(np.sum(nodes.w_external)) + self._initial_energy,
         }
