@@ -15,11 +15,21 @@ Output: one human-readable line per size, then LAST one JSON object on one line:
 
     {"sizes": [{"tets": ..., "interfaces": ..., "steps": ..., "seconds_per_step": ...,
                 "tet_steps_per_s": ..., "bytes_per_tet": ..., "peak_rss_mb": ...,
-                "threads": ...}, ...], "threads": N}
+                "threads": ..., <extra keys>}, ...], "threads": N}
+
+bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/pressures/controls
+tuples plus model.x0, over the tet count. Extra keys per size: cells, dt, tool_contact_nodes (nodes
+touching a platen at the end: contact is exercised), build_s, repeat_seconds, sorted_interfaces,
+cpu_utilisation (process CPU time / (wall x threads) over the repeats) and idle_percent_before
+(idle share of the machine over 1 s before timing). The last two expose a busy machine: a
+warning goes to stderr when idle < 90 % or utilisation < 0.85.
 
 --breakdown adds, per size, the interface pass alone (crackle.fdem.kernels.interface_forces at
 the current state, median of the same repeats): `interface_seconds_per_step` and
 `interface_fraction` (its share of the complete step).
+
+--sort-interfaces renumbers the interfaces by (A-side tet, face) after the build: an experiment
+on memory locality that needs no change in src (see benchmarks/README.md).
 
 Examples:
 
@@ -62,6 +72,9 @@ def parse_args(argv=None):
                    help="cell edge of the structured box in m (default 4 mm; 24 tets per cell)")
     p.add_argument("--breakdown", action="store_true",
                    help="also time the interface pass alone (interface_forces)")
+    p.add_argument("--sort-interfaces", action="store_true",
+                   help="experiment: renumber the interfaces by (A-side tet, face) after the build, to measure "
+                        "what interface locality is worth (physics unchanged; interface ids permuted)")
     p.add_argument("--in-process", action="store_true",
                    help="run all sizes in this process (peak_rss_mb is then cumulative)")
     p.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
@@ -119,6 +132,50 @@ def build(target_tets: int, cell: float):
     return model, 0.8 * model.stable_dt, (nx, ny, nz)
 
 
+def sort_interfaces(model) -> None:
+    """Renumber interfaces by (A-side tet, local face), in place.
+
+    build_fdem_model keeps the order of geometry.internal_faces (sorted by node triple), which
+    scatters the interfaces of neighbouring tets across the interface arrays. Per-node force sums
+    still run over the tet's faces 0..3, so node results are bit-identical; only interface ids
+    are permuted.
+    """
+    import numpy as np
+
+    tets, ifs = model.tets, model.ifs
+    n_if = model.n_interfaces
+    e_idx, f_idx = np.nonzero((tets.face_iface >= 0) & (tets.face_side == 0))
+    key = np.empty(n_if, dtype=np.int64)
+    key[tets.face_iface[e_idx, f_idx]] = 4 * e_idx + f_idx
+    perm = np.argsort(key, kind="stable")
+    inverse = np.empty_like(perm)
+    inverse[perm] = np.arange(n_if)
+    for name, arr in zip(ifs._fields, ifs):
+        if name != "law_table":  # per law, not per interface
+            arr[...] = arr[perm]
+    fi = tets.face_iface
+    fi[...] = np.where(fi >= 0, inverse[np.maximum(fi, 0)], -1)
+
+
+def machine_idle_percent(seconds: float = 1.0) -> float | None:
+    """Idle share of all CPUs over `seconds` (Linux /proc/stat), None where unavailable.
+
+    Other processes on the machine slow the timed steps (CPU and memory bandwidth): the
+    benchmark reports this so that a busy machine shows in the numbers."""
+    def read():
+        with open("/proc/stat") as fh:
+            vals = [int(v) for v in fh.readline().split()[1:]]
+        return sum(vals), vals[3] + (vals[4] if len(vals) > 4 else 0)
+
+    try:
+        total0, idle0 = read()
+        time.sleep(seconds)
+        total1, idle1 = read()
+    except (OSError, ValueError, IndexError):
+        return None
+    return 100.0 * (idle1 - idle0) / max(total1 - total0, 1)
+
+
 def model_bytes(model) -> int:
     """Bytes of every numpy array in the model's state tuples, plus x0."""
     import numpy as np
@@ -143,6 +200,8 @@ def run_size(target_tets: int, args) -> dict:
 
     t_build = time.perf_counter()
     model, dt, cells = build(target_tets, args.cell)
+    if args.sort_interfaces:
+        sort_interfaces(model)
     sim = FdemSimulation(model)
     build_s = time.perf_counter() - t_build
 
@@ -158,11 +217,15 @@ def run_size(target_tets: int, args) -> dict:
         per_step = (time.perf_counter() - t0) / probe
         steps = max(5, int(math.ceil(args.seconds / max(per_step, 1e-9))))
 
-    timings = []
+    idle = machine_idle_percent()
+    timings, cpu = [], []
     for _ in range(args.repeats):
+        c0 = os.times()
         t0 = time.perf_counter()
         sim.advance(steps, dt)
         timings.append(time.perf_counter() - t0)
+        c1 = os.times()
+        cpu.append((c1.user - c0.user) + (c1.system - c0.system))
     seconds_per_step = statistics.median(timings) / steps
     n_tets = model.n_tets
     tool_nodes = int((model.nodes.tool >= 0).sum())
@@ -179,6 +242,11 @@ def run_size(target_tets: int, args) -> dict:
         "cells": list(cells),
         "dt": dt,
         "tool_contact_nodes": tool_nodes,
+        "sorted_interfaces": bool(args.sort_interfaces),
+        # Process CPU time / (wall time x threads) over the timed repeats: well below 1 means
+        # the threads did not get their cores (another process, fewer cores than threads).
+        "cpu_utilisation": sum(cpu) / (sum(timings) * numba.get_num_threads()),
+        "idle_percent_before": idle,
         "build_s": build_s,
         "repeat_seconds": timings,
     }
@@ -206,10 +274,20 @@ def human_line(r: dict) -> str:
         f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
         f"{r['tool_contact_nodes']} nodes on tools"
     )
+    if r.get("sorted_interfaces"):
+        line += " | interfaces sorted"
     if "interface_seconds_per_step" in r:
         line += (f" | interface pass {r['interface_seconds_per_step'] * 1e3:.3f} ms/step "
                  f"({100 * r['interface_fraction']:.0f}%)")
     return line
+
+
+def busy_warning(r: dict) -> str | None:
+    idle, util = r.get("idle_percent_before"), r.get("cpu_utilisation", 1.0)
+    if (idle is not None and idle < 90.0) or util < 0.85:
+        return (f"warning: {r['tets']} tets: the machine looked busy (idle before timing "
+                f"{'n/a' if idle is None else f'{idle:.0f}%'}, CPU utilisation {util:.2f}); timings are unreliable")
+    return None
 
 
 def child_argv(size: int, args) -> list[str]:
@@ -221,6 +299,8 @@ def child_argv(size: int, args) -> list[str]:
         argv += ["--steps", str(args.steps)]
     if args.breakdown:
         argv.append("--breakdown")
+    if args.sort_interfaces:
+        argv.append("--sort-interfaces")
     return argv
 
 
@@ -243,6 +323,8 @@ def main(argv=None) -> int:
             rows.append(run_size(size, args))
             if not args._child:
                 print(human_line(rows[-1]), flush=True)
+                if busy_warning(rows[-1]):
+                    print(busy_warning(rows[-1]), file=sys.stderr, flush=True)
     else:
         for size in args.sizes:
             proc = subprocess.run(child_argv(size, args), stdout=subprocess.PIPE, text=True)
@@ -251,6 +333,8 @@ def main(argv=None) -> int:
                 return proc.returncode
             rows.extend(json.loads(proc.stdout.strip().splitlines()[-1])["sizes"])
             print(human_line(rows[-1]), flush=True)
+            if busy_warning(rows[-1]):
+                print(busy_warning(rows[-1]), file=sys.stderr, flush=True)
 
     if not args._child:
         for r in rows:

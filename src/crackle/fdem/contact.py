@@ -33,7 +33,10 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from .topology import FACE_CORNERS, INTACT
+from .topology import FACE_CORNERS, INTACT, face_corners
+
+# Barycentric tolerance of the projection test (a fraction of the triangle).
+BARY_TOL = 0.01
 
 Contact = namedtuple(
     "Contact",
@@ -228,21 +231,56 @@ def _paired_and_near(g, t, x, ifs, c):
     return False
 
 
+@njit(cache=True, inline="always")
+def _node_normal(g, x, tets, ifs):
+    """Outward normal (not normalised) of node g's own surface: the sum of the area vectors of
+    its tet's surface faces that contain it."""
+    e = g // 4
+    k = g - 4 * e
+    nx = 0.0
+    ny = 0.0
+    nz = 0.0
+    for f in range(4):
+        if f == k:
+            continue
+        i = tets.face_iface[e, f]
+        if i >= 0 and ifs.state[i] == INTACT:
+            continue
+        c0, c1, c2 = face_corners(f)
+        a = 4 * e + c0
+        b = 4 * e + c1
+        q = 4 * e + c2
+        ux = x[b, 0] - x[a, 0]
+        uy = x[b, 1] - x[a, 1]
+        uz = x[b, 2] - x[a, 2]
+        wx = x[q, 0] - x[a, 0]
+        wy = x[q, 1] - x[a, 1]
+        wz = x[q, 2] - x[a, 2]
+        nx += uy * wz - uz * wy
+        ny += uz * wx - ux * wz
+        nz += ux * wy - uy * wx
+    return nx, ny, nz
+
+
 @njit(parallel=True, cache=True)
-def contact_forces(dt, x, v, ifs, c):
+def contact_forces(dt, x, v, tets, ifs, c):
     """Narrow phase and forces for every surface node, then the reaction lists (tests use this;
     the step loop calls node_contact itself)."""
     for s in prange(c.counts[1]):
-        node_contact(s, dt, x, v, ifs, c)
+        node_contact(s, dt, x, v, tets, ifs, c)
     reaction_lists(c)
 
 
 @njit(cache=True)
-def node_contact(s, dt, x, v, ifs, c):
+def node_contact(s, dt, x, v, tets, ifs, c):
     """Narrow phase and force for surface slot s: one contact per node, the least penetrated
     triangle it lies over."""
     pen = c.penalty[0]
     g = c.slot_node[s]
+    # Only surfaces that face each other (normals more than 120 degrees apart) touch: this keeps
+    # a node from being caught by a face at right angles to the one it crossed.
+    mx, my, mz = _node_normal(g, x, tets, ifs)
+    m_len = math.sqrt(mx * mx + my * my + mz * mz)
     best = -1
     best_gap = -np.inf
     bw0 = 0.0
@@ -276,6 +314,8 @@ def node_contact(s, dt, x, v, ifs, c):
         gap = rx * nx + ry * ny + rz * nz
         if gap >= 0.0 or gap < -c.tri_depth[t] or gap <= best_gap:
             continue
+        if mx * nx + my * ny + mz * nz >= -0.5 * m_len:
+            continue
         # Barycentric coordinates of the projection.
         d00 = ux * ux + uy * uy + uz * uz
         d01 = ux * wx + uy * wy + uz * wz
@@ -286,8 +326,14 @@ def node_contact(s, dt, x, v, ifs, c):
         l1 = (d11 * d20 - d01 * d21) / den
         l2 = (d00 * d21 - d01 * d20) / den
         l0 = 1.0 - l1 - l2
-        if l0 < 0.0 or l1 < 0.0 or l2 < 0.0:
+        # A small tolerance keeps a node lying on an edge or a corner of the other surface in
+        # contact: without it round-off lets such a node slip between triangles and wake up deep.
+        if l0 < -BARY_TOL or l1 < -BARY_TOL or l2 < -BARY_TOL:
             continue
+        # The force acts at the nearest point of the triangle.
+        l0 = min(max(l0, 0.0), 1.0)
+        l1 = min(max(l1, 0.0), 1.0 - l0)
+        l2 = 1.0 - l0 - l1
         if _paired_and_near(g, t, x, ifs, c):
             continue
         best = t

@@ -571,7 +571,7 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
             _interface(i, t, dt, nodes.x, nodes.v, ifs)
         if n_slot > 0:
             for s in prange(n_slot):
-                node_contact(s, dt, nodes.x, nodes.v, ifs, contact)
+                node_contact(s, dt, nodes.x, nodes.v, tets, ifs, contact)
             reaction_lists(contact)
         for e in prange(n_tet):
             _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl)

@@ -20,6 +20,11 @@ DEFAULT_SOFTENING = (0.63, 1.8, 6.0)
 # interfaces are the stiffest part (the usual FDEM trade-off).
 DEFAULT_PENALTY_FACTOR = 200.0
 
+# Contact between free surfaces and against tools: penalty per unit area CONTACT_PENALTY_FACTOR *
+# E / h (the usual FDEM order of magnitude, ~10 E / h); see fdem.model for why it is softer than
+# the interfaces.
+CONTACT_PENALTY_FACTOR = 10.0
+
 
 def softening_z(damage: float, a: float, b: float, c: float) -> float:
     """Remaining fraction of strength at damage D in [0, 1] (paper 001, eq. 7)."""
@@ -131,6 +136,7 @@ def process_zone(youngs_modulus: float, fracture_energy: float, tensile_strength
 
 
 __all__ = [
+    "CONTACT_PENALTY_FACTOR",
     "DEFAULT_PENALTY_FACTOR",
     "DEFAULT_SOFTENING",
     "GuoMunjizaLaw",
