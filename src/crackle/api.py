@@ -18,6 +18,8 @@ def build_specimen(spec, base: Path | None) -> TetMesh:
         if spec.shape in ("box", "beam"):
             make = geometry.structured_box if spec.mesh == "structured" else geometry.gmsh_box
             return make(spec.size, spec.element_size, origin=spec.origin)
+        if spec.shape == "sphere":
+            return geometry.gmsh_sphere(0.5 * spec.diameter, spec.element_size, center=spec.center)
         if spec.shape in ("disc", "cylinder"):
             return geometry.gmsh_cylinder(0.5 * spec.diameter, spec.thickness, spec.element_size, center=spec.center, axis=spec.axis)
         path = Path(spec.file)
@@ -112,6 +114,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
                 precracks=[Precrack(c.point, c.normal, c.box_min, c.box_max, c.tol) for c in scenario.precracks],
                 gravity=scenario.run.gravity,
                 damping=scenario.run.damping,
+                initial_velocity=scenario.specimen.initial_velocity,
+                contact=scenario.run.contact,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None

@@ -29,16 +29,17 @@ class _Strict(BaseModel):
 
 
 class Specimen(_Strict):
-    shape: Literal["box", "beam", "disc", "cylinder", "mesh"]
+    shape: Literal["box", "beam", "disc", "cylinder", "sphere", "mesh"]
     element_size: Positive | None = None
     size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
     origin: Vec3 = (0.0, 0.0, 0.0)  # box, beam: lower corner
     mesh: Literal["structured", "unstructured"] = "structured"  # box, beam
-    diameter: Positive | None = None  # disc, cylinder
+    diameter: Positive | None = None  # disc, cylinder, sphere
     thickness: Positive | None = None  # disc, cylinder: extent along the axis
-    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder
+    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere
     axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
     file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...)
+    initial_velocity: Vec3 = (0.0, 0.0, 0.0)  # m/s, the whole specimen at t = 0
 
     @model_validator(mode="after")
     def _needs(self):
@@ -47,6 +48,7 @@ class Specimen(_Strict):
             "beam": ("size", "element_size"),
             "disc": ("diameter", "thickness", "element_size"),
             "cylinder": ("diameter", "thickness", "element_size"),
+            "sphere": ("diameter", "element_size"),
             "mesh": ("file",),
         }[self.shape]
         missing = [k for k in need if getattr(self, k) is None]
@@ -166,6 +168,7 @@ class RunSpec(_Strict):
     dt: Positive | None = None
     safety: Annotated[float, Field(gt=0, le=1)] = 0.8
     damping: NonNegative = 0.0  # mass-proportional, 1/s
+    contact: bool = True  # contact between free surfaces (fragments, fracture faces)
     gravity: Vec3 = (0.0, 0.0, 0.0)
     history_samples: Annotated[int, Field(ge=1)] = 400
     field_frames: Annotated[int, Field(ge=0)] = 10

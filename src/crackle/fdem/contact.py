@@ -37,11 +37,13 @@ from .topology import FACE_CORNERS, INTACT, face_corners
 
 # Barycentric tolerance of the projection test (a fraction of the triangle).
 BARY_TOL = 0.01
+# Depth, as a fraction of the half tet height, beyond which a new contact starts unloaded.
+WAKE_DEPTH = 0.02
 
 Contact = namedtuple(
     "Contact",
     "counts tri_nodes tri_iface tri_tet tri_depth slot_node node_slot slot_area cand_start cand_tri "
-    "contact_tri contact_w contact_f contact_gap tangential react_start react_src react_k "
+    "contact_tri contact_w contact_f contact_gap contact_offset tangential react_start react_src react_k "
     "penalty tet_mu corner_point d_friction",
 )
 # counts: [n_triangles, n_slots, n_candidates, n_reactions]; penalty: [p] (N/m^3 of contact
@@ -91,6 +93,7 @@ def build_contact(model, previous: "Contact | None" = None) -> Contact:
         contact_w=np.zeros((n_slot, 3)),
         contact_f=np.zeros((n_slot, 3)),
         contact_gap=np.zeros(n_slot),
+        contact_offset=np.zeros(n_slot),
         tangential=tangential,
         react_start=np.zeros(n_slot + 1, dtype=np.int64),
         react_src=np.zeros(3 * n_slot, dtype=np.int64),
@@ -118,7 +121,7 @@ def empty_contact(n_nodes: int, penalty: float = 0.0) -> Contact:
         counts=np.zeros(4, dtype=np.int64), tri_nodes=np.zeros((0, 3), dtype=np.int64), tri_iface=zi,
         tri_tet=zi, tri_depth=z, slot_node=zi, node_slot=np.full(n_nodes, -1, dtype=np.int32),
         slot_area=z, cand_start=np.zeros(1, dtype=np.int64), cand_tri=zi, contact_tri=zi,
-        contact_w=np.zeros((0, 3)), contact_f=np.zeros((0, 3)), contact_gap=z, tangential=np.zeros((0, 3)),
+        contact_w=np.zeros((0, 3)), contact_f=np.zeros((0, 3)), contact_gap=z, contact_offset=z, tangential=np.zeros((0, 3)),
         react_start=np.zeros(1, dtype=np.int64), react_src=zi, react_k=zi, penalty=np.array([penalty]),
         tet_mu=z, corner_point=zi, d_friction=np.zeros(n_nodes),
     )
@@ -341,8 +344,10 @@ def node_contact(s, dt, x, v, tets, ifs, c):
         bw0 = l0
         bw1 = l1
         bnx, bny, bnz = nx, ny, nz
+    was_active = c.contact_tri[s] >= 0
     c.contact_tri[s] = best
     if best < 0:
+        c.contact_offset[s] = 0.0
         c.contact_f[s, 0] = 0.0
         c.contact_f[s, 1] = 0.0
         c.contact_f[s, 2] = 0.0
@@ -355,9 +360,15 @@ def node_contact(s, dt, x, v, tets, ifs, c):
     c.contact_w[s, 0] = bw0
     c.contact_w[s, 1] = bw1
     c.contact_w[s, 2] = bw2
-    c.contact_gap[s] = best_gap
+    # A node that wakes up already deep (it slipped in past an edge the broad or narrow phase
+    # did not catch) would get a spring loaded with energy nobody paid for: it starts from its
+    # current depth instead, and only further penetration pushes back.
+    if not was_active:
+        c.contact_offset[s] = best_gap if best_gap < -WAKE_DEPTH * c.tri_depth[best] else 0.0
+    gap = min(best_gap - c.contact_offset[s], 0.0)
+    c.contact_gap[s] = gap
     k = pen * c.slot_area[s]
-    fn = -k * best_gap
+    fn = -k * gap
     a = c.tri_nodes[best, 0]
     b = c.tri_nodes[best, 1]
     q = c.tri_nodes[best, 2]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis import Fragments, find_fragments
+from ..io import plot_fragment_sizes
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
 from .topology import INTACT, PRECRACK
@@ -32,6 +34,8 @@ class FdemSimulation:
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1
         self.rebuilds = 0
+        self._fragments: Fragments | None = None
+        self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
         self._initial_energy = self._kinetic()
 
@@ -138,7 +142,21 @@ class FdemSimulation:
                 row[f"tool.{tool.name}.u{axis}"] = float(u[k])
         row.update(energies)
         row["broken"] = self.broken
+        row["fragments"] = self.fragments().count
         return row
+
+    def fragments(self) -> Fragments:
+        """Pieces of tets still joined by intact interfaces (recomputed after new failures)."""
+        m = self.model
+        failed = int(np.count_nonzero(m.ifs.state != INTACT))
+        if self._fragments is None or failed != self._fragments_failed:
+            intact = m.ifs.state == INTACT
+            links = np.stack([m.ifs.na[intact, 0] // 4, m.ifs.nb[intact, 0] // 4], axis=1)
+            tet_mass = m.nodes.mass.reshape(-1, 4).sum(axis=1)
+            tet_velocity = m.nodes.v.reshape(-1, 4, 3).mean(axis=1)
+            self._fragments = find_fragments(m.n_tets, links, tet_mass, tet_velocity)
+            self._fragments_failed = failed
+        return self._fragments
 
     def new_events(self):
         """Failures since the last call: times, positions, mode names, interface ids."""
@@ -166,7 +184,7 @@ class FdemSimulation:
             "points": n.x,
             "tets": np.arange(4 * n_tets).reshape(-1, 4),
             "point_data": {"displacement": n.x - m.x0, "velocity": n.v},
-            "cell_data": {"stress": self._stress.copy(), "damage": tet_damage},
+            "cell_data": {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels},
             "triangles": m.ifs.na,
             "triangle_data": {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64)},
         }
@@ -174,9 +192,21 @@ class FdemSimulation:
     def bounds(self):
         return self.model.mesh.bounds()
 
+    def extra_plots(self, out_dir) -> None:
+        plot_fragment_sizes(self.fragments().masses, out_dir / "plots" / "fragment_sizes.png")
+
     def summary(self) -> dict:
         m = self.model
+        # Velocities change without new failures: refresh the fragment velocities for the record.
+        self._fragments = None
+        frags = self.fragments()
         return {
+            "fragments": frags.count,
+            "largest_fragment_mass_fraction": frags.largest_mass_fraction,
+            "fragment_masses": frags.masses[:20].tolist(),
+            "fragment_speeds": np.linalg.norm(frags.velocities[:20], axis=1).tolist(),
+            "largest_fragment_velocity": frags.velocities[0].tolist(),
+            "contact_rebuilds": self.rebuilds,
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,

@@ -33,6 +33,7 @@ __all__ = [
     "disc",
     "gmsh_box",
     "gmsh_cylinder",
+    "gmsh_sphere",
     "gmsh_from_surface",
     "internal_faces",
     "nodes_in_box",
@@ -361,6 +362,20 @@ def gmsh_cylinder(
     base = np.asarray(center, dtype=np.float64) - 0.5 * ax  # gmsh wants the base centre
     with _gmsh_model(element_size) as gmsh:
         gmsh.model.occ.addCylinder(*base.tolist(), *ax.tolist(), float(radius))
+        gmsh.model.occ.synchronize()
+        gmsh.model.mesh.generate(3)
+        return _gmsh_tets(gmsh)
+
+
+def gmsh_sphere(
+    radius: float,
+    element_size: float,
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TetMesh:
+    """Unstructured tet mesh of a ball of given radius."""
+    _check_h(element_size)
+    with _gmsh_model(element_size) as gmsh:
+        gmsh.model.occ.addSphere(*(float(c) for c in center), float(radius))
         gmsh.model.occ.synchronize()
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh)

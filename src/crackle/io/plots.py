@@ -191,6 +191,23 @@ def plot_crack_pattern(events, bounds, path) -> Path:
     return _save(fig, path)
 
 
+def plot_fragment_sizes(masses, path) -> Path:
+    """Cumulative fragment-size distribution: share of the total mass in fragments of at most a
+    given mass, on log axes (one point per fragment)."""
+    m = np.sort(np.asarray(masses, dtype=float))
+    fig = _new_figure(figsize=(6, 4.5))
+    ax = fig.add_subplot(111)
+    if len(m):
+        ax.step(m * 1e3, np.cumsum(m) / m.sum(), where="post", color="tab:red")
+        ax.plot(m * 1e3, np.cumsum(m) / m.sum(), ".", color="tab:red")
+        ax.set_xscale("log")
+    ax.set_xlabel("fragment mass (g)")
+    ax.set_ylabel("mass fraction in fragments this size or smaller")
+    ax.set_title(f"{len(m)} fragment(s)")
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, path)
+
+
 def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
     """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
 

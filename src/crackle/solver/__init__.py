@@ -7,6 +7,7 @@ A method supplies a simulation object with:
   new_events() -> (times, xyz, modes, ids)  failures since the last call
   fields() -> dict                          arrays for a ParaView snapshot
   tool_names(), bounds(), summary()         set-up facts for outputs
+  extra_plots(out_dir)                      optional: method-specific plots
 The driver chooses the step, runs compiled chunks between outputs, applies the stop conditions,
 audits energy, and writes every output of the contract as it goes: a run that goes unstable or
 is interrupted keeps everything written so far.
@@ -167,6 +168,8 @@ def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") 
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
+        if hasattr(sim, "extra_plots"):
+            sim.extra_plots(out)
     if status == "unstable":
         raise UnstableRunError(message + f" (outputs so far are in {out})")
     return RunResult(out, summary, hist)
