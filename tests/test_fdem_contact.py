@@ -37,7 +37,7 @@ def test_head_on_collision_conserves_momentum_and_limits_penetration():
     vel[:n_a, 0], vel[n_a:, 0] = 2.0, -2.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, _elastic(), initial_velocity=vel)
+        model = build_fdem_model(mesh, _elastic(), initial_velocity=vel, contact=True)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     nodes = model.nodes
@@ -76,7 +76,7 @@ def _block_on_incline(theta_deg, mu, t_slide=4e-3):
     g = 9.81
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -g * math.cos(th)), damping=2000.0)
+        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -g * math.cos(th)), damping=2000.0, contact=True)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     sim.advance(int(2e-3 / dt), dt)
@@ -113,7 +113,7 @@ def test_fragment_resting_on_platen_does_not_drift():
     tool = Tool("platen", "plane", direction=(0, 0, 1), speed=History.constant(0.0), friction=0.3, center=(0, 0, 0), normal=(0, 0, 1))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -9.81), damping=500.0)
+        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -9.81), damping=500.0, contact=True)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     nodes = model.nodes

@@ -166,9 +166,9 @@ class Stop(_Strict):
 class RunSpec(_Strict):
     end_time: Positive
     dt: Positive | None = None
-    safety: Annotated[float, Field(gt=0, le=1)] = 0.8
+    safety: Annotated[float, Field(gt=0, le=1)] = 0.7
     damping: NonNegative = 0.0  # mass-proportional, 1/s
-    contact: bool = True  # contact between free surfaces (fragments, fracture faces)
+    contact: bool = False  # contact between free surfaces (fragments, fracture faces): experimental
     gravity: Vec3 = (0.0, 0.0, 0.0)
     history_samples: Annotated[int, Field(ge=1)] = 400
     field_frames: Annotated[int, Field(ge=0)] = 10

@@ -68,7 +68,7 @@ class FdemModel:
     contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
     tet_friction: np.ndarray  # Coulomb coefficient of each tet's material between fracture faces
     corner_point: np.ndarray  # mesh point of each exploded node
-    contact_enabled: bool = True
+    contact_enabled: bool = False
     contact_skin: float = 0.0  # m; the candidate lists stay valid for half of it
     warnings: list[str] = field(default_factory=list)
 
@@ -96,7 +96,7 @@ def build_fdem_model(
     gravity=(0.0, 0.0, 0.0),
     damping: float = 0.0,
     initial_velocity=None,
-    contact: bool = True,
+    contact: bool = False,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -104,7 +104,7 @@ def build_fdem_model(
     `initial_velocity` is a (3,) vector or an (n_points, 3) array on the mesh points.
     `contact` switches on node-to-surface contact between all free surfaces (fragments, fracture
     faces that slid apart, self-contact); without it only the paired faces of failed interfaces
-    and the tools touch.
+    and the tools touch. Off by default while it is being validated on fracturing runs.
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):

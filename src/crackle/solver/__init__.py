@@ -47,7 +47,7 @@ class StopConditions:
 class RunControl:
     end_time: float
     dt: float | None = None  # None: safety * stable step
-    safety: float = 0.8
+    safety: float = 0.7
     history_samples: int = 400  # rows in history.csv over end_time
     field_frames: int = 10  # VTU snapshots over end_time (0: none)
     stop: StopConditions = field(default_factory=StopConditions)
