@@ -18,11 +18,12 @@ Output: one human-readable line per size, then LAST one JSON object on one line:
                 "threads": ..., <extra keys>}, ...], "threads": N}
 
 bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/pressures/controls
-tuples plus model.x0, over the tet count. Extra keys per size: cells, dt, tool_contact_nodes (nodes
-touching a platen at the end: contact is exercised), build_s, repeat_seconds, sorted_interfaces,
-cpu_utilisation (process CPU time / (wall x threads) over the repeats) and idle_percent_before
-(idle share of the machine over 1 s before timing). The last two expose a busy machine: a
-warning goes to stderr when idle < 90 % or utilisation < 0.85.
+tuples plus model.x0, over the tet count. Extra keys per size: contact_bytes_per_tet (arrays of
+the simulation's node-to-surface contact state, not counted in bytes_per_tet), cells, dt,
+tool_contact_nodes (nodes touching a platen at the end: contact is exercised), build_s,
+repeat_seconds, sorted_interfaces, cpu_utilisation (process CPU time / (wall x threads) over the
+repeats) and idle_percent_before (idle share of the machine over 1 s before timing). The last two
+expose a busy machine: a warning goes to stderr when idle < 90 % or utilisation < 0.85.
 
 --breakdown adds, per size, the interface pass alone (crackle.fdem.kernels.interface_forces at
 the current state, median of the same repeats): `interface_seconds_per_step` and
@@ -186,6 +187,17 @@ def model_bytes(model) -> int:
     return total
 
 
+def contact_bytes(sim) -> int:
+    """Bytes of the arrays of the simulation's node-to-surface contact state (0 if it has none);
+    not part of bytes_per_tet, reported beside it."""
+    import numpy as np
+
+    state = getattr(sim, "contact", None)
+    if not isinstance(state, tuple):
+        return 0
+    return sum(a.nbytes for a in state if isinstance(a, np.ndarray))
+
+
 def peak_rss_mb() -> float:
     # ru_maxrss is in KiB on Linux (bytes on macOS).
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -239,6 +251,7 @@ def run_size(target_tets: int, args) -> dict:
         "bytes_per_tet": model_bytes(model) / n_tets,
         "peak_rss_mb": peak_rss_mb(),
         "threads": numba.get_num_threads(),
+        "contact_bytes_per_tet": contact_bytes(sim) / n_tets,
         "cells": list(cells),
         "dt": dt,
         "tool_contact_nodes": tool_nodes,
