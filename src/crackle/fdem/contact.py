@@ -33,6 +33,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
+from .friction import coulomb_update
 from .topology import FACE_CORNERS, INTACT, face_corners
 
 # Barycentric tolerance of the projection test (a fraction of the triangle).
@@ -373,39 +374,15 @@ def node_contact(s, dt, x, v, tets, ifs, c):
     b = c.tri_nodes[best, 1]
     q = c.tri_nodes[best, 2]
     # Slip velocity of the node relative to the triangle's material point under it.
-    rx = v[g, 0] - (bw0 * v[a, 0] + bw1 * v[b, 0] + bw2 * v[q, 0])
-    ry = v[g, 1] - (bw0 * v[a, 1] + bw1 * v[b, 1] + bw2 * v[q, 1])
-    rz = v[g, 2] - (bw0 * v[a, 2] + bw1 * v[b, 2] + bw2 * v[q, 2])
-    rn = rx * bnx + ry * bny + rz * bnz
-    rx -= rn * bnx
-    ry -= rn * bny
-    rz -= rn * bnz
-    tx = c.tangential[s, 0]
-    ty = c.tangential[s, 1]
-    tz = c.tangential[s, 2]
-    t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
-    tn = tx * bnx + ty * bny + tz * bnz
-    tx -= tn * bnx
-    ty -= tn * bny
-    tz -= tn * bnz
-    t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if t_proj > 0.0:
-        sc = t_old / t_proj
-        tx *= sc
-        ty *= sc
-        tz *= sc
-    tx -= k * rx * dt
-    ty -= k * ry * dt
-    tz -= k * rz * dt
-    t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
     mu = 0.5 * (c.tet_mu[g // 4] + c.tet_mu[c.tri_tet[best]])
-    cap = mu * fn
-    if t_trial > cap:
-        c.d_friction[g] += (t_trial - cap) / k * cap
-        sc = cap / t_trial
-        tx *= sc
-        ty *= sc
-        tz *= sc
+    tx, ty, tz, lost = coulomb_update(
+        c.tangential[s, 0], c.tangential[s, 1], c.tangential[s, 2], bnx, bny, bnz,
+        v[g, 0] - (bw0 * v[a, 0] + bw1 * v[b, 0] + bw2 * v[q, 0]),
+        v[g, 1] - (bw0 * v[a, 1] + bw1 * v[b, 1] + bw2 * v[q, 1]),
+        v[g, 2] - (bw0 * v[a, 2] + bw1 * v[b, 2] + bw2 * v[q, 2]),
+        dt, k, mu * fn,
+    )
+    c.d_friction[g] += lost
     c.tangential[s, 0] = tx
     c.tangential[s, 1] = ty
     c.tangential[s, 2] = tz

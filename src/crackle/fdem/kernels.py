@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit, prange
 
 from .contact import gathered_contact_force, node_contact, reaction_lists
+from .friction import coulomb_update
 from .topology import FAILED, INTACT, PRECRACK, face_corners  # noqa: F401 (re-exported)
 from .law import (
     LAW_GF1,
@@ -199,40 +200,12 @@ def _interface(i, t, dt, x, v, ifs):
         sigma = pn * dn
         a = ifs.na[i, p]
         b = ifs.nb[i, p]
-        ux = v[b, 0] - v[a, 0]
-        uy = v[b, 1] - v[a, 1]
-        uz = v[b, 2] - v[a, 2]
-        un = ux * nx + uy * ny + uz * nz
-        ux -= un * nx
-        uy -= un * ny
-        uz -= un * nz
-        # Carry the stick traction into the current tangent plane, keeping its magnitude.
-        tx = ifs.traction_t[i, p, 0]
-        ty = ifs.traction_t[i, p, 1]
-        tz = ifs.traction_t[i, p, 2]
-        t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
-        tn = tx * nx + ty * ny + tz * nz
-        tx -= tn * nx
-        ty -= tn * ny
-        tz -= tn * nz
-        t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if t_proj > 0.0:
-            scale = t_old / t_proj
-            tx *= scale
-            ty *= scale
-            tz *= scale
-        tx += ps * ux * dt
-        ty += ps * uy * dt
-        tz += ps * uz * dt
-        t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
-        cap = -mu * sigma
-        if t_trial > cap:
-            # Slip: return to the Coulomb cone; the plastic slip times the friction stress is lost.
-            ifs.e_friction[i] += (t_trial - cap) / ps * cap * a3
-            scale = cap / t_trial
-            tx *= scale
-            ty *= scale
-            tz *= scale
+        # The traction resists B sliding over A: A's velocity relative to B drives the spring.
+        tx, ty, tz, lost = coulomb_update(
+            ifs.traction_t[i, p, 0], ifs.traction_t[i, p, 1], ifs.traction_t[i, p, 2], nx, ny, nz,
+            v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps, -mu * sigma,
+        )
+        ifs.e_friction[i] += lost * a3
         ifs.traction_t[i, p, 0] = tx
         ifs.traction_t[i, p, 1] = ty
         ifs.traction_t[i, p, 2] = tz
@@ -460,38 +433,11 @@ def _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev
                 if touching < 0:
                     touching = j
                     # Coulomb friction with a stick spring of the normal stiffness.
-                    rx = vx0 - tvx
-                    ry = vy0 - tvy
-                    rz = vz0 - tvz
-                    rn = rx * nx + ry * ny + rz * nz
-                    rx -= rn * nx
-                    ry -= rn * ny
-                    rz -= rn * nz
-                    tx = nodes.friction[g, 0]
-                    ty = nodes.friction[g, 1]
-                    tz = nodes.friction[g, 2]
-                    t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
-                    tn = tx * nx + ty * ny + tz * nz
-                    tx -= tn * nx
-                    ty -= tn * ny
-                    tz -= tn * nz
-                    t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
-                    if t_proj > 0.0:
-                        s = t_old / t_proj
-                        tx *= s
-                        ty *= s
-                        tz *= s
-                    tx -= kn * rx * dt
-                    ty -= kn * ry * dt
-                    tz -= kn * rz * dt
-                    t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
-                    cap = tools.mu[j] * fn
-                    if t_trial > cap:
-                        nodes.d_friction[g] += (t_trial - cap) / kn * cap
-                        s = cap / t_trial
-                        tx *= s
-                        ty *= s
-                        tz *= s
+                    tx, ty, tz, lost = coulomb_update(
+                        nodes.friction[g, 0], nodes.friction[g, 1], nodes.friction[g, 2], nx, ny, nz,
+                        vx0 - tvx, vy0 - tvy, vz0 - tvz, dt, kn, tools.mu[j] * fn,
+                    )
+                    nodes.d_friction[g] += lost
                     nodes.friction[g, 0] = tx
                     nodes.friction[g, 1] = ty
                     nodes.friction[g, 2] = tz
