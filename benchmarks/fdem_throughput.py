@@ -21,16 +21,13 @@ bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/p
 tuples plus model.x0, over the tet count. Extra keys per size: contact_bytes_per_tet (arrays of
 the simulation's node-to-surface contact state, not counted in bytes_per_tet), cells, dt,
 tool_contact_nodes (nodes touching a platen at the end: contact is exercised), build_s,
-repeat_seconds, sorted_interfaces, cpu_utilisation (process CPU time / (wall x threads) over the
+repeat_seconds, cpu_utilisation (process CPU time / (wall x threads) over the
 repeats) and idle_percent_before (idle share of the machine over 1 s before timing). The last two
 expose a busy machine: a warning goes to stderr when idle < 90 % or utilisation < 0.85.
 
 --breakdown adds, per size, the interface pass alone (crackle.fdem.kernels.interface_forces at
 the current state, median of the same repeats): `interface_seconds_per_step` and
 `interface_fraction` (its share of the complete step).
-
---sort-interfaces renumbers the interfaces by (A-side tet, face) after the build: an experiment
-on memory locality that needs no change in src (see benchmarks/README.md).
 
 Examples:
 
@@ -73,9 +70,6 @@ def parse_args(argv=None):
                    help="cell edge of the structured box in m (default 4 mm; 24 tets per cell)")
     p.add_argument("--breakdown", action="store_true",
                    help="also time the interface pass alone (interface_forces)")
-    p.add_argument("--sort-interfaces", action="store_true",
-                   help="experiment: renumber the interfaces by (A-side tet, face) after the build, to measure "
-                        "what interface locality is worth (physics unchanged; interface ids permuted)")
     p.add_argument("--in-process", action="store_true",
                    help="run all sizes in this process (peak_rss_mb is then cumulative)")
     p.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
@@ -133,31 +127,6 @@ def build(target_tets: int, cell: float):
     return model, 0.8 * model.stable_dt, (nx, ny, nz)
 
 
-def sort_interfaces(model) -> None:
-    """Renumber interfaces by (A-side tet, local face), in place.
-
-    build_fdem_model keeps the order of geometry.internal_faces (sorted by node triple), which
-    scatters the interfaces of neighbouring tets across the interface arrays. Per-node force sums
-    still run over the tet's faces 0..3, so node results are bit-identical; only interface ids
-    are permuted.
-    """
-    import numpy as np
-
-    tets, ifs = model.tets, model.ifs
-    n_if = model.n_interfaces
-    e_idx, f_idx = np.nonzero((tets.face_iface >= 0) & (tets.face_side == 0))
-    key = np.empty(n_if, dtype=np.int64)
-    key[tets.face_iface[e_idx, f_idx]] = 4 * e_idx + f_idx
-    perm = np.argsort(key, kind="stable")
-    inverse = np.empty_like(perm)
-    inverse[perm] = np.arange(n_if)
-    for name, arr in zip(ifs._fields, ifs):
-        if name != "law_table":  # per law, not per interface
-            arr[...] = arr[perm]
-    fi = tets.face_iface
-    fi[...] = np.where(fi >= 0, inverse[np.maximum(fi, 0)], -1)
-
-
 def machine_idle_percent(seconds: float = 1.0) -> float | None:
     """Idle share of all CPUs over `seconds` (Linux /proc/stat), None where unavailable.
 
@@ -212,8 +181,6 @@ def run_size(target_tets: int, args) -> dict:
 
     t_build = time.perf_counter()
     model, dt, cells = build(target_tets, args.cell)
-    if args.sort_interfaces:
-        sort_interfaces(model)
     sim = FdemSimulation(model)
     build_s = time.perf_counter() - t_build
 
@@ -255,7 +222,6 @@ def run_size(target_tets: int, args) -> dict:
         "cells": list(cells),
         "dt": dt,
         "tool_contact_nodes": tool_nodes,
-        "sorted_interfaces": bool(args.sort_interfaces),
         # Process CPU time / (wall time x threads) over the timed repeats: well below 1 means
         # the threads did not get their cores (another process, fewer cores than threads).
         "cpu_utilisation": sum(cpu) / (sum(timings) * numba.get_num_threads()),
@@ -287,8 +253,6 @@ def human_line(r: dict) -> str:
         f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
         f"{r['tool_contact_nodes']} nodes on tools"
     )
-    if r.get("sorted_interfaces"):
-        line += " | interfaces sorted"
     if "interface_seconds_per_step" in r:
         line += (f" | interface pass {r['interface_seconds_per_step'] * 1e3:.3f} ms/step "
                  f"({100 * r['interface_fraction']:.0f}%)")
@@ -312,8 +276,6 @@ def child_argv(size: int, args) -> list[str]:
         argv += ["--steps", str(args.steps)]
     if args.breakdown:
         argv.append("--breakdown")
-    if args.sort_interfaces:
-        argv.append("--sort-interfaces")
     return argv
 
 

@@ -1,6 +1,6 @@
 """Compiled FDEM step: interfaces, tetrahedra, tools, time integration.
 
-State is flat arrays grouped in named tuples (see ``state.py``). The exploded mesh gives each tet
+State is flat arrays grouped in named tuples (see ``model.py``). The exploded mesh gives each tet
 its own 4 nodes (node 4e+k is corner k of tet e), so one step is two parallel passes with no
 races and no atomics:
 
@@ -120,98 +120,105 @@ def _cohesive_potential(x, ifs, i, law, z, nx, ny, nz):
 
 
 @njit(cache=True)
-def _interface(i, t, dt, x, v, ifs):
-    law = ifs.law_table[ifs.law[i]]
-    pn = ifs.pn[i]
-    ps = ifs.ps[i]
-    a3 = ifs.area[i] / 3.0
-    nx, ny, nz = _mid_normal(x, ifs.na, ifs.nb, i)
+def _interface_block(lo, hi, t, dt, x, v, ifs):
+    """Interfaces lo..hi-1: kinematics, Guo-Munjiza law or (once failed) paired penalty contact with
+    Coulomb friction; the force on each B-side node into ifs.force (A gets its negative)."""
+    # Unpacked once per block: attribute access per element costs reference counting.
+    na, nb, area, pn_all, ps_all = ifs.na, ifs.nb, ifs.area, ifs.pn, ifs.ps
+    state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
+    law_table, law_of = ifs.law_table, ifs.law
+    for i in range(lo, hi):
+        law = law_table[law_of[i]]
+        pn = pn_all[i]
+        ps = ps_all[i]
+        a3 = area[i] / 3.0
+        nx, ny, nz = _mid_normal(x, na, nb, i)
 
-    if ifs.state[i] == INTACT:
-        # Damage from the centroid opening and slip (eq. 8), irreversible.
-        dn_c = 0.0
-        sx_c = 0.0
-        sy_c = 0.0
-        sz_c = 0.0
-        for p in range(3):
-            dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
-            dn_c += dn / 3.0
-            sx_c += sx / 3.0
-            sy_c += sy / 3.0
-            sz_c += sz / 3.0
-        ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
-        a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
-        d_old = ifs.damage[i]
-        z_old = softening(d_old, a, b, c)
-        ft = law[LAW_FT]
-        dnp = 2.0 * ft / pn
-        dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ])
-        fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
-        dsp = 2.0 * fs_c / ps
-        dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ])
-        d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
-        d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
-        d_new = math.sqrt(d_n * d_n + d_s * d_s)
-        if d_new > 1.0:
-            d_new = 1.0
-        z = z_old
-        if d_new > d_old:
-            z = softening(d_new, a, b, c)
-            ifs.damage[i] = d_new
-            # Energy released by the damage step at the current opening.
-            ifs.e_damage[i] += (z_old - z) * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
-            if d_new >= 1.0:
-                ifs.state[i] = FAILED
-                ifs.fail_time[i] = t
-                angle = math.atan2(d_s, d_n)
-                if angle < math.radians(15.0):
-                    ifs.fail_mode[i] = 1
-                elif angle > math.radians(75.0):
-                    ifs.fail_mode[i] = 2
-                else:
-                    ifs.fail_mode[i] = 3
-        if ifs.state[i] == INTACT:
+        if state[i] == INTACT:
+            # Damage from the centroid opening and slip (eq. 8), irreversible.
+            dn_c = 0.0
+            sx_c = 0.0
+            sy_c = 0.0
+            sz_c = 0.0
             for p in range(3):
-                dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
-                sigma = normal_stress(dn, pn, z, law)
-                fs = shear_strength(sigma, law)
-                ds = math.sqrt(sx * sx + sy * sy + sz * sz)
-                tau_over_ds = 0.0
-                if ds > 0.0:
-                    tau_over_ds = z * peak_curve(ds, fs, 2.0 * fs / ps) / ds
-                ifs.force[i, p, 0] = -(sigma * nx + tau_over_ds * sx) * a3
-                ifs.force[i, p, 1] = -(sigma * ny + tau_over_ds * sy) * a3
-                ifs.force[i, p, 2] = -(sigma * nz + tau_over_ds * sz) * a3
-            return
+                dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
+                dn_c += dn / 3.0
+                sx_c += sx / 3.0
+                sy_c += sy / 3.0
+                sz_c += sz / 3.0
+            ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+            a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
+            d_old = damage[i]
+            z_old = softening(d_old, a, b, c)
+            ft = law[LAW_FT]
+            dnp = 2.0 * ft / pn
+            dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ])
+            fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
+            dsp = 2.0 * fs_c / ps
+            dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ])
+            d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
+            d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
+            d_new = math.sqrt(d_n * d_n + d_s * d_s)
+            if d_new > 1.0:
+                d_new = 1.0
+            z = z_old
+            if d_new > d_old:
+                z = softening(d_new, a, b, c)
+                damage[i] = d_new
+                # Energy released by the damage step at the current opening.
+                ifs.e_damage[i] += (z_old - z) * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
+                if d_new >= 1.0:
+                    state[i] = FAILED
+                    ifs.fail_time[i] = t
+                    angle = math.atan2(d_s, d_n)
+                    if angle < math.radians(15.0):
+                        ifs.fail_mode[i] = 1
+                    elif angle > math.radians(75.0):
+                        ifs.fail_mode[i] = 2
+                    else:
+                        ifs.fail_mode[i] = 3
+            if state[i] == INTACT:
+                for p in range(3):
+                    dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
+                    sigma = normal_stress(dn, pn, z, law)
+                    fs = shear_strength(sigma, law)
+                    ds = math.sqrt(sx * sx + sy * sy + sz * sz)
+                    tau_over_ds = 0.0
+                    if ds > 0.0:
+                        tau_over_ds = z * peak_curve(ds, fs, 2.0 * fs / ps) / ds
+                    force[i, p, 0] = -(sigma * nx + tau_over_ds * sx) * a3
+                    force[i, p, 1] = -(sigma * ny + tau_over_ds * sy) * a3
+                    force[i, p, 2] = -(sigma * nz + tau_over_ds * sz) * a3
+                continue
 
-    # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
-    mu = law[LAW_MU]
-    reach2 = ifs.reach[i] * ifs.reach[i]
-    for p in range(3):
-        dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
-        if dn >= 0.0 or sx * sx + sy * sy + sz * sz > reach2:
-            ifs.traction_t[i, p, 0] = 0.0
-            ifs.traction_t[i, p, 1] = 0.0
-            ifs.traction_t[i, p, 2] = 0.0
-            ifs.force[i, p, 0] = 0.0
-            ifs.force[i, p, 1] = 0.0
-            ifs.force[i, p, 2] = 0.0
-            continue
-        sigma = pn * dn
-        a = ifs.na[i, p]
-        b = ifs.nb[i, p]
-        # The traction resists B sliding over A: A's velocity relative to B drives the spring.
-        tx, ty, tz, lost = coulomb_update(
-            ifs.traction_t[i, p, 0], ifs.traction_t[i, p, 1], ifs.traction_t[i, p, 2], nx, ny, nz,
-            v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps, -mu * sigma,
-        )
-        ifs.e_friction[i] += lost * a3
-        ifs.traction_t[i, p, 0] = tx
-        ifs.traction_t[i, p, 1] = ty
-        ifs.traction_t[i, p, 2] = tz
-        ifs.force[i, p, 0] = -(sigma * nx + tx) * a3
-        ifs.force[i, p, 1] = -(sigma * ny + ty) * a3
-        ifs.force[i, p, 2] = -(sigma * nz + tz) * a3
+        # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
+        mu = law[LAW_MU]
+        reach2 = ifs.reach[i] * ifs.reach[i]
+        for p in range(3):
+            dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
+            if dn >= 0.0 or sx * sx + sy * sy + sz * sz > reach2:
+                traction_t[i, p, 0] = 0.0
+                traction_t[i, p, 1] = 0.0
+                traction_t[i, p, 2] = 0.0
+                force[i, p, 0] = 0.0
+                force[i, p, 1] = 0.0
+                force[i, p, 2] = 0.0
+                continue
+            sigma = pn * dn
+            a = na[i, p]
+            b = nb[i, p]
+            # The traction resists B sliding over A: A's velocity relative to B drives the spring.
+            tx, ty, tz, lost = coulomb_update(
+                traction_t[i, p, 0], traction_t[i, p, 1], traction_t[i, p, 2], nx, ny, nz,
+                v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps, -mu * sigma,
+            )
+            ifs.e_friction[i] += lost * a3
+            traction_t[i, p, 0] = tx
+            traction_t[i, p, 1] = ty
+            traction_t[i, p, 2] = tz
+            force[i, p, 0] = -(sigma * nx + tx) * a3
+            force[i, p, 1] = -(sigma * ny + ty) * a3
+            force[i, p, 2] = -(sigma * nz + tz) * a3
 
 
 @njit(cache=True, inline="always")
@@ -339,157 +346,172 @@ def _tet_forces(e, x, tets, f):
     f[n0, 2] = -(f[n0 + 1, 2] + f[n0 + 2, 2] + f[n0 + 3, 2])
 
 
-@njit(cache=True)
-def _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
-    x = nodes.x
-    f = nodes.force
-    fe = nodes.force_ext
-    _tet_forces(e, x, tets, f)
-    n0 = 4 * e
-    for k in range(4):
-        fe[n0 + k, 0] = 0.0
-        fe[n0 + k, 1] = 0.0
-        fe[n0 + k, 2] = 0.0
-    # Surface area attached to each corner: where tools can touch.
-    ta0 = 0.0
-    ta1 = 0.0
-    ta2 = 0.0
-    ta3 = 0.0
-    for face in range(4):
-        c0, c1, c2 = face_corners(face)
-        iface = tets.face_iface[e, face]
-        surface = True
-        if iface >= 0:
-            side_b = tets.face_side[e, face] == 1
-            sign = 1.0 if side_b else -1.0
-            for c in (c0, c1, c2):
-                g = n0 + c
-                for p in range(3):
-                    owner = ifs.nb[iface, p] if side_b else ifs.na[iface, p]
-                    if owner == g:
-                        f[g, 0] += sign * ifs.force[iface, p, 0]
-                        f[g, 1] += sign * ifs.force[iface, p, 1]
-                        f[g, 2] += sign * ifs.force[iface, p, 2]
-            surface = ifs.state[iface] != INTACT
-        if not surface:
-            continue
-        share = tets.face_area[e, face] / 3.0
-        if face != 0:
-            ta0 += share
-        if face != 1:
-            ta1 += share
-        if face != 2:
-            ta2 += share
-        if face != 3:
-            ta3 += share
-        pid = tets.face_pressure[e, face]
-        if pid >= 0:
-            # Follower pressure on the current face, pushing into the tet.
-            g0, g1, g2 = n0 + c0, n0 + c1, n0 + c2
-            ux = x[g1, 0] - x[g0, 0]
-            uy = x[g1, 1] - x[g0, 1]
-            uz = x[g1, 2] - x[g0, 2]
-            wx = x[g2, 0] - x[g0, 0]
-            wy = x[g2, 1] - x[g0, 1]
-            wz = x[g2, 2] - x[g0, 2]
-            scale = -pressure_now[pid] / 6.0  # area vector / 2, shared by 3 corners
-            px = scale * (uy * wz - uz * wy)
-            py = scale * (uz * wx - ux * wz)
-            pz = scale * (ux * wy - uy * wx)
-            for g in (g0, g1, g2):
-                fe[g, 0] += px
-                fe[g, 1] += py
-                fe[g, 2] += pz
+# The parallel loops run over fixed blocks of elements, each block one call of a serial function
+# that unpacks the named tuples once. A function call per element from the prange body costs
+# reference counting and struct copies that dominated the step; inlining the element code into
+# the prange body itself is not an option (numba 0.68 drops writes through named-tuple attributes
+# there).
+INTERFACE_BLOCK = 1024
+TET_BLOCK = 512
 
+
+@njit(cache=True)
+def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
+    """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
+    gravity and the central-difference update of each tet's own 4 nodes."""
+    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
+    face_iface, face_side, face_area, face_pressure = tets.face_iface, tets.face_side, tets.face_area, tets.face_pressure
+    na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
+    n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
-    for k in range(4):
-        g = n0 + k
-        m = nodes.mass[g]
-        vx0, vy0, vz0 = nodes.v[g, 0], nodes.v[g, 1], nodes.v[g, 2]
-        # External forces that work on the node's own motion: pressure and gravity.
-        ex = fe[g, 0] + m * gx
-        ey = fe[g, 1] + m * gy
-        ez = fe[g, 2] + m * gz
-        tributary = ta0 if k == 0 else (ta1 if k == 1 else (ta2 if k == 2 else ta3))
-        cx = 0.0
-        cy = 0.0
-        cz = 0.0
-        tool_work = 0.0
-        touching = -1
-        if tributary > 0.0:
-            for j in range(tools.kind.shape[0]):
-                gap, nx, ny, nz = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], tools)
-                if gap >= 0.0:
+    for e in range(lo, hi):
+        _tet_forces(e, x, tets, f)
+        n0 = 4 * e
+        # Surface area attached to each corner (where tools can touch); free faces as bits.
+        ta0 = 0.0
+        ta1 = 0.0
+        ta2 = 0.0
+        ta3 = 0.0
+        free_faces = 0
+        for face in range(4):
+            iface = face_iface[e, face]
+            if iface >= 0:
+                # The face's 3 nodes are this tet's own: gather the interface's forces on them.
+                if face_side[e, face] == 1:
+                    for p in range(3):
+                        g = nb[iface, p]
+                        f[g, 0] += if_force[iface, p, 0]
+                        f[g, 1] += if_force[iface, p, 1]
+                        f[g, 2] += if_force[iface, p, 2]
+                else:
+                    for p in range(3):
+                        g = na[iface, p]
+                        f[g, 0] -= if_force[iface, p, 0]
+                        f[g, 1] -= if_force[iface, p, 1]
+                        f[g, 2] -= if_force[iface, p, 2]
+                if if_state[iface] == INTACT:
                     continue
-                kn = tools.penalty[j] * tributary
-                fn = -kn * gap
-                fx = fn * nx
-                fy = fn * ny
-                fz = fn * nz
-                tvx = 0.5 * (tool_v_prev[j, 0] + tool_v_next[j, 0])
-                tvy = 0.5 * (tool_v_prev[j, 1] + tool_v_next[j, 1])
-                tvz = 0.5 * (tool_v_prev[j, 2] + tool_v_next[j, 2])
-                if touching < 0:
-                    touching = j
-                    # Coulomb friction with a stick spring of the normal stiffness.
-                    tx, ty, tz, lost = coulomb_update(
-                        nodes.friction[g, 0], nodes.friction[g, 1], nodes.friction[g, 2], nx, ny, nz,
-                        vx0 - tvx, vy0 - tvy, vz0 - tvz, dt, kn, tools.mu[j] * fn,
-                    )
-                    nodes.d_friction[g] += lost
-                    nodes.friction[g, 0] = tx
-                    nodes.friction[g, 1] = ty
-                    nodes.friction[g, 2] = tz
-                    fx += tx
-                    fy += ty
-                    fz += tz
-                cx += fx
-                cy += fy
-                cz += fz
-                # Per-tet impulse: the sampled tool force is its mean over the output interval.
-                tools.impulse[j, e, 0] += fx * dt
-                tools.impulse[j, e, 1] += fy * dt
-                tools.impulse[j, e, 2] += fz * dt
-                tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
-        if touching < 0:
-            nodes.friction[g, 0] = 0.0
-            nodes.friction[g, 1] = 0.0
-            nodes.friction[g, 2] = 0.0
-        nodes.tool[g] = touching
-        # Node-to-surface contact between free surfaces: internal to the specimen.
-        sx, sy, sz = gathered_contact_force(g, contact)
-        f[g, 0] += sx
-        f[g, 1] += sy
-        f[g, 2] += sz
-        # Mass-proportional damping on the previous half-step velocity.
-        dx = -alpha * m * vx0
-        dy = -alpha * m * vy0
-        dz = -alpha * m * vz0
-        inv_m = dt / m
-        vx = vx0 + (f[g, 0] + ex + cx + dx) * inv_m
-        vy = vy0 + (f[g, 1] + ey + cy + dy) * inv_m
-        vz = vz0 + (f[g, 2] + ez + cz + dz) * inv_m
-        con = nodes.constraint[g]
-        if con >= 0:
-            pr = nodes.constraint_projection[con]
-            px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
-            py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
-            pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
-            vx, vy, vz = px, py, pz
-        # Work over the step with the mean of the two half-step velocities: the exact discrete
-        # counterpart of the kinetic-energy change of the central-difference scheme.
-        mx = 0.5 * (vx0 + vx) * dt
-        my = 0.5 * (vy0 + vy) * dt
-        mz = 0.5 * (vz0 + vz) * dt
-        nodes.w_external[g] += ex * mx + ey * my + ez * mz + tool_work
-        nodes.w_damping[g] -= dx * mx + dy * my + dz * mz
-        nodes.v[g, 0] = vx
-        nodes.v[g, 1] = vy
-        nodes.v[g, 2] = vz
-        x[g, 0] += vx * dt
-        x[g, 1] += vy * dt
-        x[g, 2] += vz * dt
+            free_faces |= 1 << face
+            share = face_area[e, face] / 3.0
+            if face != 0:
+                ta0 += share
+            if face != 1:
+                ta1 += share
+            if face != 2:
+                ta2 += share
+            if face != 3:
+                ta3 += share
+
+        for k in range(4):
+            g = n0 + k
+            m = mass[g]
+            vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
+            # External forces that work on the node's own motion: pressure and gravity.
+            ex = 0.0
+            ey = 0.0
+            ez = 0.0
+            for face in range(4):
+                pid = face_pressure[e, face]
+                if face == k or pid < 0 or not (free_faces >> face) & 1:
+                    continue
+                # Follower pressure on the current face, pushing into the tet; a third per corner.
+                c0, c1, c2 = face_corners(face)
+                g0, g1, g2 = n0 + c0, n0 + c1, n0 + c2
+                ux = x[g1, 0] - x[g0, 0]
+                uy = x[g1, 1] - x[g0, 1]
+                uz = x[g1, 2] - x[g0, 2]
+                wx = x[g2, 0] - x[g0, 0]
+                wy = x[g2, 1] - x[g0, 1]
+                wz = x[g2, 2] - x[g0, 2]
+                scale = -pressure_now[pid] / 6.0  # area vector / 2, shared by 3 corners
+                ex += scale * (uy * wz - uz * wy)
+                ey += scale * (uz * wx - ux * wz)
+                ez += scale * (ux * wy - uy * wx)
+            ex += m * gx
+            ey += m * gy
+            ez += m * gz
+            tributary = ta0 if k == 0 else (ta1 if k == 1 else (ta2 if k == 2 else ta3))
+            cx = 0.0
+            cy = 0.0
+            cz = 0.0
+            tool_work = 0.0
+            touching = -1
+            if tributary > 0.0:
+                for j in range(n_tool):
+                    gap, nx, ny, nz = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], tools)
+                    if gap >= 0.0:
+                        continue
+                    kn = tools.penalty[j] * tributary
+                    fn = -kn * gap
+                    fx = fn * nx
+                    fy = fn * ny
+                    fz = fn * nz
+                    tvx = 0.5 * (tool_v_prev[j, 0] + tool_v_next[j, 0])
+                    tvy = 0.5 * (tool_v_prev[j, 1] + tool_v_next[j, 1])
+                    tvz = 0.5 * (tool_v_prev[j, 2] + tool_v_next[j, 2])
+                    if touching < 0:
+                        touching = j
+                        # Coulomb friction with a stick spring of the normal stiffness.
+                        tx, ty, tz, lost = coulomb_update(
+                            nodes.friction[g, 0], nodes.friction[g, 1], nodes.friction[g, 2], nx, ny, nz,
+                            vx0 - tvx, vy0 - tvy, vz0 - tvz, dt, kn, tools.mu[j] * fn,
+                        )
+                        nodes.d_friction[g] += lost
+                        nodes.friction[g, 0] = tx
+                        nodes.friction[g, 1] = ty
+                        nodes.friction[g, 2] = tz
+                        fx += tx
+                        fy += ty
+                        fz += tz
+                    cx += fx
+                    cy += fy
+                    cz += fz
+                    # Per-tet impulse: the sampled tool force is its mean over the output interval.
+                    tools.impulse[j, e, 0] += fx * dt
+                    tools.impulse[j, e, 1] += fy * dt
+                    tools.impulse[j, e, 2] += fz * dt
+                    tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
+            if touching < 0:
+                nodes.friction[g, 0] = 0.0
+                nodes.friction[g, 1] = 0.0
+                nodes.friction[g, 2] = 0.0
+            nodes.tool[g] = touching
+            # Node-to-surface contact between free surfaces: internal to the specimen.
+            sx, sy, sz = gathered_contact_force(g, contact)
+            f[g, 0] += sx
+            f[g, 1] += sy
+            f[g, 2] += sz
+            # Mass-proportional damping on the previous half-step velocity.
+            dx = -alpha * m * vx0
+            dy = -alpha * m * vy0
+            dz = -alpha * m * vz0
+            inv_m = dt / m
+            vx = vx0 + (f[g, 0] + ex + cx + dx) * inv_m
+            vy = vy0 + (f[g, 1] + ey + cy + dy) * inv_m
+            vz = vz0 + (f[g, 2] + ez + cz + dz) * inv_m
+            con = nodes.constraint[g]
+            if con >= 0:
+                pr = nodes.constraint_projection[con]
+                px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
+                py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
+                pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
+                vx, vy, vz = px, py, pz
+            # Work over the step with the mean of the two half-step velocities: the exact discrete
+            # counterpart of the kinetic-energy change of the central-difference scheme.
+            mx = 0.5 * (vx0 + vx) * dt
+            my = 0.5 * (vy0 + vy) * dt
+            mz = 0.5 * (vz0 + vz) * dt
+            nodes.w_external[g] += ex * mx + ey * my + ez * mz + tool_work
+            nodes.w_damping[g] -= dx * mx + dy * my + dz * mz
+            v[g, 0] = vx
+            v[g, 1] = vy
+            v[g, 2] = vz
+        # Positions last: the pressure on a face above used the corners' positions at time t.
+        for g in range(n0, n0 + 4):
+            x[g, 0] += v[g, 0] * dt
+            x[g, 1] += v[g, 1] * dt
+            x[g, 2] += v[g, 2] * dt
 
 
 @njit(parallel=True, cache=True)
@@ -500,6 +522,8 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
     n_tool = tools.kind.shape[0]
     n_press = pressures.n.shape[0]
     n_slot = contact.counts[1]
+    n_if_blocks = (n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK
+    n_tet_blocks = (n_tet + TET_BLOCK - 1) // TET_BLOCK
     pressure_now = np.zeros(max(n_press, 1))
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
@@ -513,14 +537,17 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
             for d in range(3):
                 tool_v_prev[j, d] = sp * tools.direction[j, d]
                 tool_v_next[j, d] = sn * tools.direction[j, d]
-        for i in prange(n_if):
-            _interface(i, t, dt, nodes.x, nodes.v, ifs)
+        for blk in prange(n_if_blocks):
+            lo = blk * INTERFACE_BLOCK
+            _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), t, dt, nodes.x, nodes.v, ifs)
         if n_slot > 0:
             for s in prange(n_slot):
                 node_contact(s, dt, nodes.x, nodes.v, tets, ifs, contact)
             reaction_lists(contact)
-        for e in prange(n_tet):
-            _tet_step(e, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl)
+        for blk in prange(n_tet_blocks):
+            lo = blk * TET_BLOCK
+            _tet_block(lo, min(lo + TET_BLOCK, n_tet), dt, nodes, tets, ifs, contact, tools, pressure_now,
+                       tool_v_prev, tool_v_next, ctrl)
         for j in range(n_tool):
             for d in range(3):
                 tools.disp[j, d] += tool_v_next[j, d] * dt
@@ -530,8 +557,10 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
 def interface_forces(t, dt, x, v, ifs):
     """The interface pass alone (law and contact forces at positions x): for unit tests of the law
     under prescribed openings, as in a one-element test."""
-    for i in prange(ifs.na.shape[0]):
-        _interface(i, t, dt, x, v, ifs)
+    n_if = ifs.na.shape[0]
+    for blk in prange((n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK):
+        lo = blk * INTERFACE_BLOCK
+        _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), t, dt, x, v, ifs)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from .law import (
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass force force_ext constraint constraint_projection friction tool w_external w_damping d_friction",
+    "x v mass force constraint constraint_projection friction tool w_external w_damping d_friction",
 )
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
@@ -138,8 +138,10 @@ def build_fdem_model(
 
     # Interfaces on internal faces.
     topo = internal_faces(conn)
-    ta, tb = topo.face_tet[:, 0], topo.face_tet[:, 1]
-    fa, fb = topo.face_local[:, 0], topo.face_local[:, 1]
+    # Numbered by (A-side tet, face): a block of interfaces then touches a compact range of nodes.
+    order = np.lexsort((topo.face_local[:, 0], topo.face_tet[:, 0]))
+    ta, tb = topo.face_tet[order, 0], topo.face_tet[order, 1]
+    fa, fb = topo.face_local[order, 0], topo.face_local[order, 1]
     corners_a = FACE_CORNERS[fa]  # (k, 3) local corners of A's face, outward from A
     na = 4 * ta[:, None] + corners_a
     point_a = conn[ta[:, None], corners_a]
@@ -268,7 +270,6 @@ def build_fdem_model(
         v=v,
         mass=mass,
         force=np.zeros((4 * m, 3)),
-        force_ext=np.zeros((4 * m, 3)),
         constraint=constraint,
         constraint_projection=np.array(projections),
         friction=np.zeros((4 * m, 3)),
