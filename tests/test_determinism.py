@@ -7,12 +7,16 @@ import subprocess
 import sys
 
 
-def _run(tmp_path, threads):
-    out = tmp_path / f"t{threads}"
+BENDING = ["three-point-bending", "--set", "run.end_time=7.5e-4", "--set", "run.stop.force_drop=0.5"]
+# Fragmentation with surface contact on: failures, rebuilds of the surface and candidate lists.
+IMPACT = ["sphere-impact-fast", "--set", "run.end_time=4e-5"]
+
+
+def _run(tmp_path, threads, case=BENDING):
+    out = tmp_path / f"{case[0]}-t{threads}"
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
     subprocess.run(
-        [sys.executable, "-m", "crackle.cli", "run", "three-point-bending", "--quick", "--out", str(out),
-         "--set", "run.end_time=7.5e-4", "--set", "run.field_frames=0", "--set", "run.stop.force_drop=0.5"],
+        [sys.executable, "-m", "crackle.cli", "run", *case, "--quick", "--out", str(out), "--set", "run.field_frames=0"],
         env=env,
         check=True,
         capture_output=True,
@@ -29,3 +33,13 @@ def test_history_and_events_identical_for_1_and_2_threads(tmp_path):
     e1 = (one / "events.csv").read_text()
     assert e1 == (two / "events.csv").read_text()
     assert len(e1.strip().splitlines()) > 1, "the compared run must include failures"
+
+
+def test_identical_for_1_and_2_threads_with_surface_contact(tmp_path):
+    """The fast sphere impact (quick form, first 40 us) with surface contact on: byte-identical
+    history and events with 1 and 2 threads, and the run does fragment."""
+    one, two = _run(tmp_path, 1, IMPACT), _run(tmp_path, 2, IMPACT)
+    assert (one / "history.csv").read_bytes() == (two / "history.csv").read_bytes()
+    e1 = (one / "events.csv").read_text()
+    assert e1 == (two / "events.csv").read_text()
+    assert len(e1.strip().splitlines()) > 50, "the compared run must fragment"

@@ -7,9 +7,9 @@ from pathlib import Path
 
 from . import geometry
 from .geometry import MeshError, TetMesh
-from .loading import History, Precrack, Pressure, Selection, Support, Tool
+from .loading import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 from .materials import GuoMunjizaLaw, Material
-from .scenario import Scenario, ScenarioError, load_scenario
+from .scenario import Scenario, ScenarioError, load_scenario, resolve_path
 from .solver import RunControl, RunResult, StopConditions, run
 
 
@@ -61,25 +61,36 @@ def _selection(where) -> Selection:
     return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol)
 
 
-def build_tools(specs) -> list[Tool]:
-    return [
-        Tool(
-            name=t.name,
-            shape=t.shape,
-            direction=t.direction,
-            speed=_history_of(t),
-            friction=t.friction,
-            center=t.center,
-            normal=t.normal,
-            size=t.size,
-            axes=t.axes,
-            axis=t.axis,
-            radius=t.radius,
-            length=t.length,
-            penalty=t.penalty,
+def build_tools(specs, base: Path | None = None) -> list[Tool]:
+    tools = []
+    for i, t in enumerate(specs):
+        surface = {}
+        if t.shape == "surface":
+            path = resolve_path(t.file, base)
+            try:
+                vertices, triangles = load_surface(path, scale=t.scale, offset=t.offset)
+            except ValueError as err:  # MeshError included
+                raise ScenarioError(f"tools.{i}.file: {err}") from None
+            surface = {"surface": str(path), "vertices": vertices, "triangles": triangles}
+        tools.append(
+            Tool(
+                name=t.name,
+                shape=t.shape,
+                direction=t.direction,
+                speed=_history_of(t),
+                friction=t.friction,
+                center=t.center,
+                normal=t.normal,
+                size=t.size,
+                axes=t.axes,
+                axis=t.axis,
+                radius=t.radius,
+                length=t.length,
+                penalty=t.penalty,
+                **surface,
+            )
         )
-        for t in specs
-    ]
+    return tools
 
 
 def build_pressures(specs, end_time: float) -> list[Pressure]:
@@ -100,6 +111,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
     from .fdem.model import build_fdem_model
     from .fdem.simulation import FdemSimulation
 
+    tools = build_tools(scenario.tools, base)  # before meshing: a bad surface file fails fast
     mesh = build_specimen(scenario.specimen, base)
     material = build_material(scenario.material)
     try:
@@ -108,7 +120,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
             model = build_fdem_model(
                 mesh,
                 material,
-                tools=build_tools(scenario.tools),
+                tools=tools,
                 supports=[Support(s.kind, _selection(s.where), s.normal) for s in scenario.supports],
                 pressures=build_pressures(scenario.pressures, scenario.run.end_time),
                 precracks=[Precrack(c.point, c.normal, c.box_min, c.box_max, c.tol) for c in scenario.precracks],

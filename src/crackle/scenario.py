@@ -84,7 +84,7 @@ class VelocityTable(_Strict):
 
 class ToolSpec(_Strict):
     name: str
-    shape: Literal["plane", "box", "cylinder", "sphere"]
+    shape: Literal["plane", "box", "cylinder", "sphere", "surface"]
     direction: Vec3
     speed: float = 0.0  # m/s along direction
     ramp_time: NonNegative = 0.0  # linear ramp from 0 to speed
@@ -98,11 +98,21 @@ class ToolSpec(_Strict):
     radius: NonNegative = 0.0
     length: Positive = math.inf
     penalty: Positive | None = None
+    # surface: triangles from a file meshio reads (STL, .obj, .ply, .vtu, .msh ...), relative to
+    # the scenario file's folder; its points are multiplied by scale, then shifted by offset (m)
+    file: str | None = None
+    scale: Positive = 1.0  # e.g. 1e-3 for a file in mm
+    offset: Vec3 = (0.0, 0.0, 0.0)
 
     @model_validator(mode="after")
     def _shape_needs(self):
         if self.shape in ("cylinder", "sphere") and self.radius <= 0:
             raise ValueError(f"a {self.shape} tool needs radius > 0")
+        if self.shape == "surface" and not self.file:
+            raise ValueError("a surface tool needs file = \"...\" (an STL or other triangle surface)")
+        surface_only = sorted({"file", "scale", "offset"} & self.model_fields_set)
+        if self.shape != "surface" and surface_only:
+            raise ValueError(f"{', '.join(surface_only)}: only for shape = \"surface\"")
         if all(c == 0 for c in self.direction):
             raise ValueError("direction must be a non-zero vector")
         return self
@@ -292,7 +302,23 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
         scenario = Scenario.model_validate(data)
     except ValidationError as err:
         raise ScenarioError(_describe(err, source)) from None
+    for i, tool in enumerate(scenario.tools):
+        if tool.shape == "surface":
+            path = resolve_path(tool.file, base)
+            if not path.is_file():
+                raise ScenarioError(
+                    f"{source}: tools.{i}.file: surface file {path} does not exist; give a path "
+                    "relative to the scenario file's folder, or an absolute one"
+                )
     return scenario, base
+
+
+def resolve_path(file: str, base: Path | None) -> Path:
+    """A file named in a scenario: relative paths are taken from the scenario file's folder."""
+    path = Path(file)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    return path
 
 
 def _describe(err: ValidationError, source) -> str:

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .contact import gathered_contact_force, node_contact, reaction_lists
+from .contact import BARY_TOL, gathered_contact_force, node_contact, reaction_lists
 from .friction import coulomb_update
 from .topology import FAILED, INTACT, PRECRACK, face_corners  # noqa: F401 (re-exported)
 from .law import (
@@ -44,9 +44,16 @@ from .law import (
 # Failure modes recorded in events.csv.
 MODE_NAMES = ("none", "tension", "shear", "mixed")
 # Tool shapes.
-TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE = 0, 1, 2, 3
+TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE, TOOL_SURFACE = 0, 1, 2, 3, 4
+# Columns of a surface tool's triangle rows (Tools.surf_tri), in the tool's own frame: corner 0,
+# edges e1 = p1 - p0 and e2 = p2 - p0, unit outward normal, and the barycentric Gram terms
+# e1.e1, e1.e2, e2.e2 and 1 / (e1.e1 e2.e2 - (e1.e2)^2).
+SURF_TRI_COLUMNS = 16
 # Node constraints: -1 free, else the index of the node's velocity projector (0: fixed).
 FREE, FIXED = -1, 0
+# nodes.tool: index of the tool a node touches, NO_TOOL, or HIDDEN while the node is on no free
+# face (inside the body: no tool contact).
+NO_TOOL, HIDDEN = -1, -2
 
 
 @njit(cache=True, inline="always")
@@ -222,10 +229,68 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
 
 
 @njit(cache=True, inline="always")
+def _surface_gap(j, px, py, pz, tools):
+    """Penetration of a point into surface tool j: (gap < 0, outward normal) of the triangle it
+    penetrates least deeply, among those whose projection holds it and that it lies less than the
+    contact depth behind; (inf, 0, 0, 0) when there is none.
+
+    The tool only translates, so the point is moved into the tool's frame and looked up in the
+    static grid built with the model (geom row: grid origin, 1 / cell size, contact depth;
+    surf_grid row: cells along x, y, z and the tool's first entry in surf_cell_start)."""
+    g = tools.geom[j]
+    qx = px - tools.disp[j, 0]
+    qy = py - tools.disp[j, 1]
+    qz = pz - tools.disp[j, 2]
+    inv_h = g[3]
+    depth = g[4]
+    grid = tools.surf_grid[j]
+    ci = (qx - g[0]) * inv_h
+    cj = (qy - g[1]) * inv_h
+    ck = (qz - g[2]) * inv_h
+    # Written so that a NaN position is "no contact" too.
+    if not (ci >= 0.0 and ci < grid[0] and cj >= 0.0 and cj < grid[1] and ck >= 0.0 and ck < grid[2]):
+        return math.inf, 0.0, 0.0, 0.0
+    cell = grid[3] + (int(ci) * grid[1] + int(cj)) * grid[2] + int(ck)
+    start, cell_tris, tri = tools.surf_cell_start, tools.surf_cell_tris, tools.surf_tri
+    best_gap = -depth
+    bnx = 0.0
+    bny = 0.0
+    bnz = 0.0
+    found = False
+    for s in range(start[cell], start[cell + 1]):
+        t = cell_tris[s]
+        rx = qx - tri[t, 0]
+        ry = qy - tri[t, 1]
+        rz = qz - tri[t, 2]
+        nx, ny, nz = tri[t, 9], tri[t, 10], tri[t, 11]
+        gap = rx * nx + ry * ny + rz * nz
+        # Ties keep the first candidate: the order is fixed, the result deterministic.
+        if gap >= 0.0 or gap <= best_gap:
+            continue
+        d20 = rx * tri[t, 3] + ry * tri[t, 4] + rz * tri[t, 5]
+        d21 = rx * tri[t, 6] + ry * tri[t, 7] + rz * tri[t, 8]
+        d00, d01, d11, inv_den = tri[t, 12], tri[t, 13], tri[t, 14], tri[t, 15]
+        l1 = (d11 * d20 - d01 * d21) * inv_den
+        l2 = (d00 * d21 - d01 * d20) * inv_den
+        l0 = 1.0 - l1 - l2
+        # The tolerance keeps a point over a shared edge or corner in contact with one of them.
+        if l0 < -BARY_TOL or l1 < -BARY_TOL or l2 < -BARY_TOL:
+            continue
+        best_gap = gap
+        bnx, bny, bnz = nx, ny, nz
+        found = True
+    if not found:
+        return math.inf, 0.0, 0.0, 0.0
+    return best_gap, bnx, bny, bnz
+
+
+@njit(cache=True, inline="always")
 def tool_gap(j, px, py, pz, tools):
     """Signed distance of a point to tool j's surface (negative inside) and the outward normal."""
-    g = tools.geom[j]
     kind = tools.kind[j]
+    if kind == TOOL_SURFACE:
+        return _surface_gap(j, px, py, pz, tools)
+    g = tools.geom[j]
     cx = g[0] + tools.disp[j, 0]
     cy = g[1] + tools.disp[j, 1]
     cz = g[2] + tools.disp[j, 2]
@@ -359,7 +424,7 @@ TET_BLOCK = 512
 def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
     gravity and the central-difference update of each tet's own 4 nodes."""
-    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
+    x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
     face_iface, face_side, face_area, face_pressure = tets.face_iface, tets.face_side, tets.face_area, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
     n_tool = tools.kind.shape[0]
@@ -368,11 +433,7 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
     for e in range(lo, hi):
         _tet_forces(e, x, tets, f)
         n0 = 4 * e
-        # Surface area attached to each corner (where tools can touch); free faces as bits.
-        ta0 = 0.0
-        ta1 = 0.0
-        ta2 = 0.0
-        ta3 = 0.0
+        # Faces without an intact interface, as bits: where pressures act and tools can touch.
         free_faces = 0
         for face in range(4):
             iface = face_iface[e, face]
@@ -393,15 +454,6 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                 if if_state[iface] == INTACT:
                     continue
             free_faces |= 1 << face
-            share = face_area[e, face] / 3.0
-            if face != 0:
-                ta0 += share
-            if face != 1:
-                ta1 += share
-            if face != 2:
-                ta2 += share
-            if face != 3:
-                ta3 += share
 
         for k in range(4):
             g = n0 + k
@@ -431,15 +483,34 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             ex += m * gx
             ey += m * gy
             ez += m * gz
-            tributary = ta0 if k == 0 else (ta1 if k == 1 else (ta2 if k == 2 else ta3))
             cx = 0.0
             cy = 0.0
             cz = 0.0
             tool_work = 0.0
-            touching = -1
-            if tributary > 0.0:
+            # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
+            if free_faces & ~(1 << k):
+                tributary = contact_area[g]
+                prev = nodes.tool[g]
+                offset = nodes.tool_offset[g]
+                touching = -1
                 for j in range(n_tool):
                     gap, nx, ny, nz = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], tools)
+                    if j == prev and offset < 0.0 and gap < 0.0:
+                        gap -= offset
+                        if gap >= 0.0 and touching < 0:
+                            # Woken inside (below), risen above its wake depth but not out yet:
+                            # no force, and the offset holds until the node is out.
+                            touching = j
+                            nodes.friction[g, 0] = 0.0
+                            nodes.friction[g, 1] = 0.0
+                            nodes.friction[g, 2] = 0.0
+                            continue
+                    elif prev == HIDDEN and gap < 0.0 and touching < 0:
+                        # Exposed by a crack while already inside the tool: its spring starts
+                        # unloaded at this depth, so that no energy comes from nowhere.
+                        touching = j
+                        offset = gap
+                        continue
                     if gap >= 0.0:
                         continue
                     kn = tools.penalty[j] * tributary
@@ -472,11 +543,13 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                     tools.impulse[j, e, 1] += fy * dt
                     tools.impulse[j, e, 2] += fz * dt
                     tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
-            if touching < 0:
-                nodes.friction[g, 0] = 0.0
-                nodes.friction[g, 1] = 0.0
-                nodes.friction[g, 2] = 0.0
-            nodes.tool[g] = touching
+                if touching < 0:
+                    offset = 0.0
+                    nodes.friction[g, 0] = 0.0
+                    nodes.friction[g, 1] = 0.0
+                    nodes.friction[g, 2] = 0.0
+                nodes.tool[g] = touching
+                nodes.tool_offset[g] = offset
             # Node-to-surface contact between free surfaces: internal to the specimen.
             sx, sy, sz = gathered_contact_force(g, contact)
             f[g, 0] += sx
@@ -640,18 +713,14 @@ def tool_contact_state(nodes, tets, ifs, tools, forces, energy):
     for e in range(tets.vol.shape[0]):
         n0 = 4 * e
         for k in range(4):
-            tributary = 0.0
-            for face in range(4):
-                if face == k:
-                    continue
-                iface = tets.face_iface[e, face]
-                if iface < 0 or ifs.state[iface] != INTACT:
-                    tributary += tets.face_area[e, face] / 3.0
-            if tributary == 0.0:
-                continue
             g = n0 + k
+            if nodes.tool[g] == HIDDEN:
+                continue
+            tributary = nodes.contact_area[g]
             for j in range(n_tool):
                 gap, nx, ny, nz = tool_gap(j, nodes.x[g, 0], nodes.x[g, 1], nodes.x[g, 2], tools)
+                if j == nodes.tool[g] and gap < 0.0:
+                    gap -= nodes.tool_offset[g]
                 if gap >= 0.0:
                     continue
                 kn = tools.penalty[j] * tributary

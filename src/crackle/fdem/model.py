@@ -15,7 +15,8 @@ import numpy as np
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Selection, Support, Tool
 from ..materials import CONTACT_PENALTY_FACTOR, Material, process_zone
-from .kernels import FIXED, FREE, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE
+from .contact import BARY_TOL
+from .kernels import FIXED, FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 from .law import (
     LAW_A,
@@ -33,18 +34,32 @@ from .law import (
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass force constraint constraint_projection friction tool w_external w_damping d_friction",
+    "x v mass contact_area force constraint constraint_projection friction tool tool_offset w_external w_damping d_friction",
 )
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t e_damage e_friction",
 )
-Tools = namedtuple("Tools", "kind geom disp direction times speeds n mu penalty impulse")
+Tools = namedtuple(
+    "Tools",
+    "kind geom disp direction times speeds n mu penalty impulse surf_grid surf_cell_start surf_cell_tris surf_tri",
+)
+# Surface tools (shape "surface"), all of them concatenated: surf_tri (k, SURF_TRI_COLUMNS)
+# triangle rows in each tool's own frame; per tool a uniform grid over the triangles' boxes
+# inflated by the contact depth, in CSR form: surf_grid[j] = (cells along x, y, z, first entry
+# of tool j in surf_cell_start); surf_cell_start[first + c] .. [first + c + 1] delimits cell c's
+# triangles (rows of surf_tri) in surf_cell_tris. Built once: the tools only translate.
 Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
 
-_SHAPE_CODES = {"plane": TOOL_PLANE, "box": TOOL_BOX, "cylinder": TOOL_CYLINDER, "sphere": TOOL_SPHERE}
+_SHAPE_CODES = {
+    "plane": TOOL_PLANE,
+    "box": TOOL_BOX,
+    "cylinder": TOOL_CYLINDER,
+    "sphere": TOOL_SPHERE,
+    "surface": TOOL_SURFACE,
+}
 
 
 @dataclass
@@ -265,15 +280,22 @@ def build_fdem_model(
         iv = np.asarray(initial_velocity, dtype=float)
         v[:] = iv if iv.shape == (3,) else iv[corner_point]
 
+    # Faces free at t = 0 (outer boundary, pre-cracks); nodes on none are hidden from the tools.
+    free_face = face_iface < 0
+    if n_if:
+        free_face |= state[np.maximum(face_iface, 0)] == PRECRACK
+    on_free_face = np.stack([free_face[:, [f for f in range(4) if f != k]].any(axis=1) for k in range(4)], axis=1)
     nodes = Nodes(
         x=x0.copy(),
         v=v,
         mass=mass,
+        contact_area=_contact_area(face_area, free_face),
         force=np.zeros((4 * m, 3)),
         constraint=constraint,
         constraint_projection=np.array(projections),
         friction=np.zeros((4 * m, 3)),
-        tool=np.full(4 * m, -1, dtype=np.int8),
+        tool=np.where(on_free_face.reshape(-1), NO_TOOL, HIDDEN).astype(np.int8),
+        tool_offset=np.zeros(4 * m),
         w_external=np.zeros(4 * m),
         w_damping=np.zeros(4 * m),
         d_friction=np.zeros(4 * m),
@@ -297,9 +319,12 @@ def build_fdem_model(
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
     )
+    # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
+    # contact (penetrations stay ~1e-4 of it), which keeps the far side of a thin tool apart.
+    surf = _surface_tool_grids(tools, tool_geom, float(np.median(altitude)))
     tool_arrays = Tools(
         tool_kind, tool_geom, np.zeros((len(tools), 3)), tool_dir, ttimes, tspeeds, tn, tool_mu, tool_pen,
-        impulse=np.zeros((len(tools), m, 3)),
+        impulse=np.zeros((len(tools), m, 3)), **surf,
     )
     controls = Controls(np.asarray(gravity, dtype=float), np.array([float(damping)]))
 
@@ -361,6 +386,96 @@ def build_fdem_model(
         contact_skin=0.25 * element_size,
         warnings=model_warnings,
     )
+
+
+def _contact_area(face_area: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Area each exploded node answers for in contact (tools and surfaces), fixed for the run.
+
+    A node on the surface at t = 0 gets a third of each of its free faces; a node inside the
+    body, exposed only once a crack opens, a third of its three faces' mean. Fixed on purpose:
+    a penalty spring whose stiffness changed with the crack pattern while compressed would
+    create or destroy energy."""
+    m = len(face_area)
+    area = np.zeros((m, 4))
+    mean_share = np.zeros((m, 4))
+    for k in range(4):
+        others = [f for f in range(4) if f != k]
+        area[:, k] = (face_area[:, others] * free[:, others]).sum(axis=1) / 3.0
+        mean_share[:, k] = face_area[:, others].sum(axis=1) / 9.0
+    return np.where(area > 0.0, area, mean_share).reshape(-1)
+
+
+def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
+    """Triangle rows and static contact grids of the surface tools (see `Tools`); fills each
+    surface tool's geom row with its grid origin, 1 / cell size and contact depth."""
+    grids = np.zeros((len(tools), 4), dtype=np.int64)
+    starts = [np.zeros(1, dtype=np.int64)]
+    cell_tris = []
+    rows = []
+    n_tri = 0
+    n_entries = 0
+    for j, tool in enumerate(tools):
+        if tool.shape != "surface":
+            continue
+        v, t = tool.vertices, tool.triangles
+        p0, p1, p2 = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+        e1, e2 = p1 - p0, p2 - p0
+        normal = np.cross(e1, e2)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        d00 = np.einsum("ij,ij->i", e1, e1)
+        d01 = np.einsum("ij,ij->i", e1, e2)
+        d11 = np.einsum("ij,ij->i", e2, e2)
+        row = np.empty((len(t), SURF_TRI_COLUMNS))
+        row[:, 0:3], row[:, 3:6], row[:, 6:9], row[:, 9:12] = p0, e1, e2, normal
+        row[:, 12], row[:, 13], row[:, 14] = d00, d01, d11
+        row[:, 15] = 1.0 / (d00 * d11 - d01 * d01)
+        rows.append(row)
+
+        # Boxes of the triangles widened by the barycentric tolerance, then by the depth.
+        lo = np.minimum(np.minimum(p0, p1), p2)
+        hi = np.maximum(np.maximum(p0, p1), p2)
+        size = hi - lo
+        pad = depth + 2.0 * BARY_TOL * size.max(axis=1, keepdims=True)
+        lo, hi = lo - pad, hi + pad
+        origin = lo.min(axis=0)
+        span = hi.max(axis=0) - origin
+        # Cell: the median triangle size (or the depth), grown until the grid and its entries
+        # stay within a few times the triangle count.
+        cell = max(float(np.median(size.max(axis=1))), depth)
+        while True:
+            dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
+            i_lo = np.clip(np.floor((lo - origin) / cell).astype(np.int64), 0, dims - 1)
+            i_hi = np.clip(np.floor((hi - origin) / cell).astype(np.int64), 0, dims - 1)
+            count = np.prod(i_hi - i_lo + 1, axis=1)
+            if np.prod(dims) <= 8 * len(t) + 4096 and count.sum() <= 32 * len(t) + 4096:
+                break
+            cell *= 1.5
+        # Every (triangle, cell) pair, triangles ascending within a cell: a fixed candidate order.
+        tri_of = np.repeat(np.arange(len(t)), count)
+        local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        ext = (i_hi - i_lo + 1)[tri_of]
+        k = i_lo[tri_of, 2] + local % ext[:, 2]
+        rest = local // ext[:, 2]
+        jj = i_lo[tri_of, 1] + rest % ext[:, 1]
+        ii = i_lo[tri_of, 0] + rest // ext[:, 1]
+        cell_id = (ii * dims[1] + jj) * dims[2] + k
+        order = np.argsort(cell_id, kind="stable")
+        per_cell = np.bincount(cell_id, minlength=int(np.prod(dims)))
+        grids[j, 0:3] = dims
+        grids[j, 3] = sum(len(a) for a in starts) - 1
+        starts.append(n_entries + np.cumsum(per_cell))
+        cell_tris.append(n_tri + tri_of[order])
+        n_tri += len(t)
+        n_entries += len(order)
+        geom[j, 0:3] = origin
+        geom[j, 3] = 1.0 / cell
+        geom[j, 4] = depth
+    return {
+        "surf_grid": grids,
+        "surf_cell_start": np.concatenate(starts),
+        "surf_cell_tris": np.concatenate(cell_tris) if cell_tris else np.zeros(0, dtype=np.int64),
+        "surf_tri": np.concatenate(rows) if rows else np.zeros((0, SURF_TRI_COLUMNS)),
+    }
 
 
 def _tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
