@@ -230,9 +230,13 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
 
 @njit(cache=True, inline="always")
 def _surface_gap(j, px, py, pz, tools):
-    """Penetration of a point into surface tool j: (gap < 0, outward normal) of the triangle it
-    penetrates least deeply, among those whose projection holds it and that it lies less than the
-    contact depth behind; (inf, 0, 0, 0) when there is none.
+    """Signed distance of a point to surface tool j and the outward normal, from the triangle
+    nearest to it along its normal among those whose projection holds the point and that lie
+    less than the contact depth away: negative (in contact) when the point is behind that
+    triangle; (inf, 0, 0, 0) when there is none or when the point is in front of it. For a point
+    inside the tool this is the least deep penetration; a nearer triangle in front shows that a
+    point behind another one's plane is outside the tool (beside it, or over a part of the tool
+    thinner than the contact depth).
 
     The tool only translates, so the point is moved into the tool's frame and looked up in the
     static grid built with the model (geom row: grid origin, 1 / cell size, contact depth;
@@ -242,7 +246,6 @@ def _surface_gap(j, px, py, pz, tools):
     qy = py - tools.disp[j, 1]
     qz = pz - tools.disp[j, 2]
     inv_h = g[3]
-    depth = g[4]
     grid = tools.surf_grid[j]
     ci = (qx - g[0]) * inv_h
     cj = (qy - g[1]) * inv_h
@@ -252,11 +255,11 @@ def _surface_gap(j, px, py, pz, tools):
         return math.inf, 0.0, 0.0, 0.0
     cell = grid[3] + (int(ci) * grid[1] + int(cj)) * grid[2] + int(ck)
     start, cell_tris, tri = tools.surf_cell_start, tools.surf_cell_tris, tools.surf_tri
-    best_gap = -depth
+    nearest = g[4]  # the contact depth
+    best_gap = math.inf
     bnx = 0.0
     bny = 0.0
     bnz = 0.0
-    found = False
     for s in range(start[cell], start[cell + 1]):
         t = cell_tris[s]
         rx = qx - tri[t, 0]
@@ -265,7 +268,7 @@ def _surface_gap(j, px, py, pz, tools):
         nx, ny, nz = tri[t, 9], tri[t, 10], tri[t, 11]
         gap = rx * nx + ry * ny + rz * nz
         # Ties keep the first candidate: the order is fixed, the result deterministic.
-        if gap >= 0.0 or gap <= best_gap:
+        if abs(gap) >= nearest:
             continue
         d20 = rx * tri[t, 3] + ry * tri[t, 4] + rz * tri[t, 5]
         d21 = rx * tri[t, 6] + ry * tri[t, 7] + rz * tri[t, 8]
@@ -276,10 +279,10 @@ def _surface_gap(j, px, py, pz, tools):
         # The tolerance keeps a point over a shared edge or corner in contact with one of them.
         if l0 < -BARY_TOL or l1 < -BARY_TOL or l2 < -BARY_TOL:
             continue
+        nearest = abs(gap)
         best_gap = gap
         bnx, bny, bnz = nx, ny, nz
-        found = True
-    if not found:
+    if best_gap >= 0.0:
         return math.inf, 0.0, 0.0, 0.0
     return best_gap, bnx, bny, bnz
 

@@ -6,6 +6,7 @@ Method-agnostic descriptions; each method turns them into its own arrays.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -203,7 +204,10 @@ def load_surface(path: str | os.PathLike, scale: float = 1.0, offset=(0.0, 0.0, 
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"surface file {path} does not exist")
-    m = _meshio_read(path, hint="export the tool surface as triangles, e.g. STL")
+    with warnings.catch_warnings():
+        # meshio probes an ASCII STL as binary first, with an integer overflow warning.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        m = _meshio_read(path, hint="export the tool surface as triangles, e.g. STL")
     blocks = [np.asarray(c.data) for c in m.cells if c.type == "triangle"]
     if not blocks:
         found = ", ".join(sorted({c.type for c in m.cells})) or "none"
