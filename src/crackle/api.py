@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import warnings
 from pathlib import Path
+
+import numpy as np
 
 from . import geometry
 from .geometry import MeshError, TetMesh
@@ -61,7 +65,29 @@ def _selection(where) -> Selection:
     return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol)
 
 
-def build_tools(specs, base: Path | None = None) -> list[Tool]:
+def rotation_matrix(angle_deg: float, axis) -> np.ndarray:
+    """Right-handed rotation by `angle_deg` degrees about `axis` (Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    k = k / np.linalg.norm(k)
+    a = math.radians(angle_deg)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * (K @ K)
+
+
+def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
+    """Tools of a scenario; `loading` (a LoadingSpec) rotates all of them rigidly about its
+    axis through its center: positions, directions, normals, axes and surface vertices."""
+    R = None
+    if loading is not None and loading.angle % 360.0 != 0.0:
+        R = rotation_matrix(loading.angle, loading.axis)
+        c0 = np.asarray(loading.center, dtype=float)
+
+    def vec(v):
+        return v if R is None else tuple(float(x) for x in R @ np.asarray(v, dtype=float))
+
+    def point(p):
+        return p if R is None else tuple(float(x) for x in c0 + R @ (np.asarray(p, dtype=float) - c0))
+
     tools = []
     for i, t in enumerate(specs):
         surface = {}
@@ -71,19 +97,21 @@ def build_tools(specs, base: Path | None = None) -> list[Tool]:
                 vertices, triangles = load_surface(path, scale=t.scale, offset=t.offset)
             except ValueError as err:  # MeshError included
                 raise ScenarioError(f"tools.{i}.file: {err}") from None
+            if R is not None:
+                vertices = c0 + (np.asarray(vertices, dtype=float) - c0) @ R.T
             surface = {"surface": str(path), "vertices": vertices, "triangles": triangles}
         tools.append(
             Tool(
                 name=t.name,
                 shape=t.shape,
-                direction=t.direction,
+                direction=vec(t.direction),
                 speed=_history_of(t),
                 friction=t.friction,
-                center=t.center,
-                normal=t.normal,
+                center=point(t.center),
+                normal=vec(t.normal),
                 size=t.size,
-                axes=t.axes,
-                axis=t.axis,
+                axes=(vec(t.axes[0]), vec(t.axes[1])),
+                axis=vec(t.axis),
                 radius=t.radius,
                 length=t.length,
                 penalty=t.penalty,
@@ -91,6 +119,28 @@ def build_tools(specs, base: Path | None = None) -> list[Tool]:
             )
         )
     return tools
+
+
+def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
+    """The tool shifted along its direction so that its leading extreme along the direction lies
+    on the specimen's extreme point along it: a platen placed on the mesh as meshed, whatever
+    the facets of a curved surface and the loading angle."""
+    d = np.asarray(tool.direction, dtype=float)
+    d /= np.linalg.norm(d)
+    c = np.asarray(tool.center, dtype=float)
+    if tool.shape == "sphere":
+        lead = float(c @ d) + tool.radius
+    else:  # box: the corner furthest along d
+        a1 = np.asarray(tool.axes[0], dtype=float)
+        a1 /= np.linalg.norm(a1)
+        a2 = np.asarray(tool.axes[1], dtype=float)
+        a2 = a2 - (a2 @ a1) * a1
+        a2 /= np.linalg.norm(a2)
+        a3 = np.cross(a1, a2)
+        half = 0.5 * np.asarray(tool.size, dtype=float)
+        lead = float(c @ d) + sum(h * abs(float(a @ d)) for h, a in zip(half, (a1, a2, a3)))
+    shift = float(np.min(points @ d)) - lead
+    return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
 
 
 def build_pressures(specs, end_time: float) -> list[Pressure]:
@@ -111,8 +161,9 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
     from .fdem.model import build_fdem_model
     from .fdem.simulation import FdemSimulation
 
-    tools = build_tools(scenario.tools, base)  # before meshing: a bad surface file fails fast
+    tools = build_tools(scenario.tools, base, scenario.loading)  # before meshing: a bad surface file fails fast
     mesh = build_specimen(scenario.specimen, base)
+    tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, scenario.tools)]
     material = build_material(scenario.material)
     try:
         with warnings.catch_warnings():

@@ -98,6 +98,9 @@ class ToolSpec(_Strict):
     radius: NonNegative = 0.0
     length: Positive = math.inf
     penalty: Positive | None = None
+    # box, sphere: shift the tool along `direction` (either way) at set-up until its leading
+    # extreme just reaches the specimen's extreme node along `direction` (no initial gap)
+    touch: bool = False
     # surface: triangles from a file meshio reads (STL, .obj, .ply, .vtu, .msh ...), relative to
     # the scenario file's folder; its points are multiplied by scale, then shifted by offset (m)
     file: str | None = None
@@ -115,7 +118,24 @@ class ToolSpec(_Strict):
             raise ValueError(f"{', '.join(surface_only)}: only for shape = \"surface\"")
         if all(c == 0 for c in self.direction):
             raise ValueError("direction must be a non-zero vector")
+        if self.touch and self.shape not in ("box", "sphere"):
+            raise ValueError("touch = true is for box and sphere tools")
         return self
+
+
+class LoadingSpec(_Strict):
+    """A rigid rotation of every tool about `axis` through `center` (the mesh stays put)."""
+
+    angle: float = 0.0  # degrees, right-handed about axis
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    center: Vec3 = (0.0, 0.0, 0.0)
+
+    @field_validator("axis")
+    @classmethod
+    def _nonzero_axis(cls, v):
+        if all(c == 0 for c in v):
+            raise ValueError("axis must be a non-zero vector")
+        return v
 
 
 class Where(_Strict):
@@ -192,6 +212,7 @@ class Scenario(_Strict):
     specimen: Specimen
     material: MaterialSpec
     tools: list[ToolSpec] = []
+    loading: LoadingSpec = LoadingSpec()  # rotates all tools, e.g. a loading angle
     supports: list[SupportSpec] = []
     precracks: list[PrecrackSpec] = []
     pressures: list[PressureSpec] = []
