@@ -15,7 +15,9 @@ def coulomb_update(tx, ty, tz, nx, ny, nz, rx, ry, rz, dt, k, cap):
 
     The previous t is carried into the current tangent plane keeping its magnitude, the stick
     spring k adds -k r_t dt (r_t: tangential part of r), and a t beyond the Coulomb cap is
-    returned onto it; the plastic slip times the cap is lost. t, k and cap may be per unit area
+    returned onto it. Lost: the plastic slip times the cap, and, when the cap itself has fallen
+    below the carried t (a damaging cohesive interface), the stored energy t^2 / 2k above the
+    cap's, released before the step slips. t, k and cap may be per unit area
     (tractions) or per node (forces): the dissipation is then per unit area or per node.
     """
     rn = rx * nx + ry * ny + rz * nz
@@ -28,6 +30,10 @@ def coulomb_update(tx, ty, tz, nx, ny, nz, rx, ry, rz, dt, k, cap):
     ty -= tn * ny
     tz -= tn * nz
     t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
+    lost = 0.0
+    if t_old > cap:
+        lost = (t_old * t_old - cap * cap) / (2.0 * k)
+        t_old = cap
     if t_proj > 0.0:
         s = t_old / t_proj
         tx *= s
@@ -37,9 +43,8 @@ def coulomb_update(tx, ty, tz, nx, ny, nz, rx, ry, rz, dt, k, cap):
     ty -= k * ry * dt
     tz -= k * rz * dt
     t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
-    lost = 0.0
     if t_trial > cap:
-        lost = (t_trial - cap) / k * cap
+        lost += (t_trial - cap) / k * cap
         s = cap / t_trial
         tx *= s
         ty *= s

@@ -33,9 +33,10 @@ from .law import (
     LAW_FT,
     LAW_IZ,
     LAW_MU,
+    PRE_PEAK_NORMAL,
+    PRE_PEAK_SHEAR,
     critical_opening,
     normal_stress,
-    peak_curve,
     peak_curve_energy,
     shear_strength,
     softening,
@@ -109,20 +110,17 @@ def _opening(x, na, nb, i, p, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def _cohesive_potential(x, ifs, i, law, z, nx, ny, nz):
-    """Sum over the 3 points of A/3 * (Phi_n + Phi_s), the part of the free energy scaled by z."""
-    pn = ifs.pn[i]
-    ps = ifs.ps[i]
+def _normal_potential(x, ifs, i, nx, ny, nz):
+    """Sum over the 3 points of A/3 * Phi_n(dn), the undamaged normal free energy in opening;
+    the cohesive energy in opening is z(D) times it."""
+    law = ifs.law_table[ifs.law[i]]
     ft = law[LAW_FT]
+    dnp = 2.0 * ft / ifs.pn[i]
     total = 0.0
     for p in range(3):
         dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
-        ds = math.sqrt(sx * sx + sy * sy + sz * sz)
-        sigma = normal_stress(dn, pn, z, law)
-        fs = shear_strength(sigma, law)
         if dn > 0.0:
-            total += peak_curve_energy(dn, ft, 2.0 * ft / pn)
-        total += peak_curve_energy(ds, fs, 2.0 * fs / ps)
+            total += peak_curve_energy(dn, ft, dnp)
     return total * ifs.area[i] / 3.0
 
 
@@ -159,10 +157,10 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
             z_old = softening(d_old, a, b, c)
             ft = law[LAW_FT]
             dnp = 2.0 * ft / pn
-            dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ])
+            dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ], PRE_PEAK_NORMAL)
             fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
             dsp = 2.0 * fs_c / ps
-            dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ])
+            dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR)
             d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
             d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
             d_new = math.sqrt(d_n * d_n + d_s * d_s)
@@ -173,7 +171,8 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 z = softening(d_new, a, b, c)
                 damage[i] = d_new
                 # Energy released by the damage step at the current opening.
-                ifs.e_damage[i] += (z_old - z) * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
+                # (the shear spring releases its part through the cap, below).
+                ifs.e_damage[i] += (z_old - z) * _normal_potential(x, ifs, i, nx, ny, nz)
                 if d_new >= 1.0:
                     state[i] = FAILED
                     ifs.fail_time[i] = t
@@ -185,17 +184,27 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                     else:
                         ifs.fail_mode[i] = 3
             if state[i] == INTACT:
+                # Shear: an elastic spring ps capped at z(D) f_s(sigma_n), updated by the slip
+                # increment; the cap dissipates. (The paper's f_s (2x - x^2) curve, evaluated from
+                # the total slip, has no potential when sigma_n varies and pumps energy into a
+                # crushed zone.)
                 for p in range(3):
                     dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
                     sigma = normal_stress(dn, pn, z, law)
-                    fs = shear_strength(sigma, law)
-                    ds = math.sqrt(sx * sx + sy * sy + sz * sz)
-                    tau_over_ds = 0.0
-                    if ds > 0.0:
-                        tau_over_ds = z * peak_curve(ds, fs, 2.0 * fs / ps) / ds
-                    force[i, p, 0] = -(sigma * nx + tau_over_ds * sx) * a3
-                    force[i, p, 1] = -(sigma * ny + tau_over_ds * sy) * a3
-                    force[i, p, 2] = -(sigma * nz + tau_over_ds * sz) * a3
+                    a = na[i, p]
+                    b = nb[i, p]
+                    tx, ty, tz, lost = coulomb_update(
+                        traction_t[i, p, 0], traction_t[i, p, 1], traction_t[i, p, 2], nx, ny, nz,
+                        v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps,
+                        z * shear_strength(sigma, law),
+                    )
+                    ifs.e_damage[i] += lost * a3
+                    traction_t[i, p, 0] = tx
+                    traction_t[i, p, 1] = ty
+                    traction_t[i, p, 2] = tz
+                    force[i, p, 0] = -(sigma * nx + tx) * a3
+                    force[i, p, 1] = -(sigma * ny + ty) * a3
+                    force[i, p, 2] = -(sigma * nz + tz) * a3
                 continue
 
         # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
@@ -686,12 +695,14 @@ def interface_energy(x, ifs, cohesive, contact):
         contact[i] = 0.0
         if ifs.state[i] == INTACT:
             z = softening(ifs.damage[i], law[LAW_A], law[LAW_B], law[LAW_CS])
-            comp = 0.0
+            springs = 0.0
             for p in range(3):
                 dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
                 if dn < 0.0:
-                    comp += 0.5 * pn * dn * dn * a3
-            cohesive[i] = comp + z * _cohesive_potential(x, ifs, i, law, z, nx, ny, nz)
+                    springs += 0.5 * pn * dn * dn * a3
+                t2 = ifs.traction_t[i, p, 0] ** 2 + ifs.traction_t[i, p, 1] ** 2 + ifs.traction_t[i, p, 2] ** 2
+                springs += 0.5 * t2 / ifs.ps[i] * a3
+            cohesive[i] = springs + z * _normal_potential(x, ifs, i, nx, ny, nz)
         else:
             reach2 = ifs.reach[i] * ifs.reach[i]
             for p in range(3):

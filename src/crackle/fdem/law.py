@@ -62,10 +62,17 @@ def peak_curve_energy(delta, peak, delta_p):
     return peak * delta_p * (x * x - x * x * x / 3.0)
 
 
+# Energy per unit area up to the start of softening, over peak x delta_p: the normal branch's
+# pre-peak curve f (2x - x^2) holds 2/3; the shear branch (elastic ps up to the cap at delta_p / 2,
+# then the cap) 1/4 + 1/2.
+PRE_PEAK_NORMAL = 2.0 / 3.0
+PRE_PEAK_SHEAR = 3.0 / 4.0
+
+
 @njit(cache=True, inline="always")
-def critical_opening(peak, delta_p, gf, iz):
+def critical_opening(peak, delta_p, gf, iz, pre_peak):
     """Opening at which the softening curve reaches zero, so that the full curve holds gf."""
-    soft = gf - peak * delta_p * (2.0 / 3.0)
+    soft = gf - peak * delta_p * pre_peak
     # A penalty so soft that the pre-peak part alone exceeds gf: keep a short softening branch
     # (set-up warns about this case).
     if soft < 0.05 * gf:
