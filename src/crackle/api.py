@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import geometry
+from .analysis import FracturePlane
 from .geometry import MeshError, TetMesh
 from .loading import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 from .materials import GuoMunjizaLaw, Material
@@ -197,7 +198,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
         choose_time_step(model.stable_dt, control)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
-    return FdemSimulation(model), control
+    sim = FdemSimulation(model)
+    plane = scenario.analysis.fracture_plane
+    if plane is not None:
+        size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
+        tol = plane.tol if plane.tol is not None else 1e-6 * size
+        sim.fracture_plane = FracturePlane(plane.point, plane.normal, plane.direction, tol)
+    return sim, control
 
 
 def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None) -> RunResult:

@@ -205,6 +205,19 @@ class RunSpec(_Strict):
     stop: Stop = Stop()
 
 
+class FracturePlaneSpec(_Strict):
+    """A planar fracture to follow: its tip and plastic-zone length go to history.csv."""
+
+    point: Vec3  # on the plane, where the growth is measured from
+    normal: Vec3
+    direction: Vec3  # of growth, in the plane
+    tol: Positive | None = None  # m; default: 1e-6 of the specimen size
+
+
+class AnalysisSpec(_Strict):
+    fracture_plane: FracturePlaneSpec | None = None
+
+
 class Scenario(_Strict):
     name: str = "scenario"
     description: str = ""
@@ -216,6 +229,7 @@ class Scenario(_Strict):
     supports: list[SupportSpec] = []
     precracks: list[PrecrackSpec] = []
     pressures: list[PressureSpec] = []
+    analysis: AnalysisSpec = AnalysisSpec()
     run: RunSpec
     quick: dict[str, Any] = {}  # dotted-key overrides applied by --quick
 

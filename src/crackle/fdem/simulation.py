@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis import Fragments, find_fragments
+from ..analysis import FracturePlane, Fragments, find_fragments, propagating_plastic_zone, tip_and_plastic_zone
 from ..io import plot_fragment_sizes
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
@@ -34,6 +34,9 @@ class FdemSimulation:
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1
         self.rebuilds = 0
+        self.fracture_plane: FracturePlane | None = None  # followed in the history when set
+        self._tips: list[float] = []
+        self._plastic_zones: list[float] = []
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -143,6 +146,13 @@ class FdemSimulation:
         row.update(energies)
         row["broken"] = self.broken
         row["fragments"] = self.fragments().count
+        if self.fracture_plane is not None:
+            ifs = m.ifs
+            tip, zone = tip_and_plastic_zone(self.fracture_plane, m.iface_centroids(m.nodes.x), ifs.damage, ifs.state != INTACT)
+            self._tips.append(tip)
+            self._plastic_zones.append(zone)
+            row["fracture.tip"] = tip
+            row["fracture.plastic_zone"] = zone
         return row
 
     def fragments(self) -> Fragments:
@@ -195,6 +205,17 @@ class FdemSimulation:
     def extra_plots(self, out_dir) -> None:
         plot_fragment_sizes(self.fragments().masses, out_dir / "plots" / "fragment_sizes.png")
 
+    def _fracture_summary(self) -> dict:
+        if self.fracture_plane is None or not self._tips:
+            return {}
+        zones = np.asarray(self._plastic_zones)
+        values = {
+            "plastic_zone_length": propagating_plastic_zone(self._tips, zones),
+            "plastic_zone_max": float(zones.max()),
+            "fracture_tip_final": float(self._tips[-1]),
+        }
+        return {k: (v if np.isfinite(v) else None) for k, v in values.items()}  # JSON has no inf/nan
+
     def summary(self) -> dict:
         m = self.model
         # Velocities change without new failures: refresh the fragment velocities for the record.
@@ -207,6 +228,7 @@ class FdemSimulation:
             "fragment_speeds": np.linalg.norm(frags.velocities[:20], axis=1).tolist(),
             "largest_fragment_velocity": frags.velocities[0].tolist(),
             "contact_rebuilds": self.rebuilds,
+            **self._fracture_summary(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,
