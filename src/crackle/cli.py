@@ -21,11 +21,13 @@ def _cmd_run(args) -> int:
         print(f"crackle: {err}", file=sys.stderr)
         return 3
     s = result.summary
+    force = f"peak force {s['peak_force']:.4g} N, " if s['peak_force'] > 0 else ""  # no tools: no force
     print(
         f"{s['scenario']}: {s['status']} after {s['steps']} steps ({s['wall_time']:.1f} s), "
-        f"t = {s['end_time']:.4g} s, broken {s['broken']}, peak force {s['peak_force']:.4g} N, "
-        f"energy error {s['energy_error']:.2%}"
+        f"t = {s['end_time']:.4g} s, broken {s['broken']}, {force}energy error {s['energy_error']:.2%}"
     )
+    if s.get("plastic_zone_length") is not None:
+        print(f"  plastic zone while the fracture grows: {s['plastic_zone_length'] * 1e3:.1f} mm")
     if s.get("message"):
         print(f"  {s['message']}")
     for w in s.get("warnings", []):

@@ -124,6 +124,27 @@ def _normal_potential(x, ifs, i, nx, ny, nz):
     return total * ifs.area[i] / 3.0
 
 
+@njit(cache=True, inline="always")
+def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force):
+    """Normal stress sigma and the shear spring ps capped at `cap` on point pair p of interface i
+    (intact: the cohesive shear; failed: Coulomb friction): the forces on the B node into `force`
+    (A gets their negatives); returns the energy the cap dissipated (J)."""
+    a = na[i, p]
+    b = nb[i, p]
+    # The traction resists B sliding over A: A's velocity relative to B drives the spring.
+    tx, ty, tz, lost = coulomb_update(
+        traction_t[i, p, 0], traction_t[i, p, 1], traction_t[i, p, 2], nx, ny, nz,
+        v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps, cap,
+    )
+    traction_t[i, p, 0] = tx
+    traction_t[i, p, 1] = ty
+    traction_t[i, p, 2] = tz
+    force[i, p, 0] = -(sigma * nx + tx) * a3
+    force[i, p, 1] = -(sigma * ny + ty) * a3
+    force[i, p, 2] = -(sigma * nz + tz) * a3
+    return lost * a3
+
+
 @njit(cache=True)
 def _interface_block(lo, hi, t, dt, x, v, ifs):
     """Interfaces lo..hi-1: kinematics, Guo-Munjiza law or (once failed) paired penalty contact with
@@ -191,20 +212,8 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 for p in range(3):
                     dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
                     sigma = normal_stress(dn, pn, z, law)
-                    a = na[i, p]
-                    b = nb[i, p]
-                    tx, ty, tz, lost = coulomb_update(
-                        traction_t[i, p, 0], traction_t[i, p, 1], traction_t[i, p, 2], nx, ny, nz,
-                        v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps,
-                        z * shear_strength(sigma, law),
-                    )
-                    ifs.e_damage[i] += lost * a3
-                    traction_t[i, p, 0] = tx
-                    traction_t[i, p, 1] = ty
-                    traction_t[i, p, 2] = tz
-                    force[i, p, 0] = -(sigma * nx + tx) * a3
-                    force[i, p, 1] = -(sigma * ny + ty) * a3
-                    force[i, p, 2] = -(sigma * nz + tz) * a3
+                    cap = z * shear_strength(sigma, law)
+                    ifs.e_damage[i] += _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
                 continue
 
         # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
@@ -221,20 +230,7 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 force[i, p, 2] = 0.0
                 continue
             sigma = pn * dn
-            a = na[i, p]
-            b = nb[i, p]
-            # The traction resists B sliding over A: A's velocity relative to B drives the spring.
-            tx, ty, tz, lost = coulomb_update(
-                traction_t[i, p, 0], traction_t[i, p, 1], traction_t[i, p, 2], nx, ny, nz,
-                v[a, 0] - v[b, 0], v[a, 1] - v[b, 1], v[a, 2] - v[b, 2], dt, ps, -mu * sigma,
-            )
-            ifs.e_friction[i] += lost * a3
-            traction_t[i, p, 0] = tx
-            traction_t[i, p, 1] = ty
-            traction_t[i, p, 2] = tz
-            force[i, p, 0] = -(sigma * nx + tx) * a3
-            force[i, p, 1] = -(sigma * ny + ty) * a3
-            force[i, p, 2] = -(sigma * nz + tz) * a3
+            ifs.e_friction[i] += _pair_traction(i, p, sigma, -mu * sigma, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
 
 
 @njit(cache=True, inline="always")
