@@ -13,7 +13,7 @@ from . import geometry
 from .analysis import FracturePlane
 from .geometry import MeshError, TetMesh
 from .loading import History, Precrack, Pressure, Selection, Support, Tool, load_surface
-from .materials import GuoMunjizaLaw, Material
+from .materials import BilinearLaw, GuoMunjizaLaw, Material
 from .scenario import Scenario, ScenarioError, load_scenario, resolve_path
 from .solver import RunControl, RunResult, StopConditions, run
 
@@ -37,6 +37,25 @@ def build_specimen(spec, base: Path | None) -> TetMesh:
 
 def build_material(spec) -> Material:
     law = spec.interface
+    if law.law == "bilinear":
+        return Material(
+            density=spec.density,
+            youngs_modulus=spec.youngs_modulus,
+            poissons_ratio=spec.poissons_ratio,
+            name=spec.name,
+            interface=BilinearLaw(
+                tensile_strength=law.tensile_strength,
+                shear_strength=law.shear_strength,
+                fracture_energy=law.fracture_energy,
+                fracture_energy_shear=law.fracture_energy_shear,
+                normal_stiffness=law.normal_stiffness,
+                shear_stiffness=law.shear_stiffness,
+                mixed_mode=law.mixed_mode,
+                bk_exponent=law.bk_exponent,
+                power_exponent=law.power_exponent,
+                friction=law.friction,
+            ),
+        )
     kwargs = {} if law.penalty_factor is None else {"penalty_factor": law.penalty_factor}
     return Material(
         density=spec.density,

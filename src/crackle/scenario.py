@@ -11,9 +11,9 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
 
 Vec3 = tuple[float, float, float]
 Positive = Annotated[float, Field(gt=0)]
@@ -69,12 +69,61 @@ class InterfaceLaw(_Strict):
     penalty_factor: Positive | None = None
 
 
+class BilinearInterfaceLaw(_Strict):
+    """Bilinear cohesive law (paper 004): strengths in Pa, energies in J/m^2, stiffnesses in N/m^3
+    (a value in N/mm^3 times 1e9)."""
+
+    law: Literal["bilinear"]
+    tensile_strength: Positive  # tn0
+    shear_strength: Positive  # ts0
+    fracture_energy: Positive  # GIc
+    fracture_energy_shear: Positive | None = None  # GIIc, defaults to GIc
+    normal_stiffness: Positive  # kn
+    shear_stiffness: Positive  # ks
+    friction: NonNegative = 0.6
+    mixed_mode: Literal["bk", "power"] = "bk"
+    bk_exponent: Positive = 1.45
+    power_exponent: Positive = 2.0
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        from .materials import bilinear_snap_back
+
+        if self.mixed_mode == "bk" and "power_exponent" in self.model_fields_set:
+            raise ValueError('power_exponent is for mixed_mode = "power" (this law uses "bk": set bk_exponent)')
+        if self.mixed_mode == "power" and "bk_exponent" in self.model_fields_set:
+            raise ValueError('bk_exponent is for mixed_mode = "bk" (this law uses "power": set power_exponent)')
+        problem = bilinear_snap_back(self)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+
+# Tags of the interface laws: `law` in [material.interface], "guo-munjiza" when left out.
+LAW_TAGS = ("guo-munjiza", "bilinear")
+
+
+def _law_tag(value):
+    law = value.get("law", "guo-munjiza") if isinstance(value, dict) else getattr(value, "law", "guo-munjiza")
+    return law if law in LAW_TAGS else None
+
+
+InterfaceSpec = Annotated[
+    Union[Annotated[InterfaceLaw, Tag("guo-munjiza")], Annotated[BilinearInterfaceLaw, Tag("bilinear")]],
+    Discriminator(
+        _law_tag,
+        custom_error_type="law",
+        custom_error_message="law must be \"guo-munjiza\" or \"bilinear\"",
+    ),
+]
+
+
 class MaterialSpec(_Strict):
     name: str = "material"
     density: Positive
     youngs_modulus: Positive
     poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
-    interface: InterfaceLaw
+    interface: InterfaceSpec
 
 
 class VelocityTable(_Strict):
@@ -358,7 +407,10 @@ def resolve_path(file: str, base: Path | None) -> Path:
 
 def _describe(err: ValidationError, source) -> str:
     first = err.errors()[0]
-    where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    loc = first["loc"]
+    # The interface law's tag that pydantic puts in the path (material.interface.bilinear.kn).
+    loc = [p for k, p in enumerate(loc) if not (p in LAW_TAGS and k > 0 and loc[k - 1] == "interface")]
+    where = ".".join(str(p) for p in loc) or "(top level)"
     kind = first["type"]
     if kind == "extra_forbidden":
         hint = "unknown key: remove it or check its spelling"

@@ -4,9 +4,9 @@ State is flat arrays grouped in named tuples (see ``model.py``). The exploded me
 its own 4 nodes (node 4e+k is corner k of tet e), so one step is two parallel passes with no
 races and no atomics:
 
-1. over interfaces: kinematics, Guo-Munjiza law or (once failed) penalty contact with Coulomb
-   friction; the traction force on each of the 3 B-side nodes goes to ``ifs.force`` (the A side
-   gets its negative);
+1. over interfaces: kinematics, Guo-Munjiza or bilinear cohesive law (per law row) or (once
+   failed) penalty contact with Coulomb friction; the traction force on each of the 3 B-side
+   nodes goes to ``ifs.force`` (the A side gets its negative);
 2. over tets: St Venant-Kirchhoff forces, gather of the interface forces of the tet's 4 faces,
    pressures, tool contact, damping, gravity, central-difference update of the tet's 4 nodes.
 
@@ -32,9 +32,12 @@ from .law import (
     LAW_CS,
     LAW_FT,
     LAW_IZ,
+    LAW_KIND,
     LAW_MU,
+    KIND_BILINEAR,
     PRE_PEAK_NORMAL,
     PRE_PEAK_SHEAR,
+    bilinear_damage,
     critical_opening,
     normal_stress,
     peak_curve_energy,
@@ -125,6 +128,77 @@ def _normal_potential(x, ifs, i, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
+def _bilinear_potential(x, ifs, i, kn, ks, nx, ny, nz):
+    """Sum over the 3 points of A/3 * (kn <dn>^2 + ks |s|^2) / 2: the undamaged bilinear energy in
+    opening and shear; the cohesive energy there is (1 - D) times it."""
+    total = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+        if dn > 0.0:
+            total += kn * dn * dn
+        total += ks * (sx * sx + sy * sy + sz * sz)
+    return 0.5 * total * ifs.area[i] / 3.0
+
+
+@njit(cache=True, inline="always")
+def _bilinear_intact(i, t, x, ifs, law, kn, ks, a3, nx, ny, nz):
+    """Bilinear cohesive law on intact interface i: damage from the centroid's effective opening
+    (irreversible), then the point tractions (1 - D) kn dn (kn dn in compression) and
+    (1 - D) ks s into ifs.force. Returns False once the interface has failed (D = 1): the caller
+    then treats it as a failed pair."""
+    na, nb = ifs.na, ifs.nb
+    dn_c = 0.0
+    sx_c = 0.0
+    sy_c = 0.0
+    sz_c = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
+        dn_c += dn / 3.0
+        sx_c += sx / 3.0
+        sy_c += sy / 3.0
+        sz_c += sz / 3.0
+    ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+    d_old = ifs.damage[i]
+    d_new, mix = bilinear_damage(dn_c, ds_c, kn, ks, law)
+    d = d_old
+    if d_new > d_old:
+        d = d_new
+        ifs.damage[i] = d
+        # The stored energy the damage step releases at the current opening (exact).
+        ifs.e_damage[i] += (d - d_old) * _bilinear_potential(x, ifs, i, kn, ks, nx, ny, nz)
+        if d >= 1.0:
+            ifs.state[i] = FAILED
+            ifs.fail_time[i] = t
+            # Mode from the energy ratio G_II / G_T: tension below sin^2(15 deg), shear above
+            # sin^2(75 deg) (the Guo-Munjiza angles, in energy-scaled openings).
+            if mix < math.sin(math.radians(15.0)) ** 2:
+                ifs.fail_mode[i] = 1
+            elif mix > math.sin(math.radians(75.0)) ** 2:
+                ifs.fail_mode[i] = 2
+            else:
+                ifs.fail_mode[i] = 3
+            for p in range(3):
+                ifs.traction_t[i, p, 0] = 0.0
+                ifs.traction_t[i, p, 1] = 0.0
+                ifs.traction_t[i, p, 2] = 0.0
+            return False
+    s = 1.0 - d
+    for p in range(3):
+        dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
+        sigma = kn * dn if dn < 0.0 else s * kn * dn
+        tx = s * ks * sx
+        ty = s * ks * sy
+        tz = s * ks * sz
+        ifs.traction_t[i, p, 0] = tx
+        ifs.traction_t[i, p, 1] = ty
+        ifs.traction_t[i, p, 2] = tz
+        ifs.force[i, p, 0] = -(sigma * nx + tx) * a3
+        ifs.force[i, p, 1] = -(sigma * ny + ty) * a3
+        ifs.force[i, p, 2] = -(sigma * nz + tz) * a3
+    return True
+
+
+@njit(cache=True, inline="always")
 def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force):
     """Normal stress sigma and the shear spring ps capped at `cap` on point pair p of interface i
     (intact: the cohesive shear; failed: Coulomb friction): the forces on the B node into `force`
@@ -147,8 +221,9 @@ def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction
 
 @njit(cache=True)
 def _interface_block(lo, hi, t, dt, x, v, ifs):
-    """Interfaces lo..hi-1: kinematics, Guo-Munjiza law or (once failed) paired penalty contact with
-    Coulomb friction; the force on each B-side node into ifs.force (A gets its negative)."""
+    """Interfaces lo..hi-1: kinematics, Guo-Munjiza or bilinear law or (once failed) paired penalty
+    contact with Coulomb friction; the force on each B-side node into ifs.force (A gets its
+    negative)."""
     # Unpacked once per block: attribute access per element costs reference counting.
     na, nb, area, pn_all, ps_all = ifs.na, ifs.nb, ifs.area, ifs.pn, ifs.ps
     state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
@@ -160,7 +235,11 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
         a3 = area[i] / 3.0
         nx, ny, nz = _mid_normal(x, na, nb, i)
 
-        if state[i] == INTACT:
+        if state[i] == INTACT and law[LAW_KIND] == KIND_BILINEAR:
+            # Bilinear cohesive law: pn, ps are its stiffnesses kn, ks.
+            if _bilinear_intact(i, t, x, ifs, law, pn, ps, a3, nx, ny, nz):
+                continue
+        elif state[i] == INTACT:
             # Damage from the centroid opening and slip (eq. 8), irreversible.
             dn_c = 0.0
             sx_c = 0.0
@@ -689,7 +768,14 @@ def interface_energy(x, ifs, cohesive, contact):
         a3 = ifs.area[i] / 3.0
         cohesive[i] = 0.0
         contact[i] = 0.0
-        if ifs.state[i] == INTACT:
+        if ifs.state[i] == INTACT and law[LAW_KIND] == KIND_BILINEAR:
+            comp = 0.0
+            for p in range(3):
+                dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                if dn < 0.0:
+                    comp += 0.5 * pn * dn * dn * a3
+            cohesive[i] = comp + (1.0 - ifs.damage[i]) * _bilinear_potential(x, ifs, i, pn, ifs.ps[i], nx, ny, nz)
+        elif ifs.state[i] == INTACT:
             z = softening(ifs.damage[i], law[LAW_A], law[LAW_B], law[LAW_CS])
             springs = 0.0
             for p in range(3):

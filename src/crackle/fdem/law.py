@@ -21,6 +21,21 @@ Model (per unit area, for one integration point of an interface):
   (2/3) f_t dnp + f_t (dnc - dnp) Iz = Gf, Iz = integral of z over [0, 1] (0.3863 with the
   default constants; the paper's d_c = 3 Gf / f is the same relation with Iz ~ 1/3 and dnp ~ 0).
   The same holds in shear with Gf_II and f_s.
+
+Bilinear cohesive law (paper 004; Camanho-Davila mixed-mode formulation), selected per law row by
+LAW_KIND = KIND_BILINEAR; the interface's own stiffnesses kn, ks (N/m^3) are its pn, ps:
+
+* Tractions tn = (1 - D) kn dn in opening, kn dn in compression (never damaged), shear vector
+  ts = (1 - D) ks s: linear to the origin on unloading (secant), a potential at fixed D.
+* Initiation (maximum nominal stress): max(kn <dn> / tn0, ks |s| / ts0) = 1.
+* Effective opening dm = sqrt(<dn>^2 + |s|^2), effective stiffness K = (kn <dn>^2 + ks |s|^2) / dm^2
+  (so the undamaged energy is K dm^2 / 2), initiation opening d0 = dm / max(...) at the current
+  mode mix, final opening df = 2 Gc / (K d0), linear softening
+  D = df (dm - d0) / (dm (df - d0)), never decreasing; a complete failure at a fixed mix
+  dissipates K d0 df / 2 = Gc per unit area.
+* Mixed mode from the energy ratio B = ks |s|^2 / (kn <dn>^2 + ks |s|^2) (G_II / G_T):
+  Benzeggagh-Kenane Gc = GIc + (GIIc - GIc) B^eta, or the power law
+  ((1 - B) Gc / GIc)^alpha + (B Gc / GIIc)^alpha = 1.
 """
 
 from __future__ import annotations
@@ -31,7 +46,12 @@ from numba import njit
 
 # Columns of the per-law parameter table.
 LAW_FT, LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ, LAW_MU = range(10)
-LAW_COLUMNS = 10
+# Appended for the bilinear law (zero, unused, in a Guo-Munjiza row; LAW_FT, LAW_GF1, LAW_GF2 and
+# LAW_MU are shared): law kind, shear strength ts0, mixed-mode rule and its exponent.
+LAW_KIND, LAW_TS, LAW_MIX, LAW_MIX_EXP = range(10, 14)
+LAW_COLUMNS = 14
+KIND_GUO_MUNJIZA, KIND_BILINEAR = 0, 1
+MIX_POWER, MIX_BK = 0, 1
 
 
 @njit(cache=True, inline="always")
@@ -99,3 +119,50 @@ def normal_stress(dn, pn, z, law):
         return pn * dn
     dnp = 2.0 * law[LAW_FT] / pn
     return z * peak_curve(dn, law[LAW_FT], dnp)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bilinear cohesive law.
+
+
+@njit(cache=True, inline="always")
+def mixed_mode_energy(b, law):
+    """Critical energy Gc (J/m^2) at the energy mode ratio b = G_II / (G_I + G_II)."""
+    g1 = law[LAW_GF1]
+    g2 = law[LAW_GF2]
+    e = law[LAW_MIX_EXP]
+    if b <= 0.0:
+        return g1
+    if b >= 1.0:
+        return g2
+    if law[LAW_MIX] == MIX_BK:
+        return g1 + (g2 - g1) * b**e
+    return (((1.0 - b) / g1) ** e + (b / g2) ** e) ** (-1.0 / e)
+
+
+@njit(cache=True, inline="always")
+def bilinear_damage(dn, ds, kn, ks, law):
+    """Damage that the opening dn and slip magnitude ds alone give (0 up to initiation, 1 from
+    the final opening on) and the energy mode ratio B = G_II / G_T there."""
+    dnp = dn if dn > 0.0 else 0.0
+    en = kn * dnp * dnp
+    es = ks * ds * ds
+    e = en + es
+    if e <= 0.0:
+        return 0.0, 0.0
+    b = es / e
+    f_n = kn * dnp / law[LAW_FT]
+    f_s = ks * ds / law[LAW_TS]
+    f = f_n if f_n > f_s else f_s
+    if f <= 1.0:
+        return 0.0, b
+    dm = math.sqrt(dnp * dnp + ds * ds)
+    k = e / (dm * dm)
+    d0 = dm / f
+    df = 2.0 * mixed_mode_energy(b, law) / (k * d0)
+    # Set-up refuses pure-mode snap-back (Gc <= t0^2 / 2k); keep a mixed mode finite anyway.
+    if df < d0 * (1.0 + 1e-9):
+        df = d0 * (1.0 + 1e-9)
+    if dm >= df:
+        return 1.0, b
+    return df * (dm - d0) / (dm * (df - d0)), b

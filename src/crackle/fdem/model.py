@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Selection, Support, Tool
-from ..materials import CONTACT_PENALTY_FACTOR, Material, process_zone
+from ..materials import CONTACT_PENALTY_FACTOR, DEFAULT_PENALTY_FACTOR, BilinearLaw, Material, process_zone
 from .contact import BARY_TOL
 from .kernels import FIXED, FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
 from .topology import FACE_CORNERS, INTACT, PRECRACK
@@ -28,8 +28,15 @@ from .law import (
     LAW_GF1,
     LAW_GF2,
     LAW_IZ,
+    LAW_KIND,
+    LAW_MIX,
+    LAW_MIX_EXP,
     LAW_MU,
     LAW_TANPHI,
+    LAW_TS,
+    KIND_BILINEAR,
+    MIX_BK,
+    MIX_POWER,
 )
 
 Nodes = namedtuple(
@@ -173,6 +180,18 @@ def build_fdem_model(
     for mat in materials:
         law = mat.interface
         row = np.zeros(LAW_COLUMNS)
+        if isinstance(law, BilinearLaw):
+            row[LAW_KIND] = KIND_BILINEAR
+            row[LAW_FT] = law.tensile_strength
+            row[LAW_TS] = law.shear_strength
+            row[LAW_GF1] = law.fracture_energy
+            row[LAW_GF2] = law.gf_shear
+            row[LAW_MIX] = MIX_BK if law.mixed_mode == "bk" else MIX_POWER
+            row[LAW_MIX_EXP] = law.mixed_mode_exponent
+            row[LAW_MU] = law.friction
+            law_of_material.append(len(law_rows))
+            law_rows.append(row)
+            continue
         row[LAW_FT] = law.tensile_strength
         row[LAW_C] = law.cohesion
         row[LAW_TANPHI] = np.tan(np.radians(law.friction_angle))
@@ -188,10 +207,18 @@ def build_fdem_model(
     mat_a, mat_b = tet_material[ta], tet_material[tb]
     ft_of = law_table[:, LAW_FT]
     iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int16)
-    penalty = np.array([mat.interface.penalty_factor for mat in materials])
+    penalty = np.array([getattr(mat.interface, "penalty_factor", DEFAULT_PENALTY_FACTOR) for mat in materials])
     p_side = np.minimum(penalty[mat_a], penalty[mat_b])
     pn = p_side * np.minimum(E[ta], E[tb]) / h_if
     ps = p_side * np.minimum(G[ta], G[tb]) / h_if
+    # A bilinear interface's own stiffnesses kn, ks (N/m^3) replace the penalty, intact and
+    # failed (contact); the stable step below uses them through pn, ps.
+    bilinear = law_table[iface_law, LAW_KIND] == KIND_BILINEAR
+    if bilinear.any():
+        kn_of = np.array([getattr(mat.interface, "normal_stiffness", 0.0) for mat in materials])
+        ks_of = np.array([getattr(mat.interface, "shear_stiffness", 0.0) for mat in materials])
+        pn = np.where(bilinear, kn_of[iface_law], pn)
+        ps = np.where(bilinear, ks_of[iface_law], ps)
     edge = np.stack(
         [np.linalg.norm(x0[na[:, i]] - x0[na[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1
     )

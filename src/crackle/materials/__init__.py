@@ -76,6 +76,80 @@ class GuoMunjizaLaw:
         return softening_integral(*self.softening)
 
 
+# Benzeggagh-Kenane exponent of Camanho & Davila (2002), and the power-law exponent of the
+# quadratic (Ye) criterion.
+DEFAULT_BK_EXPONENT = 1.45
+DEFAULT_POWER_EXPONENT = 2.0
+
+
+@dataclass(frozen=True)
+class BilinearLaw:
+    """Bilinear cohesive (traction-separation) law, paper 004; Camanho-Davila mixed mode.
+
+    tensile_strength tn0 and shear_strength ts0 (Pa) are the nominal strengths (initiation when
+    max(<tn>/tn0, ts/ts0) = 1, the normal traction counted only in tension); fracture_energy GIc
+    and fracture_energy_shear GIIc (J/m^2, GIIc defaults to GIc) the energies a unit area
+    dissipates from intact to failed in pure mode I and II; normal_stiffness kn and
+    shear_stiffness ks (N/m^3) the initial stiffnesses per unit area, also the contact penalties
+    once failed. mixed_mode "bk" (Benzeggagh-Kenane, bk_exponent eta) or "power" (power law,
+    power_exponent alpha) gives Gc at a mode mix. friction: Coulomb coefficient once failed.
+    """
+
+    tensile_strength: float
+    shear_strength: float
+    fracture_energy: float
+    normal_stiffness: float
+    shear_stiffness: float
+    fracture_energy_shear: float | None = None
+    mixed_mode: str = "bk"
+    bk_exponent: float = DEFAULT_BK_EXPONENT
+    power_exponent: float = DEFAULT_POWER_EXPONENT
+    friction: float = 0.6
+
+    name = "bilinear"
+
+    def __post_init__(self):
+        for key in ("tensile_strength", "shear_strength", "fracture_energy", "normal_stiffness",
+                    "shear_stiffness", "bk_exponent", "power_exponent"):
+            if not getattr(self, key) > 0:
+                raise ValueError(f"bilinear law: {key} must be positive (got {getattr(self, key)!r})")
+        if self.fracture_energy_shear is not None and not self.fracture_energy_shear > 0:
+            raise ValueError(f"bilinear law: fracture_energy_shear must be positive (got {self.fracture_energy_shear!r})")
+        if self.friction < 0:
+            raise ValueError(f"bilinear law: friction must be >= 0 (got {self.friction!r})")
+        if self.mixed_mode not in ("bk", "power"):
+            raise ValueError(f"bilinear law: mixed_mode must be 'bk' or 'power' (got {self.mixed_mode!r})")
+        problem = bilinear_snap_back(self)
+        if problem:
+            raise ValueError(f"bilinear law: {problem}")
+
+    @property
+    def gf_shear(self) -> float:
+        return self.fracture_energy if self.fracture_energy_shear is None else self.fracture_energy_shear
+
+    @property
+    def mixed_mode_exponent(self) -> float:
+        return self.bk_exponent if self.mixed_mode == "bk" else self.power_exponent
+
+
+def bilinear_snap_back(law) -> str | None:
+    """Why the law's softening would snap back (Gc below the elastic energy t0^2 / 2k at the
+    peak, so df < d0) in pure mode I or II, or None."""
+    gf2 = law.fracture_energy if law.fracture_energy_shear is None else law.fracture_energy_shear
+    for g, g_name, t0, t_name, k, k_name in (
+        (law.fracture_energy, "fracture_energy", law.tensile_strength, "tensile_strength", law.normal_stiffness, "normal_stiffness"),
+        (gf2, "fracture_energy_shear", law.shear_strength, "shear_strength", law.shear_stiffness, "shear_stiffness"),
+    ):
+        peak = t0 * t0 / (2.0 * k)
+        if g <= peak:
+            return (
+                f"{g_name} = {g:g} J/m^2 is not above the elastic energy at the peak, "
+                f"{t_name}^2 / (2 {k_name}) = {peak:g} J/m^2: the softening would snap back; "
+                f"raise {g_name} or {k_name}, or lower {t_name}"
+            )
+    return None
+
+
 @dataclass(frozen=True)
 class Material:
     """An isotropic elastic solid with an interface law for FDEM."""
@@ -83,7 +157,7 @@ class Material:
     density: float
     youngs_modulus: float
     poissons_ratio: float
-    interface: GuoMunjizaLaw | None = None
+    interface: GuoMunjizaLaw | BilinearLaw | None = None
     name: str = "material"
 
     @property
@@ -136,6 +210,7 @@ def process_zone(youngs_modulus: float, fracture_energy: float, tensile_strength
 
 
 __all__ = [
+    "BilinearLaw",
     "CONTACT_PENALTY_FACTOR",
     "DEFAULT_PENALTY_FACTOR",
     "DEFAULT_SOFTENING",
