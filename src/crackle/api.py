@@ -19,6 +19,30 @@ from .solver import RunControl, RunResult, StopConditions, run
 
 
 def build_specimen(spec, base: Path | None) -> TetMesh:
+    return build_specimen_regions(spec, base)[0]
+
+
+def build_specimen_regions(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
+    """The specimen mesh and its per-tet region ids (walnut: 0 face, 1 suture; else None)."""
+    if spec.shape == "walnut":
+        try:
+            return geometry.walnut_shell(
+                spec.length,
+                spec.width,
+                spec.thickness,
+                spec.element_size,
+                wall=spec.wall,
+                suture_wall=spec.suture_wall,
+                suture_band=spec.suture_band,
+                layers=spec.layers,
+                center=spec.center,
+            )
+        except MeshError as err:
+            raise ScenarioError(f"specimen: {err}") from None
+    return _build_mesh(spec, base), None
+
+
+def _build_mesh(spec, base: Path | None) -> TetMesh:
     try:
         if spec.shape in ("box", "beam"):
             make = geometry.structured_box if spec.mesh == "structured" else geometry.gmsh_box
@@ -182,15 +206,21 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
     from .fdem.simulation import FdemSimulation
 
     tools = build_tools(scenario.tools, base, scenario.loading)  # before meshing: a bad surface file fails fast
-    mesh = build_specimen(scenario.specimen, base)
+    mesh, region = build_specimen_regions(scenario.specimen, base)
     tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, scenario.tools)]
     material = build_material(scenario.material)
+    tet_material = None
+    if region is not None and scenario.suture is not None:
+        # Material 1 on the suture tets; a face-suture interface takes the weaker law.
+        material = [material, build_material(scenario.suture)]
+        tet_material = region
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the model keeps its warnings for the summary
             model = build_fdem_model(
                 mesh,
                 material,
+                tet_material,
                 tools=tools,
                 supports=[Support(s.kind, _selection(s.where), s.normal) for s in scenario.supports],
                 pressures=build_pressures(scenario.pressures, scenario.run.end_time),

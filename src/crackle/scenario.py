@@ -29,14 +29,22 @@ class _Strict(BaseModel):
 
 
 class Specimen(_Strict):
-    shape: Literal["box", "beam", "disc", "cylinder", "sphere", "mesh"]
+    shape: Literal["box", "beam", "disc", "cylinder", "sphere", "walnut", "mesh"]
     element_size: Positive | None = None
     size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
     origin: Vec3 = (0.0, 0.0, 0.0)  # box, beam: lower corner
     mesh: Literal["structured", "unstructured"] = "structured"  # box, beam
     diameter: Positive | None = None  # disc, cylinder, sphere
-    thickness: Positive | None = None  # disc, cylinder: extent along the axis
-    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere
+    thickness: Positive | None = None  # disc, cylinder: extent along the axis; walnut: its T (along y)
+    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere, walnut
+    # walnut (paper 004): an ellipsoidal shell, length L along z, width W along x, thickness T
+    # along y; a suture band |x - center_x| <= suture_band / 2 (region of the [suture] material)
+    length: Positive | None = None
+    width: Positive | None = None
+    wall: Positive = 1.11e-3  # m, face wall thickness
+    suture_wall: Positive = 1.34e-3  # m, suture wall thickness (thicker inwards)
+    suture_band: Positive = 4e-3  # m, width of the suture band about the plane x = 0
+    layers: Annotated[int, Field(ge=1)] = 1  # tets through the wall
     axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
     file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...)
     initial_velocity: Vec3 = (0.0, 0.0, 0.0)  # m/s, the whole specimen at t = 0
@@ -49,6 +57,7 @@ class Specimen(_Strict):
             "disc": ("diameter", "thickness", "element_size"),
             "cylinder": ("diameter", "thickness", "element_size"),
             "sphere": ("diameter", "element_size"),
+            "walnut": ("length", "width", "thickness", "element_size"),
             "mesh": ("file",),
         }[self.shape]
         missing = [k for k in need if getattr(self, k) is None]
@@ -273,6 +282,9 @@ class Scenario(_Strict):
     method: Literal["fdem"] = "fdem"
     specimen: Specimen
     material: MaterialSpec
+    # walnut: the suture band's own material (same keys as [material]); without it the suture
+    # is [material] too and differs only by its wall thickness
+    suture: MaterialSpec | None = None
     tools: list[ToolSpec] = []
     loading: LoadingSpec = LoadingSpec()  # rotates all tools, e.g. a loading angle
     supports: list[SupportSpec] = []
@@ -289,6 +301,8 @@ class Scenario(_Strict):
             raise ValueError("tool names must be unique")
         if self.run.stop.tool is not None and self.run.stop.tool not in names:
             raise ValueError(f"run.stop.tool '{self.run.stop.tool}' is not a tool name ({', '.join(names) or 'no tools'})")
+        if self.suture is not None and self.specimen.shape != "walnut":
+            raise ValueError(f"[suture] is for specimen shape 'walnut' (this one is '{self.specimen.shape}')")
         if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
             raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
         return self

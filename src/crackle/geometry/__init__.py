@@ -18,6 +18,7 @@ from .meshes import (
     structured_box,
     tet_volumes,
 )
+from .walnut import FACE, SUTURE, ellipsoid_shell_volume, equivalent_diameter, walnut_shell
 
 __all__ = [
     "LOCAL_FACE_VERTICES",
@@ -36,4 +37,9 @@ __all__ = [
     "read_mesh",
     "structured_box",
     "tet_volumes",
+    "FACE",
+    "SUTURE",
+    "ellipsoid_shell_volume",
+    "equivalent_diameter",
+    "walnut_shell",
 ]
