@@ -2,5 +2,6 @@
 
 from .fracture_tip import FracturePlane, propagating_plastic_zone, tip_and_plastic_zone
 from .fragments import Fragments, find_fragments
+from .loading_index import loading_directions, loading_index
 
-__all__ = ["FracturePlane", "Fragments", "find_fragments", "propagating_plastic_zone", "tip_and_plastic_zone"]
+__all__ = ["FracturePlane", "Fragments", "find_fragments", "loading_directions", "loading_index", "propagating_plastic_zone", "tip_and_plastic_zone"]
