@@ -62,31 +62,21 @@ def _build_mesh(spec, base: Path | None) -> TetMesh:
 def build_material(spec) -> Material:
     law = spec.interface
     if law.law == "bilinear":
-        return Material(
-            density=spec.density,
-            youngs_modulus=spec.youngs_modulus,
-            poissons_ratio=spec.poissons_ratio,
-            name=spec.name,
-            interface=BilinearLaw(
-                tensile_strength=law.tensile_strength,
-                shear_strength=law.shear_strength,
-                fracture_energy=law.fracture_energy,
-                fracture_energy_shear=law.fracture_energy_shear,
-                normal_stiffness=law.normal_stiffness,
-                shear_stiffness=law.shear_stiffness,
-                mixed_mode=law.mixed_mode,
-                bk_exponent=law.bk_exponent,
-                power_exponent=law.power_exponent,
-                friction=law.friction,
-            ),
+        interface = BilinearLaw(
+            tensile_strength=law.tensile_strength,
+            shear_strength=law.shear_strength,
+            fracture_energy=law.fracture_energy,
+            fracture_energy_shear=law.fracture_energy_shear,
+            normal_stiffness=law.normal_stiffness,
+            shear_stiffness=law.shear_stiffness,
+            mixed_mode=law.mixed_mode,
+            bk_exponent=law.bk_exponent,
+            power_exponent=law.power_exponent,
+            friction=law.friction,
         )
-    kwargs = {} if law.penalty_factor is None else {"penalty_factor": law.penalty_factor}
-    return Material(
-        density=spec.density,
-        youngs_modulus=spec.youngs_modulus,
-        poissons_ratio=spec.poissons_ratio,
-        name=spec.name,
-        interface=GuoMunjizaLaw(
+    else:
+        kwargs = {} if law.penalty_factor is None else {"penalty_factor": law.penalty_factor}
+        interface = GuoMunjizaLaw(
             tensile_strength=law.tensile_strength,
             cohesion=law.cohesion,
             friction_angle=law.friction_angle,
@@ -95,7 +85,13 @@ def build_material(spec) -> Material:
             softening=tuple(law.softening),
             friction=law.friction,
             **kwargs,
-        ),
+        )
+    return Material(
+        density=spec.density,
+        youngs_modulus=spec.youngs_modulus,
+        poissons_ratio=spec.poissons_ratio,
+        name=spec.name,
+        interface=interface,
     )
 
 

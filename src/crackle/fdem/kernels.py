@@ -164,12 +164,9 @@ def _bilinear_potential_mid(x, v, dt, ifs, i, kn, ks, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def _bilinear_intact(i, t, dt, x, v, ifs, law, kn, ks, a3, nx, ny, nz):
-    """Bilinear cohesive law on intact interface i: damage from the centroid's effective opening
-    (irreversible), then the point tractions (1 - D) kn dn (kn dn in compression) and
-    (1 - D) ks s into ifs.force. Returns False once the interface has failed (D = 1): the caller
-    then treats it as a failed pair."""
-    na, nb = ifs.na, ifs.nb
+def _centroid_opening(x, na, nb, i, nx, ny, nz):
+    """Normal opening and slip magnitude of interface i at its centroid (the mean of its 3 pairs):
+    what its damage is computed from."""
     dn_c = 0.0
     sx_c = 0.0
     sy_c = 0.0
@@ -180,7 +177,17 @@ def _bilinear_intact(i, t, dt, x, v, ifs, law, kn, ks, a3, nx, ny, nz):
         sx_c += sx / 3.0
         sy_c += sy / 3.0
         sz_c += sz / 3.0
-    ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+    return dn_c, math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+
+
+@njit(cache=True, inline="always")
+def _bilinear_intact(i, t, dt, x, v, ifs, law, kn, ks, a3, nx, ny, nz):
+    """Bilinear cohesive law on intact interface i: damage from the centroid's effective opening
+    (irreversible), then the point tractions (1 - D) kn dn (kn dn in compression) and
+    (1 - D) ks s into ifs.force. Returns False once the interface has failed (D = 1): the caller
+    then treats it as a failed pair."""
+    na, nb = ifs.na, ifs.nb
+    dn_c, ds_c = _centroid_opening(x, na, nb, i, nx, ny, nz)
     d_old = ifs.damage[i]
     d_new, mix = bilinear_damage(dn_c, ds_c, kn, ks, law)
     d = d_old
@@ -264,17 +271,7 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 continue
         elif state[i] == INTACT:
             # Damage from the centroid opening and slip (eq. 8), irreversible.
-            dn_c = 0.0
-            sx_c = 0.0
-            sy_c = 0.0
-            sz_c = 0.0
-            for p in range(3):
-                dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
-                dn_c += dn / 3.0
-                sx_c += sx / 3.0
-                sy_c += sy / 3.0
-                sz_c += sz / 3.0
-            ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+            dn_c, ds_c = _centroid_opening(x, na, nb, i, nx, ny, nz)
             a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
             d_old = damage[i]
             z_old = softening(d_old, a, b, c)
