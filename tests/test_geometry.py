@@ -127,7 +127,6 @@ def test_internal_faces_match_nodes_and_normals():
 
 def test_internal_faces_non_manifold():
     """A face shared by 3 tets -> MeshError 'non-manifold'."""
-    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1], [1, 1, 1]], float)
     tets = np.array([[0, 1, 2, 3], [0, 2, 1, 4], [0, 1, 2, 5]])
     with pytest.raises(MeshError, match="non-manifold"):
         internal_faces(tets)

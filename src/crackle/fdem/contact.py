@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit, prange
 
 from .friction import coulomb_update
-from .topology import FACE_CORNERS, INTACT, face_corners
+from .topology import FACE_CORNERS, INTACT, face_corners, twice_area_vector
 
 # Barycentric tolerance of the projection test (a fraction of the triangle).
 BARY_TOL = 0.01
@@ -251,18 +251,10 @@ def _node_normal(g, x, tets, ifs):
         if i >= 0 and ifs.state[i] == INTACT:
             continue
         c0, c1, c2 = face_corners(f)
-        a = 4 * e + c0
-        b = 4 * e + c1
-        q = 4 * e + c2
-        ux = x[b, 0] - x[a, 0]
-        uy = x[b, 1] - x[a, 1]
-        uz = x[b, 2] - x[a, 2]
-        wx = x[q, 0] - x[a, 0]
-        wy = x[q, 1] - x[a, 1]
-        wz = x[q, 2] - x[a, 2]
-        nx += uy * wz - uz * wy
-        ny += uz * wx - ux * wz
-        nz += ux * wy - uy * wx
+        ax, ay, az = twice_area_vector(x, 4 * e + c0, 4 * e + c1, 4 * e + c2)
+        nx += ax
+        ny += ay
+        nz += az
     return nx, ny, nz
 
 

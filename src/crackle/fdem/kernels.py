@@ -23,7 +23,7 @@ from numba import njit, prange
 
 from .contact import BARY_TOL, gathered_contact_force, node_contact, reaction_lists
 from .friction import coulomb_update
-from .topology import FAILED, INTACT, PRECRACK, face_corners  # noqa: F401 (re-exported)
+from .topology import FAILED, INTACT, face_corners, twice_area_vector
 from .law import (
     LAW_GF1,
     LAW_GF2,
@@ -532,7 +532,7 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
     gravity and the central-difference update of each tet's own 4 nodes."""
     x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
-    face_iface, face_side, face_area, face_pressure = tets.face_iface, tets.face_side, tets.face_area, tets.face_pressure
+    face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
     n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
@@ -576,17 +576,11 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                     continue
                 # Follower pressure on the current face, pushing into the tet; a third per corner.
                 c0, c1, c2 = face_corners(face)
-                g0, g1, g2 = n0 + c0, n0 + c1, n0 + c2
-                ux = x[g1, 0] - x[g0, 0]
-                uy = x[g1, 1] - x[g0, 1]
-                uz = x[g1, 2] - x[g0, 2]
-                wx = x[g2, 0] - x[g0, 0]
-                wy = x[g2, 1] - x[g0, 1]
-                wz = x[g2, 2] - x[g0, 2]
+                ax, ay, az = twice_area_vector(x, n0 + c0, n0 + c1, n0 + c2)
                 scale = -pressure_now[pid] / 6.0  # area vector / 2, shared by 3 corners
-                ex += scale * (uy * wz - uz * wy)
-                ey += scale * (uz * wx - ux * wz)
-                ez += scale * (ux * wy - uy * wx)
+                ex += scale * ax
+                ey += scale * ay
+                ez += scale * az
             ex += m * gx
             ey += m * gy
             ez += m * gz

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry import TetMesh, internal_faces
-from ..loading import Precrack, Pressure, Selection, Support, Tool
+from ..loading import Precrack, Pressure, Support, Tool
 from ..materials import CONTACT_PENALTY_FACTOR, DEFAULT_PENALTY_FACTOR, BilinearLaw, Material, process_zone
 from .contact import BARY_TOL
-from .kernels import FIXED, FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
+from .kernels import FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 from .law import (
     LAW_A,
@@ -311,17 +311,17 @@ def build_fdem_model(
     free_face = face_iface < 0
     if n_if:
         free_face |= state[np.maximum(face_iface, 0)] == PRECRACK
-    on_free_face = np.stack([free_face[:, [f for f in range(4) if f != k]].any(axis=1) for k in range(4)], axis=1)
+    contact_area, on_free_face = _contact_area(face_area, free_face)
     nodes = Nodes(
         x=x0.copy(),
         v=v,
         mass=mass,
-        contact_area=_contact_area(face_area, free_face),
+        contact_area=contact_area,
         force=np.zeros((4 * m, 3)),
         constraint=constraint,
         constraint_projection=np.array(projections),
         friction=np.zeros((4 * m, 3)),
-        tool=np.where(on_free_face.reshape(-1), NO_TOOL, HIDDEN).astype(np.int8),
+        tool=np.where(on_free_face, NO_TOOL, HIDDEN).astype(np.int8),
         tool_offset=np.zeros(4 * m),
         w_external=np.zeros(4 * m),
         w_damping=np.zeros(4 * m),
@@ -415,8 +415,9 @@ def build_fdem_model(
     )
 
 
-def _contact_area(face_area: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Area each exploded node answers for in contact (tools and surfaces), fixed for the run.
+def _contact_area(face_area: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Area each exploded node answers for in contact (tools and surfaces), fixed for the run,
+    and whether the node lies on a free face at t = 0.
 
     A node on the surface at t = 0 gets a third of each of its free faces; a node inside the
     body, exposed only once a crack opens, a third of its three faces' mean. Fixed on purpose:
@@ -429,7 +430,8 @@ def _contact_area(face_area: np.ndarray, free: np.ndarray) -> np.ndarray:
         others = [f for f in range(4) if f != k]
         area[:, k] = (face_area[:, others] * free[:, others]).sum(axis=1) / 3.0
         mean_share[:, k] = face_area[:, others].sum(axis=1) / 9.0
-    return np.where(area > 0.0, area, mean_share).reshape(-1)
+    on_free_face = area > 0.0
+    return np.where(on_free_face, area, mean_share).reshape(-1), on_free_face.reshape(-1)
 
 
 def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:

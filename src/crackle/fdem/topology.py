@@ -25,3 +25,15 @@ def face_corners(face):
     if face == 2:
         return 0, 1, 3
     return 0, 2, 1
+
+
+@njit(cache=True, inline="always")
+def twice_area_vector(x, a, b, q):
+    """(x_b - x_a) x (x_q - x_a): twice the area vector of triangle (a, b, q), along its normal."""
+    ux = x[b, 0] - x[a, 0]
+    uy = x[b, 1] - x[a, 1]
+    uz = x[b, 2] - x[a, 2]
+    wx = x[q, 0] - x[a, 0]
+    wy = x[q, 1] - x[a, 1]
+    wz = x[q, 2] - x[a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx

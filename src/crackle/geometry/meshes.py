@@ -306,6 +306,16 @@ def _gmsh_model(element_size: float):
             pass
 
 
+def _gmsh_nodes(gmsh) -> tuple[np.ndarray, np.ndarray]:
+    """Node coordinates (n, 3) of the current gmsh model and the row of each gmsh node tag
+    (tags need not be contiguous): rows = lookup[tags]."""
+    node_tags, coords, _ = gmsh.model.mesh.getNodes(returnParametricCoord=False)
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
+    lookup[node_tags] = np.arange(node_tags.size)
+    return np.asarray(coords, dtype=np.float64).reshape(-1, 3), lookup
+
+
 def _gmsh_tets(gmsh, what: str = "the geometry") -> TetMesh:
     """Collect the linear tets (gmsh element type 4) of the current model."""
     _, elem_nodes = gmsh.model.mesh.getElementsByType(4)
@@ -314,12 +324,7 @@ def _gmsh_tets(gmsh, what: str = "the geometry") -> TetMesh:
             f"gmsh produced no tetrahedra for {what}; make sure it encloses a closed, "
             "watertight volume and that element_size is smaller than the part"
         )
-    node_tags, coords, _ = gmsh.model.mesh.getNodes(returnParametricCoord=False)
-    node_tags = np.asarray(node_tags, dtype=np.int64)
-    coords = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
-    # gmsh node tags need not be contiguous: map tag -> row via a lookup table.
-    lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
-    lookup[node_tags] = np.arange(node_tags.size)
+    coords, lookup = _gmsh_nodes(gmsh)
     tets = lookup[np.asarray(elem_nodes, dtype=np.int64).reshape(-1, 4)]
     points, tets = _compact(coords, tets)
     return TetMesh(points, _fix_orientation(points, tets))

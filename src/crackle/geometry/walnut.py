@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .meshes import MeshError, TetMesh, _check_h, _fix_orientation, _gmsh_model
+from .meshes import MeshError, TetMesh, _check_h, _fix_orientation, _gmsh_model, _gmsh_nodes
 
 __all__ = ["equivalent_diameter", "walnut_shell", "ellipsoid_shell_volume", "FACE", "SUTURE"]
 
@@ -43,11 +43,7 @@ def _unit_sphere_surface(element_size: float) -> tuple[np.ndarray, np.ndarray]:
         gmsh.model.occ.synchronize()
         gmsh.model.mesh.generate(2)
         _, tri_nodes = gmsh.model.mesh.getElementsByType(2)
-        tags, coords, _ = gmsh.model.mesh.getNodes(returnParametricCoord=False)
-    tags = np.asarray(tags, dtype=np.int64)
-    coords = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
-    lookup = np.full(tags.max() + 1, -1, dtype=np.int64)
-    lookup[tags] = np.arange(tags.size)
+        coords, lookup = _gmsh_nodes(gmsh)
     tris = lookup[np.asarray(tri_nodes, dtype=np.int64).reshape(-1, 3)]
     used = np.unique(tris)
     renum = np.full(coords.shape[0], -1, dtype=np.int64)

@@ -6,7 +6,7 @@ Every quantity is SI: Pa, kg/m^3, J/m^2, m.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 # Softening constants of the Munjiza/Guo curve z(D) (paper 001, eq. 7), fitted to direct-tension
 # tests of concrete.
