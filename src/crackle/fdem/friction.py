@@ -24,26 +24,29 @@ def coulomb_update(tx, ty, tz, nx, ny, nz, rx, ry, rz, dt, k, cap):
     rx -= rn * nx
     ry -= rn * ny
     rz -= rn * nz
-    t_old = math.sqrt(tx * tx + ty * ty + tz * tz)
+    # Squared magnitudes throughout: one square root per call while sticking.
+    t_old2 = tx * tx + ty * ty + tz * tz
     tn = tx * nx + ty * ny + tz * nz
     tx -= tn * nx
     ty -= tn * ny
     tz -= tn * nz
-    t_proj = math.sqrt(tx * tx + ty * ty + tz * tz)
+    t_proj2 = tx * tx + ty * ty + tz * tz
+    cap2 = cap * cap
     lost = 0.0
-    if t_old > cap:
-        lost = (t_old * t_old - cap * cap) / (2.0 * k)
-        t_old = cap
-    if t_proj > 0.0:
-        s = t_old / t_proj
+    if t_old2 > cap2:
+        lost = (t_old2 - cap2) / (2.0 * k)
+        t_old2 = cap2
+    if t_proj2 > 0.0:
+        s = math.sqrt(t_old2 / t_proj2)
         tx *= s
         ty *= s
         tz *= s
     tx -= k * rx * dt
     ty -= k * ry * dt
     tz -= k * rz * dt
-    t_trial = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if t_trial > cap:
+    t_trial2 = tx * tx + ty * ty + tz * tz
+    if t_trial2 > cap2:
+        t_trial = math.sqrt(t_trial2)
         lost += (t_trial - cap) / k * cap
         s = cap / t_trial
         tx *= s

@@ -113,6 +113,13 @@ def _opening(x, na, nb, i, p, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
+def _opening_energy(dn, ft, dnp):
+    """Phi_n(dn): the undamaged normal free energy per unit area at opening dn (none in
+    compression, which is the separate penalty)."""
+    return peak_curve_energy(dn, ft, dnp) if dn > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
 def _normal_potential(x, ifs, i, nx, ny, nz):
     """Sum over the 3 points of A/3 * Phi_n(dn), the undamaged normal free energy in opening;
     the cohesive energy in opening is z(D) times it."""
@@ -122,8 +129,7 @@ def _normal_potential(x, ifs, i, nx, ny, nz):
     total = 0.0
     for p in range(3):
         dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
-        if dn > 0.0:
-            total += peak_curve_energy(dn, ft, dnp)
+        total += _opening_energy(dn, ft, dnp)
     return total * ifs.area[i] / 3.0
 
 
@@ -249,6 +255,50 @@ def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction
     return lost * a3
 
 
+@njit(cache=True, inline="always")
+def _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps):
+    """Elastic shear traction ps (s - s_p) of point p of intact interface i: slip s beyond its
+    plastic slip s_p, which is kept in the global frame and projected on the current tangent plane
+    (it only grows on a damaging interface, whose rotation before failure is small)."""
+    px = slip_plastic[i, p, 0]
+    py = slip_plastic[i, p, 1]
+    pz = slip_plastic[i, p, 2]
+    pdn = px * nx + py * ny + pz * nz
+    return ps * (sx - px + pdn * nx), ps * (sy - py + pdn * ny), ps * (sz - pz + pdn * nz)
+
+
+@njit(cache=True, inline="always")
+def _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, cap, cap_before):
+    """Shear traction of point p of intact interface i from its total slip s: the spring ps on
+    s - s_p, returned onto the cap z(D) f_s(sigma_n) (the excess becomes plastic slip), and the
+    energy the return dissipates per unit area. Written from the total slip, it needs no
+    velocities and no stored traction: while the interface sticks, the shear costs one read of s_p.
+
+    The dissipation splits the excess of the trial traction t over the cap like an incremental
+    update would: the part below cap_before (the cap before this step's damage) is stored energy
+    the falling cap releases, (t_c^2 - cap^2) / 2 ps; the rest is slip at the cap,
+    cap (t - max(t_c, cap)) / ps. Exact for a pure cap drop and for pure sliding."""
+    tx, ty, tz = _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps)
+    t2 = tx * tx + ty * ty + tz * tz
+    cap2 = cap * cap
+    if t2 <= cap2:
+        return tx, ty, tz, 0.0
+    t_trial = math.sqrt(t2)
+    t_carried = min(t_trial, cap_before)
+    lost = 0.0
+    if t_carried > cap:
+        lost = (t_carried * t_carried - cap2) / (2.0 * ps)
+    lost += cap * (t_trial - max(t_carried, cap)) / ps
+    scale = cap / t_trial
+    tx *= scale
+    ty *= scale
+    tz *= scale
+    slip_plastic[i, p, 0] = sx - tx / ps
+    slip_plastic[i, p, 1] = sy - ty / ps
+    slip_plastic[i, p, 2] = sz - tz / ps
+    return tx, ty, tz, lost
+
+
 @njit(cache=True)
 def _interface_block(lo, hi, t, dt, x, v, ifs):
     """Interfaces lo..hi-1: kinematics, Guo-Munjiza or bilinear law or (once failed) paired penalty
@@ -257,7 +307,10 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
     # Unpacked once per block: attribute access per element costs reference counting.
     na, nb, area, pn_all, ps_all = ifs.na, ifs.nb, ifs.area, ifs.pn, ifs.ps
     state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
+    slip_plastic = ifs.slip_plastic
     law_table, law_of = ifs.law_table, ifs.law
+    e_damage, e_friction, reach = ifs.e_damage, ifs.e_friction, ifs.reach
+    fail_time, fail_mode = ifs.fail_time, ifs.fail_mode
     for i in range(lo, hi):
         law = law_table[law_of[i]]
         pn = pn_all[i]
@@ -270,8 +323,17 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
             if _bilinear_intact(i, t, dt, x, v, ifs, law, pn, ps, a3, nx, ny, nz):
                 continue
         elif state[i] == INTACT:
+            # The three point openings, read once (the stores below may alias x for the compiler,
+            # so it would reload them).
+            dn0, s0x, s0y, s0z = _opening(x, na, nb, i, 0, nx, ny, nz)
+            dn1, s1x, s1y, s1z = _opening(x, na, nb, i, 1, nx, ny, nz)
+            dn2, s2x, s2y, s2z = _opening(x, na, nb, i, 2, nx, ny, nz)
             # Damage from the centroid opening and slip (eq. 8), irreversible.
-            dn_c, ds_c = _centroid_opening(x, na, nb, i, nx, ny, nz)
+            dn_c = (dn0 + dn1 + dn2) / 3.0
+            sx_c = (s0x + s1x + s2x) / 3.0
+            sy_c = (s0y + s1y + s2y) / 3.0
+            sz_c = (s0z + s1z + s2z) / 3.0
+            ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
             a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
             d_old = damage[i]
             z_old = softening(d_old, a, b, c)
@@ -290,34 +352,42 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
             if d_new > d_old:
                 z = softening(d_new, a, b, c)
                 damage[i] = d_new
-                # Energy released by the damage step at the current opening.
+                # Energy released by the damage step at the current opening
                 # (the shear spring releases its part through the cap, below).
-                ifs.e_damage[i] += (z_old - z) * _normal_potential(x, ifs, i, nx, ny, nz)
+                e_damage[i] += (z_old - z) * a3 * (
+                    _opening_energy(dn0, ft, dnp) + _opening_energy(dn1, ft, dnp) + _opening_energy(dn2, ft, dnp)
+                )
                 if d_new >= 1.0:
                     state[i] = FAILED
-                    ifs.fail_time[i] = t
+                    fail_time[i] = t
                     angle = math.atan2(d_s, d_n)
                     if angle < math.radians(15.0):
-                        ifs.fail_mode[i] = 1
+                        fail_mode[i] = 1
                     elif angle > math.radians(75.0):
-                        ifs.fail_mode[i] = 2
+                        fail_mode[i] = 2
                     else:
-                        ifs.fail_mode[i] = 3
-            if state[i] == INTACT:
-                # Shear: an elastic spring ps capped at z(D) f_s(sigma_n), updated by the slip
-                # increment; the cap dissipates. (The paper's f_s (2x - x^2) curve, evaluated from
-                # the total slip, has no potential when sigma_n varies and pumps energy into a
-                # crushed zone.)
-                for p in range(3):
-                    dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
-                    sigma = normal_stress(dn, pn, z, law)
-                    cap = z * shear_strength(sigma, law)
-                    ifs.e_damage[i] += _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
-                continue
+                        fail_mode[i] = 3
+            # Shear: an elastic spring ps capped at z(D) f_s(sigma_n); the cap dissipates (at
+            # failure z = 0 releases what the spring still holds). (The paper's f_s (2x - x^2)
+            # curve of the total slip has no potential when sigma_n varies and pumps energy into
+            # a crushed zone.)
+            lost = 0.0
+            for p, dn, sx, sy, sz in ((0, dn0, s0x, s0y, s0z), (1, dn1, s1x, s1y, s1z), (2, dn2, s2x, s2y, s2z)):
+                sigma = normal_stress(dn, pn, z, law)
+                fs = shear_strength(sigma, law)
+                tx, ty, tz, released = _cohesive_shear(
+                    slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, z * fs, z_old * fs
+                )
+                lost += released
+                force[i, p, 0] = -(sigma * nx + tx) * a3
+                force[i, p, 1] = -(sigma * ny + ty) * a3
+                force[i, p, 2] = -(sigma * nz + tz) * a3
+            e_damage[i] += lost * a3
+            continue
 
         # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
         mu = law[LAW_MU]
-        reach2 = ifs.reach[i] * ifs.reach[i]
+        reach2 = reach[i] * reach[i]
         for p in range(3):
             dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
             if dn >= 0.0 or sx * sx + sy * sy + sz * sz > reach2:
@@ -329,7 +399,7 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 force[i, p, 2] = 0.0
                 continue
             sigma = pn * dn
-            ifs.e_friction[i] += _pair_traction(i, p, sigma, -mu * sigma, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
+            e_friction[i] += _pair_traction(i, p, sigma, -mu * sigma, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
 
 
 @njit(cache=True, inline="always")
@@ -454,7 +524,7 @@ def tool_gap(j, px, py, pz, tools):
 
 
 @njit(cache=True, inline="always")
-def _tet_forces(e, x, tets, f):
+def _tet_forces(e, x, dm_inv, vol, lam, mu, f):
     """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes)."""
     n0 = 4 * e
     x0, y0, z0 = x[n0, 0], x[n0, 1], x[n0, 2]
@@ -467,17 +537,19 @@ def _tet_forces(e, x, tets, f):
     a13 = x[n0 + 3, 0] - x0
     a23 = x[n0 + 3, 1] - y0
     a33 = x[n0 + 3, 2] - z0
-    m = tets.dm_inv[e]
+    m00, m01, m02 = dm_inv[e, 0, 0], dm_inv[e, 0, 1], dm_inv[e, 0, 2]
+    m10, m11, m12 = dm_inv[e, 1, 0], dm_inv[e, 1, 1], dm_inv[e, 1, 2]
+    m20, m21, m22 = dm_inv[e, 2, 0], dm_inv[e, 2, 1], dm_inv[e, 2, 2]
     # F = Ds Dm^-1
-    f11 = a11 * m[0, 0] + a12 * m[1, 0] + a13 * m[2, 0]
-    f12 = a11 * m[0, 1] + a12 * m[1, 1] + a13 * m[2, 1]
-    f13 = a11 * m[0, 2] + a12 * m[1, 2] + a13 * m[2, 2]
-    f21 = a21 * m[0, 0] + a22 * m[1, 0] + a23 * m[2, 0]
-    f22 = a21 * m[0, 1] + a22 * m[1, 1] + a23 * m[2, 1]
-    f23 = a21 * m[0, 2] + a22 * m[1, 2] + a23 * m[2, 2]
-    f31 = a31 * m[0, 0] + a32 * m[1, 0] + a33 * m[2, 0]
-    f32 = a31 * m[0, 1] + a32 * m[1, 1] + a33 * m[2, 1]
-    f33 = a31 * m[0, 2] + a32 * m[1, 2] + a33 * m[2, 2]
+    f11 = a11 * m00 + a12 * m10 + a13 * m20
+    f12 = a11 * m01 + a12 * m11 + a13 * m21
+    f13 = a11 * m02 + a12 * m12 + a13 * m22
+    f21 = a21 * m00 + a22 * m10 + a23 * m20
+    f22 = a21 * m01 + a22 * m11 + a23 * m21
+    f23 = a21 * m02 + a22 * m12 + a23 * m22
+    f31 = a31 * m00 + a32 * m10 + a33 * m20
+    f32 = a31 * m01 + a32 * m11 + a33 * m21
+    f33 = a31 * m02 + a32 * m12 + a33 * m22
     # Green-Lagrange strain E = (F^T F - I) / 2
     e11 = 0.5 * (f11 * f11 + f21 * f21 + f31 * f31 - 1.0)
     e22 = 0.5 * (f12 * f12 + f22 * f22 + f32 * f32 - 1.0)
@@ -485,9 +557,9 @@ def _tet_forces(e, x, tets, f):
     e12 = 0.5 * (f11 * f12 + f21 * f22 + f31 * f32)
     e13 = 0.5 * (f11 * f13 + f21 * f23 + f31 * f33)
     e23 = 0.5 * (f12 * f13 + f22 * f23 + f32 * f33)
-    lam = tets.lam[e]
-    mu2 = 2.0 * tets.mu[e]
-    tr = lam * (e11 + e22 + e33)
+    lam_e = lam[e]
+    mu2 = 2.0 * mu[e]
+    tr = lam_e * (e11 + e22 + e33)
     s11 = tr + mu2 * e11
     s22 = tr + mu2 * e22
     s33 = tr + mu2 * e33
@@ -505,14 +577,11 @@ def _tet_forces(e, x, tets, f):
     p32 = f31 * s12 + f32 * s22 + f33 * s23
     p33 = f31 * s13 + f32 * s23 + f33 * s33
     # H = -V P Dm^-T: column k is the force on corner k+1
-    vol = -tets.vol[e]
-    for k in range(3):
-        hx = vol * (p11 * m[k, 0] + p12 * m[k, 1] + p13 * m[k, 2])
-        hy = vol * (p21 * m[k, 0] + p22 * m[k, 1] + p23 * m[k, 2])
-        hz = vol * (p31 * m[k, 0] + p32 * m[k, 1] + p33 * m[k, 2])
-        f[n0 + k + 1, 0] = hx
-        f[n0 + k + 1, 1] = hy
-        f[n0 + k + 1, 2] = hz
+    scale = -vol[e]
+    for k, mk0, mk1, mk2 in ((1, m00, m01, m02), (2, m10, m11, m12), (3, m20, m21, m22)):
+        f[n0 + k, 0] = scale * (p11 * mk0 + p12 * mk1 + p13 * mk2)
+        f[n0 + k, 1] = scale * (p21 * mk0 + p22 * mk1 + p23 * mk2)
+        f[n0 + k, 2] = scale * (p31 * mk0 + p32 * mk1 + p33 * mk2)
     f[n0, 0] = -(f[n0 + 1, 0] + f[n0 + 2, 0] + f[n0 + 3, 0])
     f[n0, 1] = -(f[n0 + 1, 1] + f[n0 + 2, 1] + f[n0 + 3, 1])
     f[n0, 2] = -(f[n0 + 1, 2] + f[n0 + 2, 2] + f[n0 + 3, 2])
@@ -532,13 +601,20 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
     gravity and the central-difference update of each tet's own 4 nodes."""
     x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
+    dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
+    tool_of, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
+    w_external, w_damping = nodes.w_external, nodes.w_damping
+    constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
+    node_slot = contact.node_slot
+    any_contact = contact.counts[1] > 0
+    impulse = tools.impulse
     n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
     for e in range(lo, hi):
-        _tet_forces(e, x, tets, f)
+        _tet_forces(e, x, dm_inv, vol, lam, mu, f)
         n0 = 4 * e
         # Faces without an intact interface, as bits: where pressures act and tools can touch.
         free_faces = 0
@@ -591,8 +667,8 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
             if free_faces & ~(1 << k):
                 tributary = contact_area[g]
-                prev = nodes.tool[g]
-                offset = nodes.tool_offset[g]
+                prev = tool_of[g]
+                offset = tool_offset[g]
                 touching = -1
                 for j in range(n_tool):
                     gap, nx, ny, nz = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], tools)
@@ -602,9 +678,9 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                             # Woken inside (below), risen above its wake depth but not out yet:
                             # no force, and the offset holds until the node is out.
                             touching = j
-                            nodes.friction[g, 0] = 0.0
-                            nodes.friction[g, 1] = 0.0
-                            nodes.friction[g, 2] = 0.0
+                            friction[g, 0] = 0.0
+                            friction[g, 1] = 0.0
+                            friction[g, 2] = 0.0
                             continue
                     elif prev == HIDDEN and gap < 0.0 and touching < 0:
                         # Exposed by a crack while already inside the tool: its spring starts
@@ -626,13 +702,13 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                         touching = j
                         # Coulomb friction with a stick spring of the normal stiffness.
                         tx, ty, tz, lost = coulomb_update(
-                            nodes.friction[g, 0], nodes.friction[g, 1], nodes.friction[g, 2], nx, ny, nz,
+                            friction[g, 0], friction[g, 1], friction[g, 2], nx, ny, nz,
                             vx0 - tvx, vy0 - tvy, vz0 - tvz, dt, kn, tools.mu[j] * fn,
                         )
-                        nodes.d_friction[g] += lost
-                        nodes.friction[g, 0] = tx
-                        nodes.friction[g, 1] = ty
-                        nodes.friction[g, 2] = tz
+                        d_friction[g] += lost
+                        friction[g, 0] = tx
+                        friction[g, 1] = ty
+                        friction[g, 2] = tz
                         fx += tx
                         fy += ty
                         fz += tz
@@ -640,22 +716,23 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                     cy += fy
                     cz += fz
                     # Per-tet impulse: the sampled tool force is its mean over the output interval.
-                    tools.impulse[j, e, 0] += fx * dt
-                    tools.impulse[j, e, 1] += fy * dt
-                    tools.impulse[j, e, 2] += fz * dt
+                    impulse[j, e, 0] += fx * dt
+                    impulse[j, e, 1] += fy * dt
+                    impulse[j, e, 2] += fz * dt
                     tool_work += (fx * tvx + fy * tvy + fz * tvz) * dt
                 if touching < 0:
                     offset = 0.0
-                    nodes.friction[g, 0] = 0.0
-                    nodes.friction[g, 1] = 0.0
-                    nodes.friction[g, 2] = 0.0
-                nodes.tool[g] = touching
-                nodes.tool_offset[g] = offset
+                    friction[g, 0] = 0.0
+                    friction[g, 1] = 0.0
+                    friction[g, 2] = 0.0
+                tool_of[g] = touching
+                tool_offset[g] = offset
             # Node-to-surface contact between free surfaces: internal to the specimen.
-            sx, sy, sz = gathered_contact_force(g, contact)
-            f[g, 0] += sx
-            f[g, 1] += sy
-            f[g, 2] += sz
+            if any_contact and node_slot[g] >= 0:
+                sx, sy, sz = gathered_contact_force(g, contact)
+                f[g, 0] += sx
+                f[g, 1] += sy
+                f[g, 2] += sz
             # Mass-proportional damping on the previous half-step velocity.
             dx = -alpha * m * vx0
             dy = -alpha * m * vy0
@@ -664,9 +741,9 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             vx = vx0 + (f[g, 0] + ex + cx + dx) * inv_m
             vy = vy0 + (f[g, 1] + ey + cy + dy) * inv_m
             vz = vz0 + (f[g, 2] + ez + cz + dz) * inv_m
-            con = nodes.constraint[g]
+            con = constraint[g]
             if con >= 0:
-                pr = nodes.constraint_projection[con]
+                pr = constraint_projection[con]
                 px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
                 py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
                 pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
@@ -676,8 +753,11 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             mx = 0.5 * (vx0 + vx) * dt
             my = 0.5 * (vy0 + vy) * dt
             mz = 0.5 * (vz0 + vz) * dt
-            nodes.w_external[g] += ex * mx + ey * my + ez * mz + tool_work
-            nodes.w_damping[g] -= dx * mx + dy * my + dz * mz
+            # Only where a force works: the accumulators are a read-write of memory per node.
+            if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0:
+                w_external[g] += ex * mx + ey * my + ez * mz + tool_work
+            if alpha != 0.0:
+                w_damping[g] -= dx * mx + dy * my + dz * mz
             v[g, 0] = vx
             v[g, 1] = vy
             v[g, 2] = vz
@@ -796,8 +876,8 @@ def interface_energy(x, ifs, cohesive, contact):
                 dn, sx, sy, sz = _opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
                 if dn < 0.0:
                     springs += 0.5 * pn * dn * dn * a3
-                t2 = ifs.traction_t[i, p, 0] ** 2 + ifs.traction_t[i, p, 1] ** 2 + ifs.traction_t[i, p, 2] ** 2
-                springs += 0.5 * t2 / ifs.ps[i] * a3
+                tx, ty, tz = _cohesive_shear_trial(ifs.slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ifs.ps[i])
+                springs += 0.5 * (tx * tx + ty * ty + tz * tz) / ifs.ps[i] * a3
             cohesive[i] = springs + z * _normal_potential(x, ifs, i, nx, ny, nz)
         else:
             reach2 = ifs.reach[i] * ifs.reach[i]

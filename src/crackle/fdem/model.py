@@ -46,7 +46,7 @@ Nodes = namedtuple(
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
-    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t e_damage e_friction",
+    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic e_damage e_friction",
 )
 Tools = namedtuple(
     "Tools",
@@ -343,6 +343,7 @@ def build_fdem_model(
         fail_mode=np.zeros(n_if, dtype=np.int8),
         force=np.zeros((n_if, 3, 3)),
         traction_t=np.zeros((n_if, 3, 3)),
+        slip_plastic=np.zeros((n_if, 3, 3)),
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
     )
