@@ -82,6 +82,8 @@ def test_quick_walnut_crush_cracks_through_the_suture(tmp_path):
     assert 150.0 < s["peak_force"] < 400.0  # paper 004: ~237 N (CT-scanned nut, 0.95 mm mesh)
     assert s["broken"] >= 20
     assert abs(s["energy_error"]) < 0.03
+    assert s["cracks"] >= 1  # measured 1: a single meridional crack along the suture, both ways
+    assert s["loading_index"] == pytest.approx(2.0 / 3.0**0.5, abs=1e-12)  # two opposite plates
 
     with open(out / "events.csv") as fh:
         events = list(csv.DictReader(fh))

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import geometry
-from .analysis import FracturePlane
+from .analysis import CrackSettings, FracturePlane
 from .geometry import MeshError, TetMesh
 from .loading import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 from .materials import BilinearLaw, GuoMunjizaLaw, Material
@@ -201,9 +201,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
     from .fdem.model import build_fdem_model
     from .fdem.simulation import FdemSimulation
 
-    tools = build_tools(scenario.tools, base, scenario.loading)  # before meshing: a bad surface file fails fast
+    tool_specs = scenario.all_tools()
+    tools = build_tools(tool_specs, base, scenario.loading)  # before meshing: a bad surface file fails fast
     mesh, region = build_specimen_regions(scenario.specimen, base)
-    tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, scenario.tools)]
+    tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, tool_specs)]
     material = build_material(scenario.material)
     tet_material = None
     if region is not None and scenario.suture is not None:
@@ -249,6 +250,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None):
         size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
         tol = plane.tol if plane.tol is not None else 1e-6 * size
         sim.fracture_plane = FracturePlane(plane.point, plane.normal, plane.direction, tol)
+    cracks = scenario.analysis.cracks
+    if cracks is not None:
+        sim.crack_settings = CrackSettings(
+            wall=cracks.wall if cracks.wall is not None else scenario.specimen.wall,
+            scale=cracks.scale if cracks.scale is not None else 2.0 * model.element_size,
+            top=cracks.top,
+        )
     return sim, control
 
 

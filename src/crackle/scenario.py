@@ -181,6 +181,50 @@ class ToolSpec(_Strict):
         return self
 
 
+class PlatesSpec(_Strict):
+    """N rigid square plates placed about `center` by their top (polar, from +z) and azimuth
+    (from +x toward +y) angles, each moving toward `center` at `speed` (paper 004's multi-point
+    loading). Each becomes a box tool named plate1..plateN, tangent to the specimen at the start."""
+
+    polar: list[float]  # degrees
+    azimuth: list[float]  # degrees
+    speed: float = 0.0  # m/s, each plate toward the centre
+    ramp_time: NonNegative = 0.0
+    friction: NonNegative = 0.0
+    side: Positive = 0.02  # m, edge of the square plate
+    thickness: Positive = 0.005  # m
+    center: Vec3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _pairs(self):
+        if len(self.polar) != len(self.azimuth):
+            raise ValueError(
+                f"give one azimuth per top angle: {len(self.polar)} polar and {len(self.azimuth)} azimuth values"
+            )
+        if not 1 <= len(self.polar) <= 12:
+            raise ValueError("between 1 and 12 plates")
+        return self
+
+    def tool_specs(self) -> list["ToolSpec"]:
+        """The plates as box tools: thin along their direction of motion, touching at the start."""
+        out = []
+        for k, (theta, phi) in enumerate(zip(self.polar, self.azimuth)):
+            th, ph = math.radians(theta), math.radians(phi)
+            u = (math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th))
+            # In-plane axes: e1 normal to u and z (x when u is along z), e2 = u x e1.
+            e1 = (-u[1], u[0], 0.0) if abs(u[2]) < 1.0 - 1e-12 else (1.0, 0.0, 0.0)
+            n1 = math.hypot(*e1)
+            e1 = tuple(c / n1 for c in e1)
+            e2 = (u[1] * e1[2] - u[2] * e1[1], u[2] * e1[0] - u[0] * e1[2], u[0] * e1[1] - u[1] * e1[0])
+            out.append(ToolSpec(
+                name=f"plate{k + 1}", shape="box", direction=tuple(-c for c in u), speed=self.speed,
+                ramp_time=self.ramp_time, friction=self.friction,
+                center=tuple(c + self.thickness * d for c, d in zip(self.center, u)),
+                size=(self.side, self.side, self.thickness), axes=(e1, e2), touch=True,
+            ))
+        return out
+
+
 class LoadingSpec(_Strict):
     """A rigid rotation of every tool about `axis` through `center` (the mesh stays put)."""
 
@@ -272,8 +316,18 @@ class FracturePlaneSpec(_Strict):
     tol: Positive | None = None  # m; default: 1e-6 of the specimen size
 
 
+class CracksSpec(_Strict):
+    """Crack count and main-crack speed of a shell (crackle.analysis.cracks), in summary.json with
+    the loading index of the tools' directions."""
+
+    wall: Positive | None = None  # m; default: the walnut specimen's face wall
+    scale: Positive | None = None  # m, linking length; default: twice the element size
+    top: Vec3 = (0.0, 0.0, 1.0)  # the main crack is the first to reach the extreme along it
+
+
 class AnalysisSpec(_Strict):
     fracture_plane: FracturePlaneSpec | None = None
+    cracks: CracksSpec | None = None
 
 
 class Scenario(_Strict):
@@ -286,6 +340,7 @@ class Scenario(_Strict):
     # is [material] too and differs only by its wall thickness
     suture: MaterialSpec | None = None
     tools: list[ToolSpec] = []
+    plates: PlatesSpec | None = None  # adds plate1..plateN to the tools
     loading: LoadingSpec = LoadingSpec()  # rotates all tools, e.g. a loading angle
     supports: list[SupportSpec] = []
     precracks: list[PrecrackSpec] = []
@@ -296,7 +351,7 @@ class Scenario(_Strict):
 
     @model_validator(mode="after")
     def _cross_checks(self):
-        names = [t.name for t in self.tools]
+        names = [t.name for t in self.all_tools()]
         if len(set(names)) != len(names):
             raise ValueError("tool names must be unique")
         if self.run.stop.tool is not None and self.run.stop.tool not in names:
@@ -305,7 +360,14 @@ class Scenario(_Strict):
             raise ValueError(f"[suture] is for specimen shape 'walnut' (this one is '{self.specimen.shape}')")
         if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
             raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
+        cracks = self.analysis.cracks
+        if cracks is not None and cracks.wall is None and self.specimen.shape != "walnut":
+            raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only a walnut specimen knows its own)")
         return self
+
+    def all_tools(self) -> list[ToolSpec]:
+        """[[tools]] followed by the [plates] as tools."""
+        return list(self.tools) + (self.plates.tool_specs() if self.plates is not None else [])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -24,7 +24,14 @@ def loading_directions(polar_deg, azimuth_deg) -> np.ndarray:
 
 def loading_index(polar_deg, azimuth_deg) -> float:
     """The singular-value spread I of paper 004 for plates at the given angles (degrees)."""
+    return loading_index_of(loading_directions(polar_deg, azimuth_deg))
+
+
+def loading_index_of(directions) -> float:
+    """I for force directions given as the columns of a 3 x N matrix (normalised here)."""
+    a = np.asarray(directions, float).reshape(3, -1)
+    a = a / np.linalg.norm(a, axis=0)
     p = np.zeros(3)
-    s = np.linalg.svd(loading_directions(polar_deg, azimuth_deg), compute_uv=False)
+    s = np.linalg.svd(a, compute_uv=False)
     p[: len(s)] = s
     return float(np.sqrt(np.sum((p - p.mean()) ** 2)))

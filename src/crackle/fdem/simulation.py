@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis import FracturePlane, Fragments, find_fragments, propagating_plastic_zone, tip_and_plastic_zone
-from ..io import plot_fragment_sizes
+from ..analysis import (
+    CrackAnalysis,
+    CrackSettings,
+    FracturePlane,
+    Fragments,
+    analyse_cracks,
+    find_fragments,
+    loading_index_of,
+    propagating_plastic_zone,
+    tip_and_plastic_zone,
+)
+from ..io import plot_crack_growth, plot_fragment_sizes
+from ..materials import process_zone
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
 from .topology import INTACT, PRECRACK
@@ -37,6 +48,7 @@ class FdemSimulation:
         self.fracture_plane: FracturePlane | None = None  # followed in the history when set
         self._tips: list[float] = []
         self._plastic_zones: list[float] = []
+        self.crack_settings: CrackSettings | None = None  # crack count and speed in the summary when set
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -204,6 +216,47 @@ class FdemSimulation:
 
     def extra_plots(self, out_dir) -> None:
         plot_fragment_sizes(self.fragments().masses, out_dir / "plots" / "fragment_sizes.png")
+        cracks = self.cracks()
+        if cracks is not None and len(cracks.length_history):
+            plot_crack_growth(cracks.length_history, cracks.speed_history, out_dir / "plots" / "crack_growth.png")
+
+    def cracks(self) -> CrackAnalysis | None:
+        """Crack count and main-crack speed of the failures so far (None unless crack_settings)."""
+        if self.crack_settings is None:
+            return None
+        m = self.model
+        c = self.crack_settings
+        failed = np.flatnonzero((m.ifs.state != INTACT) & (m.ifs.state != PRECRACK))
+        top = np.asarray(c.top, float)
+        top_point = m.x0[np.argmax(m.x0 @ top)]
+        return analyse_cracks(
+            m.iface_centroids(m.x0)[failed], m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
+        )
+
+    def _crack_summary(self) -> dict:
+        cracks = self.cracks()
+        if cracks is None:
+            return {}
+        directions = np.array([t.direction for t in self.model.tool_specs], float).T
+        return {
+            **cracks.as_summary(),
+            "loading_index": loading_index_of(directions) if directions.size else None,
+        }
+
+    def _process_zones(self) -> list[dict]:
+        """Paper 004 eqs 4-5 (paper 001 eqs 10-11) per material, with the minimal discretisation
+        of the process zone by this mesh, 2 l_lower / h (paper 004 Table 2)."""
+        out = []
+        for mat in self.model.materials:
+            law = mat.interface
+            pz = process_zone(mat.youngs_modulus, law.fracture_energy, law.tensile_strength)
+            out.append({
+                "material": mat.name,
+                "lower": pz.plastic_zone_long,
+                "upper": pz.plastic_zone_short,
+                "minimal_discretisation": 2.0 * pz.plastic_zone_long / self.model.element_size,
+            })
+        return out
 
     def _fracture_summary(self) -> dict:
         if self.fracture_plane is None or not self._tips:
@@ -229,6 +282,8 @@ class FdemSimulation:
             "largest_fragment_velocity": frags.velocities[0].tolist(),
             "contact_rebuilds": self.rebuilds,
             **self._fracture_summary(),
+            **self._crack_summary(),
+            "process_zones": self._process_zones(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,

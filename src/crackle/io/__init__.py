@@ -15,6 +15,7 @@ from .outputs import (
 from .plots import (
     plot_crack_pattern,
     plot_energies,
+    plot_crack_growth,
     plot_fragment_sizes,
     plot_load_displacement,
     tool_names,
@@ -32,6 +33,7 @@ __all__ = [
     "format_number",
     "plot_crack_pattern",
     "plot_energies",
+    "plot_crack_growth",
     "plot_fragment_sizes",
     "plot_load_displacement",
     "read_events_csv",

@@ -208,6 +208,24 @@ def plot_fragment_sizes(masses, path) -> Path:
     return _save(fig, path)
 
 
+def plot_crack_growth(length_history, speed_history, path) -> Path:
+    """Main-crack length (area / wall) against time, and its growth speed per interval."""
+    lh = np.asarray(length_history, dtype=float).reshape(-1, 2)
+    sh = np.asarray(speed_history, dtype=float).reshape(-1, 2)
+    fig = _new_figure(figsize=(6, 6))
+    ax1 = fig.add_subplot(211)
+    ax1.step(lh[:, 0] * 1e3, lh[:, 1] * 1e3, where="post", color="tab:red")
+    ax1.set_ylabel("main crack length (mm)")
+    ax1.grid(True, alpha=0.3)
+    ax2 = fig.add_subplot(212, sharex=ax1)
+    if len(sh):
+        ax2.plot(sh[:, 0] * 1e3, sh[:, 1], color="tab:blue")
+    ax2.set_xlabel("time (ms)")
+    ax2.set_ylabel("growth speed (m/s)")
+    ax2.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
 def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
     """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
 
