@@ -89,7 +89,7 @@ class Cell:
         x = self.model.x0.copy()
         x[self.nb] += dn * self.n + ds * self.t
         x = x @ self.R.T + self.c
-        # B's velocity over the step that led here (shear springs are driven by slip increments):
+        # B's velocity over the step that led here (friction of failed pairs is driven by it):
         # from the change of the prescribed opening and slip, or the slip_rate given.
         dn_prev, ds_prev = self.previous
         self.previous = (dn, ds)
@@ -409,3 +409,17 @@ def test_intact_law_creates_no_energy_in_closed_loops():
             assert work == pytest.approx(dissipated + left, rel=5e-3)
         else:
             assert abs(work) < 1e-6 * scale
+
+
+def test_failed_pair_passed_through_stays_off():
+    """A failed pair pressed to a penetration within a tenth of its longest edge pushes back with
+    p_n dn (1e-9 relative); one that has passed deeper (its faces slid apart, crossed and came
+    back) carries no force, instead of releasing p_n dn^2 / 2 per area at once."""
+    cell = Cell()
+    for dn in np.linspace(0.0, 4.0 * GF / FT, 2001):
+        cell.set(dn=dn)
+    assert cell.state == 1
+    reach = float(cell.ifs.reach[0])
+    shallow = -0.05 * reach
+    assert cell.set(dn=shallow)[0] == pytest.approx(cell.pn * shallow, rel=1e-9)
+    assert cell.set(dn=-0.2 * reach) == (0.0, 0.0)

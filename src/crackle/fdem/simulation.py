@@ -79,6 +79,10 @@ class FdemSimulation:
         # Exact time of the step count, not an accumulated sum of dt.
         self.time = self.steps * dt
 
+    def state_is_finite(self) -> bool:
+        n = self.model.nodes
+        return bool(np.isfinite(n.x).all() and np.isfinite(n.v).all())
+
     def _refresh_contact(self) -> None:
         """Rebuild the surface after new failures, and the candidates once surface nodes moved
         half the skin since the last broad phase."""

@@ -3,6 +3,7 @@
 A method supplies a simulation object with:
   stable_dt, time, steps, broken            (attributes)
   advance(n_steps, dt)                      compiled steps, arrays updated in place
+  state_is_finite() -> bool                 False once positions or velocities hold inf/nan
   sample(dt) -> dict                        one history row (without `time`)
   new_events() -> (times, xyz, modes, ids)  failures since the last call
   fields() -> dict                          arrays for a ParaView snapshot
@@ -108,6 +109,11 @@ def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") 
                 if fields is not None:
                     n = min(n, next_field - sim.steps)
                 sim.advance(n, dt)
+                if not sim.state_is_finite():
+                    raise UnstableRunError(
+                        f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
+                        "velocities); reduce run.dt or run.safety, or check loads and penalties"
+                    )
                 row = {"time": sim.time, **sim.sample(dt)}
                 history.append(row)
                 t, xyz, modes, ids = sim.new_events()
