@@ -23,7 +23,7 @@ def build_specimen(spec, base: Path | None) -> TetMesh:
 
 
 def build_specimen_regions(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
-    """The specimen mesh and its per-tet region ids (walnut: 0 face, 1 suture; else None)."""
+    """The specimen mesh and its per-tet region ids (walnut, shell: 0 face, 1 suture; else None)."""
     if spec.shape == "walnut":
         try:
             return geometry.walnut_shell(
@@ -39,6 +39,21 @@ def build_specimen_regions(spec, base: Path | None) -> tuple[TetMesh, np.ndarray
             )
         except MeshError as err:
             raise ScenarioError(f"specimen: {err}") from None
+    if spec.shape == "shell":
+        try:
+            return geometry.shell_from_surface(
+                resolve_path(spec.file, base),
+                spec.element_size,
+                wall=spec.wall,
+                suture_wall=spec.suture_wall,
+                suture_band=spec.suture_band,
+                suture_normal=spec.suture_normal,
+                layers=spec.layers,
+                scale=spec.scale,
+                offset=spec.center,
+            )
+        except MeshError as err:
+            raise ScenarioError(f"specimen.file: {err}") from None
     return _build_mesh(spec, base), None
 
 

@@ -29,14 +29,14 @@ class _Strict(BaseModel):
 
 
 class Specimen(_Strict):
-    shape: Literal["box", "beam", "disc", "cylinder", "sphere", "walnut", "mesh"]
+    shape: Literal["box", "beam", "disc", "cylinder", "sphere", "walnut", "shell", "mesh"]
     element_size: Positive | None = None
     size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
     origin: Vec3 = (0.0, 0.0, 0.0)  # box, beam: lower corner
     mesh: Literal["structured", "unstructured"] = "structured"  # box, beam
     diameter: Positive | None = None  # disc, cylinder, sphere
     thickness: Positive | None = None  # disc, cylinder: extent along the axis; walnut: its T (along y)
-    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere, walnut
+    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere, walnut; shell: added to the scaled file points
     # walnut (paper 004): an ellipsoidal shell, length L along z, width W along x, thickness T
     # along y; a suture band |x - center_x| <= suture_band / 2 (region of the [suture] material)
     length: Positive | None = None
@@ -45,8 +45,14 @@ class Specimen(_Strict):
     suture_wall: Positive = 1.34e-3  # m, suture wall thickness (thicker inwards)
     suture_band: Positive = 4e-3  # m, width of the suture band about the plane x = 0
     layers: Annotated[int, Field(ge=1)] = 1  # tets through the wall
+    # shell: a walnut-like shell walled inwards from a closed outer surface `file` (a scanned
+    # nut: STL or any meshio format; points x scale, e.g. 1e-3 for mm, remeshed at element_size
+    # when given), with wall, suture_wall, suture_band, layers as for walnut; the suture plane
+    # passes through the surface's centroid with normal suture_normal
+    scale: Positive = 1.0
+    suture_normal: Vec3 = (1.0, 0.0, 0.0)
     axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
-    file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...)
+    file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...); shell: its outer surface
     initial_velocity: Vec3 = (0.0, 0.0, 0.0)  # m/s, the whole specimen at t = 0
 
     @model_validator(mode="after")
@@ -58,6 +64,7 @@ class Specimen(_Strict):
             "cylinder": ("diameter", "thickness", "element_size"),
             "sphere": ("diameter", "element_size"),
             "walnut": ("length", "width", "thickness", "element_size"),
+            "shell": ("file",),
             "mesh": ("file",),
         }[self.shape]
         missing = [k for k in need if getattr(self, k) is None]
@@ -356,13 +363,13 @@ class Scenario(_Strict):
             raise ValueError("tool names must be unique")
         if self.run.stop.tool is not None and self.run.stop.tool not in names:
             raise ValueError(f"run.stop.tool '{self.run.stop.tool}' is not a tool name ({', '.join(names) or 'no tools'})")
-        if self.suture is not None and self.specimen.shape != "walnut":
-            raise ValueError(f"[suture] is for specimen shape 'walnut' (this one is '{self.specimen.shape}')")
+        if self.suture is not None and self.specimen.shape not in ("walnut", "shell"):
+            raise ValueError(f"[suture] is for specimen shapes 'walnut' and 'shell' (this one is '{self.specimen.shape}')")
         if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
             raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
         cracks = self.analysis.cracks
-        if cracks is not None and cracks.wall is None and self.specimen.shape != "walnut":
-            raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only a walnut specimen knows its own)")
+        if cracks is not None and cracks.wall is None and self.specimen.shape not in ("walnut", "shell"):
+            raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only walnut and shell specimens know their own)")
         return self
 
     def all_tools(self) -> list[ToolSpec]:

@@ -250,9 +250,9 @@ def _pair_touching(dn, sx, sy, sz, reach2, depth):
 
 @njit(cache=True, inline="always")
 def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force):
-    """Normal stress sigma and the shear spring ps capped at `cap` on point pair p of interface i
-    (intact: the cohesive shear; failed: Coulomb friction): the forces on the B node into `force`
-    (A gets their negatives); returns the energy the cap dissipated (J)."""
+    """Paired contact of point pair p of failed interface i: normal stress sigma and a Coulomb
+    stick spring ps capped at `cap`, driven by the slip rate; the forces on the B node into
+    `force` (A gets their negatives); returns the energy the cap dissipated (J)."""
     a = na[i, p]
     b = nb[i, p]
     # The traction resists B sliding over A: A's velocity relative to B drives the spring.

@@ -15,10 +15,11 @@ from .meshes import (
     nodes_in_box,
     nodes_on_plane,
     read_mesh,
+    read_surface,
     structured_box,
     tet_volumes,
 )
-from .walnut import FACE, SUTURE, ellipsoid_shell_volume, equivalent_diameter, walnut_shell
+from .walnut import FACE, SUTURE, ellipsoid_shell_volume, equivalent_diameter, shell_from_surface, walnut_shell
 
 __all__ = [
     "LOCAL_FACE_VERTICES",
@@ -35,9 +36,11 @@ __all__ = [
     "nodes_in_box",
     "nodes_on_plane",
     "read_mesh",
+    "read_surface",
     "structured_box",
     "tet_volumes",
     "FACE",
+    "shell_from_surface",
     "SUTURE",
     "ellipsoid_shell_volume",
     "equivalent_diameter",

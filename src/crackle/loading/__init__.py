@@ -6,11 +6,11 @@ Method-agnostic descriptions; each method turns them into its own arrays.
 from __future__ import annotations
 
 import os
-import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
+
+from ..geometry.meshes import read_surface, surface_arrays
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,7 @@ class Tool:
                 raise ValueError(f"surface tool {self.name!r} needs `surface` (a file) or `vertices` and `triangles`")
             vertices, triangles = load_surface(self.surface)
         else:
-            vertices, triangles = _surface_arrays(self.vertices, self.triangles, f"surface tool {self.name!r}")
+            vertices, triangles = surface_arrays(self.vertices, self.triangles, f"surface tool {self.name!r}")
         # Frozen: set the cleaned, oriented arrays once here.
         object.__setattr__(self, "vertices", vertices)
         object.__setattr__(self, "triangles", triangles)
@@ -193,69 +193,10 @@ class Precrack:
 
 
 def load_surface(path: str | os.PathLike, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (n, 3, in m) and triangles (k, 3) of a surface file for a surface tool.
-
-    Any format meshio reads (STL, .obj, .ply, .off, .vtu, .msh ...); its "triangle" cells are
-    used. The points are multiplied by `scale` (1e-3 for a file in mm) and then shifted by
-    `offset` (m). See `Tool` for the orientation convention.
-    """
-    from ..geometry.meshes import _meshio_read
-
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"surface file {path} does not exist")
-    with warnings.catch_warnings():
-        # meshio probes an ASCII STL as binary first, with an integer overflow warning.
-        warnings.simplefilter("ignore", RuntimeWarning)
-        m = _meshio_read(path, hint="export the tool surface as triangles, e.g. STL")
-    blocks = [np.asarray(c.data) for c in m.cells if c.type == "triangle"]
-    if not blocks:
-        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
-        raise ValueError(f"surface file {path} has no triangles (cell types found: {found}); export the tool surface as triangles, e.g. STL")
-    points = np.asarray(m.points, dtype=float)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ValueError(f"surface file {path} has {points.shape[-1]}D points; a 3D surface is needed")
-    vertices = points * float(scale) + np.asarray(offset, dtype=float)
-    return _surface_arrays(vertices, np.concatenate(blocks), f"surface file {path}")
-
-
-def _surface_arrays(vertices, triangles, source: str) -> tuple[np.ndarray, np.ndarray]:
-    """Checked copies: finite vertices, valid indices, degenerate triangles dropped, and a closed
-    surface oriented with its normals outwards (positive enclosed volume)."""
-    v = np.array(vertices, dtype=float)
-    t = np.array(triangles, dtype=np.int64)
-    if v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
-        raise ValueError(f"{source}: vertices must be finite (n, 3) coordinates")
-    if t.ndim != 2 or t.shape[1] != 3 or len(t) == 0:
-        raise ValueError(f"{source}: triangles must be a non-empty (k, 3) array of vertex indices")
-    if t.min() < 0 or t.max() >= len(v):
-        raise ValueError(f"{source}: triangles refer to missing vertices")
-    p0, p1, p2 = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    area2 = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
-    extent = float(np.max(v.max(axis=0) - v.min(axis=0)))
-    t = t[area2 > 1e-12 * extent * extent]
-    if len(t) == 0:
-        raise ValueError(f"{source}: all triangles are degenerate (zero area)")
-    closed, consistent = _closure(t)
-    if closed and not consistent:
-        raise ValueError(f"{source}: the surface is closed but its triangles are not wound consistently; "
-                         "repair it (e.g. re-export from the CAD tool or fix normals in MeshLab)")
-    if closed:
-        p0, p1, p2 = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-        if np.einsum("ij,ij->", p0, np.cross(p1, p2)) < 0.0:
-            t = t[:, [0, 2, 1]]
-    return v, np.ascontiguousarray(t)
-
-
-def _closure(triangles: np.ndarray) -> tuple[bool, bool]:
-    """(closed, consistently wound): every edge shared by exactly two triangles, and each
-    directed edge used once (neighbours traverse their common edge in opposite directions)."""
-    e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    _, counts = np.unique(np.sort(e, axis=1), axis=0, return_counts=True)
-    if not np.all(counts == 2):
-        return False, False
-    _, counts = np.unique(e, axis=0, return_counts=True)
-    return True, bool(np.all(counts == 1))
+    """Vertices (n, 3, in m) and triangles (k, 3) of a surface file for a surface tool
+    (crackle.geometry.read_surface: any meshio format, points x scale + offset, closed surfaces
+    oriented outwards). See `Tool` for the orientation convention."""
+    return read_surface(path, scale, offset, hint="export the tool surface as triangles, e.g. STL")
 
 
 def _unit(v) -> np.ndarray:
