@@ -24,36 +24,19 @@ def build_specimen(spec, base: Path | None) -> TetMesh:
 
 def build_specimen_regions(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
     """The specimen mesh and its per-tet region ids (walnut, shell: 0 face, 1 suture; else None)."""
-    if spec.shape == "walnut":
-        try:
+    walls = dict(wall=spec.wall, suture_wall=spec.suture_wall, suture_band=spec.suture_band, layers=spec.layers)
+    try:
+        if spec.shape == "walnut":
             return geometry.walnut_shell(
-                spec.length,
-                spec.width,
-                spec.thickness,
-                spec.element_size,
-                wall=spec.wall,
-                suture_wall=spec.suture_wall,
-                suture_band=spec.suture_band,
-                layers=spec.layers,
-                center=spec.center,
+                spec.length, spec.width, spec.thickness, spec.element_size, center=spec.center, **walls
             )
-        except MeshError as err:
-            raise ScenarioError(f"specimen: {err}") from None
-    if spec.shape == "shell":
-        try:
+        if spec.shape == "shell":
             return geometry.shell_from_surface(
-                resolve_path(spec.file, base),
-                spec.element_size,
-                wall=spec.wall,
-                suture_wall=spec.suture_wall,
-                suture_band=spec.suture_band,
-                suture_normal=spec.suture_normal,
-                layers=spec.layers,
-                scale=spec.scale,
-                offset=spec.center,
+                resolve_path(spec.file, base), spec.element_size, suture_normal=spec.suture_normal,
+                scale=spec.scale, offset=spec.center, **walls,
             )
-        except MeshError as err:
-            raise ScenarioError(f"specimen.file: {err}") from None
+    except MeshError as err:
+        raise ScenarioError(f"specimen: {err}") from None
     return _build_mesh(spec, base), None
 
 
