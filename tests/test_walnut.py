@@ -142,7 +142,7 @@ def test_shell_scenario_and_bad_surfaces(tmp_path):
     import meshio
 
     from crackle.api import build_simulation
-    from crackle.geometry import MeshError, shell_from_surface
+    from crackle.geometry import MeshError, read_surface, shell_from_surface
     from crackle.scenario import load_scenario
 
     _ellipsoid_stl(tmp_path / "nut.stl", 0.5 * np.array([W, T, L]) * 1e3, h_rel=0.15)
@@ -154,9 +154,8 @@ def test_shell_scenario_and_bad_surfaces(tmp_path):
     model = build_simulation(scenario, base)[0].model
     assert np.any(model.ifs.law == 1) and np.any(model.ifs.law == 0)
 
-    m = meshio.read(tmp_path / "nut.stl")
-    tris = m.cells_dict["triangle"]
-    meshio.write(tmp_path / "open.stl", meshio.Mesh(m.points, [("triangle", tris[1:])]))
+    points, tris = read_surface(tmp_path / "nut.stl")
+    meshio.write(tmp_path / "open.stl", meshio.Mesh(points, [("triangle", tris[1:])]))
     with pytest.raises(MeshError, match="not closed"):
         shell_from_surface(tmp_path / "open.stl", None, scale=1e-3)
     with pytest.raises(MeshError, match="too thick"):
