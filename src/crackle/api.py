@@ -58,32 +58,11 @@ def _build_mesh(spec, base: Path | None) -> TetMesh:
 
 
 def build_material(spec) -> Material:
+    # The scenario's interface keys are the law's own field names; unset optional ones (None)
+    # keep the law's defaults.
     law = spec.interface
-    if law.law == "bilinear":
-        interface = BilinearLaw(
-            tensile_strength=law.tensile_strength,
-            shear_strength=law.shear_strength,
-            fracture_energy=law.fracture_energy,
-            fracture_energy_shear=law.fracture_energy_shear,
-            normal_stiffness=law.normal_stiffness,
-            shear_stiffness=law.shear_stiffness,
-            mixed_mode=law.mixed_mode,
-            bk_exponent=law.bk_exponent,
-            power_exponent=law.power_exponent,
-            friction=law.friction,
-        )
-    else:
-        kwargs = {} if law.penalty_factor is None else {"penalty_factor": law.penalty_factor}
-        interface = GuoMunjizaLaw(
-            tensile_strength=law.tensile_strength,
-            cohesion=law.cohesion,
-            friction_angle=law.friction_angle,
-            fracture_energy=law.fracture_energy,
-            fracture_energy_shear=law.fracture_energy_shear,
-            softening=tuple(law.softening),
-            friction=law.friction,
-            **kwargs,
-        )
+    fields = law.model_dump(exclude={"law"}, exclude_none=True)
+    interface = (BilinearLaw if law.law == "bilinear" else GuoMunjizaLaw)(**fields)
     return Material(
         density=spec.density,
         youngs_modulus=spec.youngs_modulus,

@@ -92,15 +92,16 @@ def _components(points: np.ndarray, radius: float) -> tuple[int, np.ndarray]:
     return connected_components(graph, directed=False)
 
 
-def _ring_arms(points: np.ndarray, tree: cKDTree, i: int, r: float) -> int:
-    """Groups of the points at distances r..2r from point i, linked at r."""
-    near = np.asarray(tree.query_ball_point(points[i], 2.0 * r), dtype=np.int64)
-    d = np.linalg.norm(points[near] - points[i], axis=1)
-    ring = near[d > r]
-    if len(ring) == 0:
-        return 0
-    count, _ = _components(points[ring], r)
-    return count
+def _ring_arms(points: np.ndarray, r: float) -> np.ndarray:
+    """Per point, the groups of the points at distances r..2r from it, linked at r."""
+    near_all = cKDTree(points).query_ball_point(points, 2.0 * r)
+    arms = np.zeros(len(points), dtype=np.int64)
+    for i, near in enumerate(near_all):
+        near = np.asarray(near, dtype=np.int64)
+        ring = near[np.linalg.norm(points[near] - points[i], axis=1) > r]
+        if len(ring):
+            arms[i] = _components(points[ring], r)[0]
+    return arms
 
 
 def analyse_cracks(
@@ -134,8 +135,7 @@ def analyse_cracks(
         if extent < 2.0 * r:
             spots += 1
             continue
-        tree = cKDTree(pts)
-        arms = np.array([_ring_arms(pts, tree, i, r) for i in range(len(pts))])
+        arms = _ring_arms(pts, r)
         tips, _ = _components(pts[arms == 1], r)
         junction_pts = np.flatnonzero(arms >= 3)
         n_j, j_label = _components(pts[junction_pts], r)
@@ -172,8 +172,8 @@ def analyse_cracks(
     l90 = np.interp(t90, t, length)
     speed = float((l90 - l10) / (t90 - t10)) if t90 > t10 else None
     # Per-interval speeds over the growth, as the paper averages per analysis step.
-    edges = np.linspace(t[0], t[-1], intervals + 1) if t[-1] > t[0] else np.array([t[0], t[0]])
     if t[-1] > t[0]:
+        edges = np.linspace(t[0], t[-1], intervals + 1)
         grown = np.interp(edges, t, length)
         speeds = np.diff(grown) / np.diff(edges)
         speed_history = np.column_stack([0.5 * (edges[1:] + edges[:-1]), speeds])

@@ -213,11 +213,7 @@ def _bilinear_intact(i, t, dt, x, v, ifs, law, kn, ks, a3, nx, ny, nz):
                 ifs.fail_mode[i] = 2
             else:
                 ifs.fail_mode[i] = 3
-            for p in range(3):
-                ifs.traction_t[i, p, 0] = 0.0
-                ifs.traction_t[i, p, 1] = 0.0
-                ifs.traction_t[i, p, 2] = 0.0
-            return False
+            return False  # its friction traction starts at zero: intact pairs never write it
     s = 1.0 - d
     for p in range(3):
         dn, sx, sy, sz = _opening(x, na, nb, i, p, nx, ny, nz)
@@ -225,9 +221,6 @@ def _bilinear_intact(i, t, dt, x, v, ifs, law, kn, ks, a3, nx, ny, nz):
         tx = s * ks * sx
         ty = s * ks * sy
         tz = s * ks * sz
-        ifs.traction_t[i, p, 0] = tx
-        ifs.traction_t[i, p, 1] = ty
-        ifs.traction_t[i, p, 2] = tz
         ifs.force[i, p, 0] = -(sigma * nx + tx) * a3
         ifs.force[i, p, 1] = -(sigma * ny + ty) * a3
         ifs.force[i, p, 2] = -(sigma * nz + tz) * a3

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..materials import CONTACT_PENALTY_FACTOR, DEFAULT_PENALTY_FACTOR, BilinearLaw, Material, process_zone
+from ..materials import CONTACT_PENALTY_FACTOR, DEFAULT_PENALTY_FACTOR, BilinearLaw, Material
 from .contact import BARY_TOL
 from .kernels import FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
 from .topology import FACE_CORNERS, INTACT, PRECRACK
@@ -380,8 +380,7 @@ def build_fdem_model(
 
     element_size = mesh.element_size()
     for mat in materials:
-        law = mat.interface
-        pz = process_zone(mat.youngs_modulus, law.fracture_energy, law.tensile_strength)
+        pz = mat.process_zone
         if element_size > pz.advised_element_size:
             model_warnings.append(
                 f"element size {element_size * 1e3:.3g} mm is coarser than the advised "

@@ -16,7 +16,6 @@ from ..analysis import (
     tip_and_plastic_zone,
 )
 from ..io import plot_crack_growth, plot_fragment_sizes
-from ..materials import process_zone
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
 from .topology import INTACT, PRECRACK
@@ -49,6 +48,7 @@ class FdemSimulation:
         self._tips: list[float] = []
         self._plastic_zones: list[float] = []
         self.crack_settings: CrackSettings | None = None  # crack count and speed in the summary when set
+        self._cracks: tuple[int, CrackAnalysis] | None = None  # (failures analysed, analysis)
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -225,17 +225,20 @@ class FdemSimulation:
             plot_crack_growth(cracks.length_history, cracks.speed_history, out_dir / "plots" / "crack_growth.png")
 
     def cracks(self) -> CrackAnalysis | None:
-        """Crack count and main-crack speed of the failures so far (None unless crack_settings)."""
+        """Crack count and main-crack speed of the failures so far (None unless crack_settings);
+        kept until new failures, as the summary and the plots both ask for it."""
         if self.crack_settings is None:
             return None
         m = self.model
-        c = self.crack_settings
         failed = np.flatnonzero((m.ifs.state != INTACT) & (m.ifs.state != PRECRACK))
-        top = np.asarray(c.top, float)
-        top_point = m.x0[np.argmax(m.x0 @ top)]
-        return analyse_cracks(
-            m.iface_centroids(m.x0)[failed], m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
-        )
+        if self._cracks is None or self._cracks[0] != len(failed):
+            c = self.crack_settings
+            top_point = m.x0[np.argmax(m.x0 @ np.asarray(c.top, float))]
+            analysis = analyse_cracks(
+                m.iface_centroids(m.x0)[failed], m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
+            )
+            self._cracks = (len(failed), analysis)
+        return self._cracks[1]
 
     def _crack_summary(self) -> dict:
         cracks = self.cracks()
@@ -250,17 +253,15 @@ class FdemSimulation:
     def _process_zones(self) -> list[dict]:
         """Paper 004 eqs 4-5 (paper 001 eqs 10-11) per material, with the minimal discretisation
         of the process zone by this mesh, 2 l_lower / h (paper 004 Table 2)."""
-        out = []
-        for mat in self.model.materials:
-            law = mat.interface
-            pz = process_zone(mat.youngs_modulus, law.fracture_energy, law.tensile_strength)
-            out.append({
+        return [
+            {
                 "material": mat.name,
-                "lower": pz.plastic_zone_long,
-                "upper": pz.plastic_zone_short,
-                "minimal_discretisation": 2.0 * pz.plastic_zone_long / self.model.element_size,
-            })
-        return out
+                "lower": mat.process_zone.plastic_zone_long,
+                "upper": mat.process_zone.plastic_zone_short,
+                "minimal_discretisation": 2.0 * mat.process_zone.plastic_zone_long / self.model.element_size,
+            }
+            for mat in self.model.materials
+        ]
 
     def _fracture_summary(self) -> dict:
         if self.fracture_plane is None or not self._tips:

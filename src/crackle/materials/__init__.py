@@ -183,6 +183,12 @@ class Material:
     def s_wave_speed(self) -> float:
         return math.sqrt(self.shear_modulus / self.density)
 
+    @property
+    def process_zone(self) -> "ProcessZone":
+        """Process-zone lengths of its interface law (eqs 10-11 of paper 001, 4-5 of paper 004)."""
+        law = self.interface
+        return process_zone(self.youngs_modulus, law.fracture_energy, law.tensile_strength)
+
 
 @dataclass(frozen=True)
 class ProcessZone:
