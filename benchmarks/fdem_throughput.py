@@ -96,7 +96,8 @@ def build(target_tets: int, cell: float):
     from crackle.fdem.model import build_fdem_model
     from crackle.geometry import structured_box
     from crackle.loading import History, Selection, Support, Tool
-    from crackle.materials import GuoMunjizaLaw, Material
+    from crackle.fdem.laws import GuoMunjizaLaw
+from crackle.materials import Material
 
     rock = Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
     nx, ny, nz = beam_cells(target_tets)

@@ -23,7 +23,8 @@ import pytest
 
 from crackle.cli import main
 from crackle.fdem.kernels import interface_energy
-from crackle.materials import BilinearLaw, Material
+from crackle.fdem.laws import BilinearLaw
+from crackle.materials import Material
 from crackle.scenario import examples_dir
 
 from fdem_helpers import E, NU, RHO
@@ -299,8 +300,7 @@ def test_bad_bilinear_scenario_exits_2_naming_the_field(tmp_path, capsys, edit, 
 
 def test_bilinear_scenario_builds():
     """The same block, complete, validates and builds a model whose interfaces have pn = kn."""
-    from crackle.api import build_material
-    from crackle.scenario import Scenario
+    from crackle.fdem.setup import Scenario, build_material
     import tomllib
 
     data = tomllib.loads(BASE.replace(GM_BLOCK, BILINEAR_BLOCK))

@@ -12,7 +12,8 @@ from crackle.fdem.model import build_fdem_model
 from crackle.fdem.simulation import FdemSimulation
 from crackle.geometry import TetMesh, structured_box
 from crackle.loading import History, Tool
-from crackle.materials import GuoMunjizaLaw, Material
+from crackle.fdem.laws import GuoMunjizaLaw
+from crackle.materials import Material
 
 
 def _elastic(friction=0.3):

@@ -13,13 +13,14 @@ import pytest
 from numba import njit
 
 from crackle.cli import main
-from crackle.fdem.kernels import tool_gap
+from crackle.loading.tools import tool_gap
 from crackle.fdem.model import build_fdem_model
 from crackle.fdem.simulation import FdemSimulation
 from crackle.geometry import structured_box
 from crackle.io import read_history_csv
 from crackle.loading import History, Tool, load_surface
-from crackle.materials import GuoMunjizaLaw, Material
+from crackle.fdem.laws import GuoMunjizaLaw
+from crackle.materials import Material
 
 
 def _elastic(friction=0.3, penalty_factor=200.0):
@@ -169,7 +170,7 @@ def test_closed_surface_is_oriented_outwards_and_open_one_kept(tmp_path):
 def _gaps(j, points, tools):
     out = np.empty((len(points), 4))
     for i in range(len(points)):
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = tool_gap(j, points[i, 0], points[i, 1], points[i, 2], tools)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = tool_gap(j, points[i, 0], points[i, 1], points[i, 2], 0.0, tools)
     return out
 
 

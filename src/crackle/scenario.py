@@ -11,24 +11,18 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
-Vec3 = tuple[float, float, float]
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
+from .schema import NonNegative, Positive, Strict, Vec3
 
 
 class ScenarioError(ValueError):
     """A scenario that cannot run; the message names the field or file and the fix."""
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class Specimen(_Strict):
+class Specimen(Strict):
     shape: Literal["box", "beam", "disc", "cylinder", "sphere", "walnut", "shell", "mesh"]
     element_size: Positive | None = None
     size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
@@ -73,81 +67,21 @@ class Specimen(_Strict):
         return self
 
 
-class InterfaceLaw(_Strict):
-    law: Literal["guo-munjiza"] = "guo-munjiza"
-    tensile_strength: Positive
-    cohesion: Positive
-    friction_angle: Annotated[float, Field(ge=0, lt=90)]
-    fracture_energy: Positive
-    fracture_energy_shear: Positive | None = None
-    softening: tuple[Positive, Positive, Positive] = (0.63, 1.8, 6.0)
-    friction: NonNegative = 0.6
-    penalty_factor: Positive | None = None
+class ElasticSpec(Strict):
+    """[material]: what every method's material has; a method adds its fracture law's section."""
 
-
-class BilinearInterfaceLaw(_Strict):
-    """Bilinear cohesive law (paper 004): strengths in Pa, energies in J/m^2, stiffnesses in N/m^3
-    (a value in N/mm^3 times 1e9)."""
-
-    law: Literal["bilinear"]
-    tensile_strength: Positive  # tn0
-    shear_strength: Positive  # ts0
-    fracture_energy: Positive  # GIc
-    fracture_energy_shear: Positive | None = None  # GIIc, defaults to GIc
-    normal_stiffness: Positive  # kn
-    shear_stiffness: Positive  # ks
-    friction: NonNegative = 0.6
-    mixed_mode: Literal["bk", "power"] = "bk"
-    bk_exponent: Positive = 1.45
-    power_exponent: Positive = 2.0
-
-    @model_validator(mode="after")
-    def _consistent(self):
-        from .materials import bilinear_snap_back
-
-        if self.mixed_mode == "bk" and "power_exponent" in self.model_fields_set:
-            raise ValueError('power_exponent is for mixed_mode = "power" (this law uses "bk": set bk_exponent)')
-        if self.mixed_mode == "power" and "bk_exponent" in self.model_fields_set:
-            raise ValueError('bk_exponent is for mixed_mode = "bk" (this law uses "power": set power_exponent)')
-        problem = bilinear_snap_back(self)
-        if problem:
-            raise ValueError(problem)
-        return self
-
-
-# Tags of the interface laws: `law` in [material.interface], "guo-munjiza" when left out.
-LAW_TAGS = ("guo-munjiza", "bilinear")
-
-
-def _law_tag(value):
-    law = value.get("law", "guo-munjiza") if isinstance(value, dict) else getattr(value, "law", "guo-munjiza")
-    return law if law in LAW_TAGS else None
-
-
-InterfaceSpec = Annotated[
-    Union[Annotated[InterfaceLaw, Tag("guo-munjiza")], Annotated[BilinearInterfaceLaw, Tag("bilinear")]],
-    Discriminator(
-        _law_tag,
-        custom_error_type="law",
-        custom_error_message="law must be \"guo-munjiza\" or \"bilinear\"",
-    ),
-]
-
-
-class MaterialSpec(_Strict):
     name: str = "material"
-    density: Positive
-    youngs_modulus: Positive
+    density: Positive  # kg/m^3
+    youngs_modulus: Positive  # Pa
     poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
-    interface: InterfaceSpec
 
 
-class VelocityTable(_Strict):
+class VelocityTable(Strict):
     time: list[NonNegative]
     speed: list[float]
 
 
-class ToolSpec(_Strict):
+class ToolSpec(Strict):
     name: str
     shape: Literal["plane", "box", "cylinder", "sphere", "surface"]
     direction: Vec3
@@ -188,7 +122,7 @@ class ToolSpec(_Strict):
         return self
 
 
-class PlatesSpec(_Strict):
+class PlatesSpec(Strict):
     """N rigid square plates placed about `center` by their top (polar, from +z) and azimuth
     (from +x toward +y) angles, each moving toward `center` at `speed` (paper 004's multi-point
     loading). Each becomes a box tool named plate1..plateN, tangent to the specimen at the start."""
@@ -232,7 +166,7 @@ class PlatesSpec(_Strict):
         return out
 
 
-class LoadingSpec(_Strict):
+class LoadingSpec(Strict):
     """A rigid rotation of every tool about `axis` through `center` (the mesh stays put)."""
 
     angle: float = 0.0  # degrees, right-handed about axis
@@ -247,7 +181,7 @@ class LoadingSpec(_Strict):
         return v
 
 
-class Where(_Strict):
+class Where(Strict):
     plane_point: Vec3 | None = None
     plane_normal: Vec3 | None = None
     box_min: Vec3 | None = None
@@ -263,13 +197,13 @@ class Where(_Strict):
         return self
 
 
-class SupportSpec(_Strict):
+class SupportSpec(Strict):
     kind: Literal["fixed", "roller"]
     where: Where
     normal: Vec3 = (0.0, 0.0, 1.0)  # roller: blocked direction
 
 
-class PrecrackSpec(_Strict):
+class PrecrackSpec(Strict):
     point: Vec3
     normal: Vec3
     box_min: Vec3 = (-math.inf, -math.inf, -math.inf)
@@ -277,7 +211,7 @@ class PrecrackSpec(_Strict):
     tol: Positive | None = None
 
 
-class PressureSpec(_Strict):
+class PressureSpec(Strict):
     faces: Literal["precrack", "where"] = "precrack"
     where: Where | None = None
     rate: float | None = None  # Pa/s from t = 0
@@ -295,14 +229,14 @@ class PressureSpec(_Strict):
         return self
 
 
-class Stop(_Strict):
+class Stop(Strict):
     tool_displacement: Positive | None = None
     tool: str | None = None
     force_drop: Annotated[float, Field(gt=0, lt=1)] | None = None
     force_drop_hold: NonNegative | None = None
 
 
-class RunSpec(_Strict):
+class RunSpec(Strict):
     end_time: Positive
     dt: Positive | None = None
     safety: Annotated[float, Field(gt=0, le=1)] = 0.7
@@ -314,7 +248,7 @@ class RunSpec(_Strict):
     stop: Stop = Stop()
 
 
-class FracturePlaneSpec(_Strict):
+class FracturePlaneSpec(Strict):
     """A planar fracture to follow: its tip and plastic-zone length go to history.csv."""
 
     point: Vec3  # on the plane, where the growth is measured from
@@ -323,7 +257,7 @@ class FracturePlaneSpec(_Strict):
     tol: Positive | None = None  # m; default: 1e-6 of the specimen size
 
 
-class CracksSpec(_Strict):
+class CracksSpec(Strict):
     """Crack count and main-crack speed of a shell (crackle.analysis.cracks), in summary.json with
     the loading index of the tools' directions."""
 
@@ -332,44 +266,34 @@ class CracksSpec(_Strict):
     top: Vec3 = (0.0, 0.0, 1.0)  # the main crack is the first to reach the extreme along it
 
 
-class AnalysisSpec(_Strict):
+class AnalysisSpec(Strict):
     fracture_plane: FracturePlaneSpec | None = None
     cracks: CracksSpec | None = None
 
 
-class Scenario(_Strict):
+class ScenarioBase(Strict):
+    """The sections every method shares. A method's scenario (crackle.methods) adds its own:
+    for FDEM the tet specimen, its material with an interface law, pre-cracks."""
+
     name: str = "scenario"
     description: str = ""
-    method: Literal["fdem"] = "fdem"
-    specimen: Specimen
-    material: MaterialSpec
-    # walnut: the suture band's own material (same keys as [material]); without it the suture
-    # is [material] too and differs only by its wall thickness
-    suture: MaterialSpec | None = None
+    method: str = "fdem"
     tools: list[ToolSpec] = []
     plates: PlatesSpec | None = None  # adds plate1..plateN to the tools
     loading: LoadingSpec = LoadingSpec()  # rotates all tools, e.g. a loading angle
     supports: list[SupportSpec] = []
-    precracks: list[PrecrackSpec] = []
     pressures: list[PressureSpec] = []
     analysis: AnalysisSpec = AnalysisSpec()
     run: RunSpec
     quick: dict[str, Any] = {}  # dotted-key overrides applied by --quick
 
     @model_validator(mode="after")
-    def _cross_checks(self):
+    def _tool_names(self):
         names = [t.name for t in self.all_tools()]
         if len(set(names)) != len(names):
             raise ValueError("tool names must be unique")
         if self.run.stop.tool is not None and self.run.stop.tool not in names:
             raise ValueError(f"run.stop.tool '{self.run.stop.tool}' is not a tool name ({', '.join(names) or 'no tools'})")
-        if self.suture is not None and self.specimen.shape not in ("walnut", "shell"):
-            raise ValueError(f"[suture] is for specimen shapes 'walnut' and 'shell' (this one is '{self.specimen.shape}')")
-        if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
-            raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
-        cracks = self.analysis.cracks
-        if cracks is not None and cracks.wall is None and self.specimen.shape not in ("walnut", "shell"):
-            raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only walnut and shell specimens know their own)")
         return self
 
     def all_tools(self) -> list[ToolSpec]:
@@ -458,15 +382,22 @@ def _index(part: str, key: str, n: int) -> int:
     return int(part)
 
 
-def load_scenario(source: str | Path, overrides: list[str] | None = None, quick: bool = False) -> tuple[Scenario, Path | None]:
-    """Read, override and validate a scenario; raises ScenarioError with one clear message."""
+def load_scenario(source: str | Path, overrides: list[str] | None = None, quick: bool = False) -> tuple[ScenarioBase, Path | None]:
+    """Read, override and validate a scenario against its method's schema; raises ScenarioError
+    with one clear message."""
+    from .methods import get_method
+
     data, base = read_scenario_data(source)
     if quick:
         data = apply_overrides(data, data.get("quick", {}))
     if overrides:
         data = apply_overrides(data, overrides)
     try:
-        scenario = Scenario.model_validate(data)
+        schema = get_method(data.get("method", "fdem")).Scenario
+    except KeyError as err:
+        raise ScenarioError(f"{source}: method: {err.args[0]}") from None
+    try:
+        scenario = schema.model_validate(data)
     except ValidationError as err:
         raise ScenarioError(_describe(err, source)) from None
     for i, tool in enumerate(scenario.tools):
@@ -488,14 +419,18 @@ def resolve_path(file: str, base: Path | None) -> Path:
     return path
 
 
+# Fields whose value is one of several schemas chosen by a name (e.g. `law`).
+TAGGED_CHOICES = ("interface",)
+
+
 def _describe(err: ValidationError, source) -> str:
     first = err.errors()[0]
     loc = first["loc"]
-    # The interface law's tag that pydantic puts in the path (material.interface.bilinear.kn).
-    loc = [p for k, p in enumerate(loc) if not (p in LAW_TAGS and k > 0 and loc[k - 1] == "interface")]
+    # The tag of a choice by name that pydantic puts in the path (material.interface.bilinear.kn).
+    loc = [p for k, p in enumerate(loc) if not (0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES)]
     where = ".".join(str(p) for p in loc) or "(top level)"
     kind = first["type"]
-    if kind == "extra_forbidden":
+    if kind in ("extra_forbidden", "unexpected_keyword_argument"):
         hint = "unknown key: remove it or check its spelling"
     elif kind == "missing":
         hint = "required: add it"

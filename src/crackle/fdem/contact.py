@@ -33,11 +33,10 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from .friction import coulomb_update
+from ..loading.friction import coulomb_update
+from ..loading.tools import BARY_TOL
 from .topology import FACE_CORNERS, INTACT, face_corners, twice_area_vector
 
-# Barycentric tolerance of the projection test (a fraction of the triangle).
-BARY_TOL = 0.01
 # Depth, as a fraction of the half tet height, beyond which a new contact starts unloaded.
 WAKE_DEPTH = 0.02
 

@@ -14,30 +14,18 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..materials import CONTACT_PENALTY_FACTOR, DEFAULT_PENALTY_FACTOR, BilinearLaw, Material
-from .contact import BARY_TOL
-from .kernels import FREE, HIDDEN, NO_TOOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
+from ..loading.arrays import Tools, history_tables, tool_arrays
+from ..loading.tools import HIDDEN, NO_TOOL
+from ..solver.integrator import support_constraints
+from ..materials import Material
+from .laws import LAW_COLUMNS, LAW_FT
 from .topology import FACE_CORNERS, INTACT, PRECRACK
-from .law import (
-    LAW_A,
-    LAW_B,
-    LAW_C,
-    LAW_COLUMNS,
-    LAW_CS,
-    LAW_FT,
-    LAW_GF1,
-    LAW_GF2,
-    LAW_IZ,
-    LAW_KIND,
-    LAW_MIX,
-    LAW_MIX_EXP,
-    LAW_MU,
-    LAW_TANPHI,
-    LAW_TS,
-    KIND_BILINEAR,
-    MIX_BK,
-    MIX_POWER,
-)
+
+# Contact (tools and free surfaces): penalty per unit contact area CONTACT_PENALTY_FACTOR E / h, h
+# the median tet altitude (the usual FDEM order of magnitude, ~10 E / h). Much softer than the
+# interfaces on purpose: in the exploded mesh several coincident nodes can press on one triangle
+# corner, and their springs add up there; penetrations stay ~1e-4 h at 100 MPa.
+CONTACT_PENALTY_FACTOR = 10.0
 
 Nodes = namedtuple(
     "Nodes",
@@ -48,25 +36,8 @@ Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic e_damage e_friction",
 )
-Tools = namedtuple(
-    "Tools",
-    "kind geom disp direction times speeds n mu penalty impulse surf_grid surf_cell_start surf_cell_tris surf_tri",
-)
-# Surface tools (shape "surface"), all of them concatenated: surf_tri (k, SURF_TRI_COLUMNS)
-# triangle rows in each tool's own frame; per tool a uniform grid over the triangles' boxes
-# inflated by the contact depth, in CSR form: surf_grid[j] = (cells along x, y, z, first entry
-# of tool j in surf_cell_start); surf_cell_start[first + c] .. [first + c + 1] delimits cell c's
-# triangles (rows of surf_tri) in surf_cell_tris. Built once: the tools only translate.
 Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
-
-_SHAPE_CODES = {
-    "plane": TOOL_PLANE,
-    "box": TOOL_BOX,
-    "cylinder": TOOL_CYLINDER,
-    "sphere": TOOL_SPHERE,
-    "surface": TOOL_SURFACE,
-}
 
 
 @dataclass
@@ -131,214 +102,38 @@ def build_fdem_model(
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
         raise ValueError("every FDEM material needs an interface law")
-    points, conn = mesh.points, mesh.tets
-    m = len(conn)
+    m = mesh.n_tets
     tet_material = np.zeros(m, dtype=np.int64) if tet_material is None else np.asarray(tet_material, np.int64)
-    model_warnings: list[str] = []
-
-    # Exploded nodes: node 4e+k is corner k of tet e.
-    x0 = points[conn].reshape(-1, 3).copy()
-    corner_point = conn.reshape(-1)
-    dm = np.stack([points[conn[:, k]] - points[conn[:, 0]] for k in (1, 2, 3)], axis=2)
-    vol = np.linalg.det(dm) / 6.0
-    if np.any(vol <= 0):
-        raise ValueError("the mesh has inverted or degenerate tets; run geometry.check_tets on it")
-    dm_inv = np.linalg.inv(dm)
-    face_area = np.empty((m, 4))
-    for f in range(4):
-        c = FACE_CORNERS[f]
-        p0, p1, p2 = (points[conn[:, c[i]]] for i in range(3))
-        face_area[:, f] = 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
-    altitude = 3.0 * vol[:, None] / face_area  # height of each tet over each of its faces
-
-    E = np.array([mat.youngs_modulus for mat in materials])[tet_material]
-    G = np.array([mat.shear_modulus for mat in materials])[tet_material]
-    lam = np.array([mat.lame_lambda for mat in materials])[tet_material]
-    mu = G.copy()
-    rho = np.array([mat.density for mat in materials])[tet_material]
-    mass = np.repeat(rho * vol / 4.0, 4)
-
-    # Interfaces on internal faces.
-    topo = internal_faces(conn)
-    # Numbered by (A-side tet, face): a block of interfaces then touches a compact range of nodes.
-    order = np.lexsort((topo.face_local[:, 0], topo.face_tet[:, 0]))
-    ta, tb = topo.face_tet[order, 0], topo.face_tet[order, 1]
-    fa, fb = topo.face_local[order, 0], topo.face_local[order, 1]
-    corners_a = FACE_CORNERS[fa]  # (k, 3) local corners of A's face, outward from A
-    na = 4 * ta[:, None] + corners_a
-    point_a = conn[ta[:, None], corners_a]
-    # B's corner sitting on the same mesh point as each A corner.
-    conn_b = conn[tb]  # (k, 4)
-    match = conn_b[:, None, :] == point_a[:, :, None]  # (k, 3, 4)
-    corners_b = np.argmax(match, axis=2)
-    nb = 4 * tb[:, None] + corners_b
-    n_if = len(ta)
-    area = face_area[ta, fa]
-    h_if = np.minimum(altitude[ta, fa], altitude[tb, fb])
-    law_of_material = []
-    law_rows = []
-    for mat in materials:
-        law = mat.interface
-        row = np.zeros(LAW_COLUMNS)
-        if isinstance(law, BilinearLaw):
-            row[LAW_KIND] = KIND_BILINEAR
-            row[LAW_FT] = law.tensile_strength
-            row[LAW_TS] = law.shear_strength
-            row[LAW_GF1] = law.fracture_energy
-            row[LAW_GF2] = law.gf_shear
-            row[LAW_MIX] = MIX_BK if law.mixed_mode == "bk" else MIX_POWER
-            row[LAW_MIX_EXP] = law.mixed_mode_exponent
-            row[LAW_MU] = law.friction
-            law_of_material.append(len(law_rows))
-            law_rows.append(row)
-            continue
-        row[LAW_FT] = law.tensile_strength
-        row[LAW_C] = law.cohesion
-        row[LAW_TANPHI] = np.tan(np.radians(law.friction_angle))
-        row[LAW_GF1] = law.fracture_energy
-        row[LAW_GF2] = law.gf_shear
-        row[LAW_A], row[LAW_B], row[LAW_CS] = law.softening
-        row[LAW_IZ] = law.softening_area
-        row[LAW_MU] = law.friction
-        law_of_material.append(len(law_rows))
-        law_rows.append(row)
-    law_table = np.array(law_rows)
-    # The weaker side's law governs an interface between two materials.
-    mat_a, mat_b = tet_material[ta], tet_material[tb]
-    ft_of = law_table[:, LAW_FT]
-    iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int16)
-    penalty = np.array([getattr(mat.interface, "penalty_factor", DEFAULT_PENALTY_FACTOR) for mat in materials])
-    p_side = np.minimum(penalty[mat_a], penalty[mat_b])
-    pn = p_side * np.minimum(E[ta], E[tb]) / h_if
-    ps = p_side * np.minimum(G[ta], G[tb]) / h_if
-    # A bilinear interface's own stiffnesses kn, ks (N/m^3) replace the penalty, intact and
-    # failed (contact); the stable step below uses them through pn, ps.
-    bilinear = law_table[iface_law, LAW_KIND] == KIND_BILINEAR
-    if bilinear.any():
-        kn_of = np.array([getattr(mat.interface, "normal_stiffness", 0.0) for mat in materials])
-        ks_of = np.array([getattr(mat.interface, "shear_stiffness", 0.0) for mat in materials])
-        pn = np.where(bilinear, kn_of[iface_law], pn)
-        ps = np.where(bilinear, ks_of[iface_law], ps)
-    edge = np.stack(
-        [np.linalg.norm(x0[na[:, i]] - x0[na[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1
-    )
-    reach = edge.max(axis=1)
-    state = np.full(n_if, INTACT, dtype=np.int8)
-    damage = np.zeros(n_if)
-
-    # Pre-cracks: the selected interfaces start failed (contact only, no cohesion).
-    centroid = x0[na].mean(axis=1)
     scale = float(np.max(mesh.bounds()[1] - mesh.bounds()[0]))
-    precrack_mask = np.zeros(n_if, dtype=bool)
-    for crack in precracks:
-        n = np.asarray(crack.normal, float)
-        n = n / np.linalg.norm(n)
-        tol = crack.tol if crack.tol is not None else 1e-6 * scale
-        on_plane = np.all(np.abs((x0[na] - np.asarray(crack.point, float)) @ n) <= tol, axis=1)
-        inside = np.all((centroid >= np.asarray(crack.box_min) - tol) & (centroid <= np.asarray(crack.box_max) + tol), axis=1)
-        precrack_mask |= on_plane & inside
-    if precracks and not precrack_mask.any():
-        raise ValueError("no internal face lies on the pre-crack plane inside its box: check [[precracks]] point/normal/box")
-    state[precrack_mask] = PRECRACK
-    damage[precrack_mask] = 1.0
 
-    face_iface = np.full((m, 4), -1, dtype=np.int32)
-    face_side = np.zeros((m, 4), dtype=np.int8)
-    face_iface[ta, fa] = np.arange(n_if)
-    face_iface[tb, fb] = np.arange(n_if)
-    face_side[tb, fb] = 1
+    bulk = _exploded_tets(mesh, materials, tet_material)
+    pairs = _interfaces(mesh, materials, tet_material, bulk)
+    precrack = _precracks(precracks, bulk.x0, pairs, scale)
+    pairs.state[precrack] = PRECRACK
+    pairs.damage[precrack] = 1.0
+    face_iface, face_side = _face_tables(m, pairs)
+    face_pressure = _pressure_faces(pressures, mesh, pairs, precrack, scale)
 
-    # Pressures on faces.
-    face_pressure = np.full((m, 4), -1, dtype=np.int16)
-    for pid, load in enumerate(pressures):
-        if isinstance(load.faces, str):
-            if load.faces != "precrack":
-                raise ValueError(f"pressure faces must be 'precrack' or a selection, not {load.faces!r}")
-            face_pressure[ta[precrack_mask], fa[precrack_mask]] = pid
-            face_pressure[tb[precrack_mask], fb[precrack_mask]] = pid
-        else:
-            sel = load.faces.mask(points, scale)
-            bt, bf = topo.boundary_faces[:, 0], topo.boundary_faces[:, 1]
-            chosen = np.all(sel[conn[bt[:, None], FACE_CORNERS[bf]]], axis=1)
-            if not chosen.any():
-                raise ValueError(f"pressure {pid}: its selection holds no boundary face")
-            face_pressure[bt[chosen], bf[chosen]] = pid
-    ptimes, pvalues, pn_count = _tables([p.history for p in pressures])
+    median_altitude = float(np.median(bulk.altitude))
+    default_penalty = CONTACT_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
+    # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
+    # contact (penetrations stay ~1e-4 of it); the load-cell impulse is kept per tet.
+    tool_table = tool_arrays(tools, default_penalty, median_altitude, m)
 
-    # Supports: each node keeps the velocity projection of all the supports that hold it.
-    normals_of = {}
-    for sup in supports:
-        sel = sup.where.mask(x0, scale)
-        if not sel.any():
-            raise ValueError(f"a {sup.kind} support selects no node: check its plane or box")
-        if sup.kind == "fixed":
-            blocked = np.eye(3)
-        elif sup.kind == "roller":
-            blocked = np.asarray(sup.normal, float)[None, :]
-        else:
-            raise ValueError(f"support kind must be 'fixed' or 'roller', not {sup.kind!r}")
-        for node in np.flatnonzero(sel):
-            normals_of.setdefault(int(node), []).append(blocked)
-    constraint = np.full(4 * m, FREE, dtype=np.int16)
-    projections = [np.zeros((3, 3))]  # index 0: fixed
-    known = {projections[0].round(12).tobytes(): 0}
-    for node, blocks in normals_of.items():
-        proj = _velocity_projection(np.concatenate(blocks))
-        key = proj.round(12).tobytes()
-        if key not in known:
-            known[key] = len(projections)
-            projections.append(proj)
-        constraint[node] = known[key]
-
-    # Contact (tools and free surfaces): penalty per unit contact area CONTACT_PENALTY_FACTOR
-    # E / h, h the median tet altitude. Much softer than the interfaces on purpose: in the
-    # exploded mesh several coincident nodes can press on one triangle corner, and their springs
-    # add up there; penetrations stay ~1e-4 h at 100 MPa.
-    default_penalty = CONTACT_PENALTY_FACTOR * float(np.max(E)) / float(np.median(altitude))
-    tool_kind = np.array([_SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
-    tool_geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
-    tool_dir = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
-    ttimes, tspeeds, tn = _tables([t.speed for t in tools])
-    tool_mu = np.array([t.friction for t in tools], dtype=float)
-    tool_pen = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
-
-    v = np.zeros((4 * m, 3))
-    if initial_velocity is not None:
-        iv = np.asarray(initial_velocity, dtype=float)
-        v[:] = iv if iv.shape == (3,) else iv[corner_point]
-
-    # Faces free at t = 0 (outer boundary, pre-cracks); nodes on none are hidden from the tools.
-    free_face = face_iface < 0
-    if n_if:
-        free_face |= state[np.maximum(face_iface, 0)] == PRECRACK
-    contact_area, on_free_face = _contact_area(face_area, free_face)
-    nodes = Nodes(
-        x=x0.copy(),
-        v=v,
-        mass=mass,
-        contact_area=contact_area,
-        force=np.zeros((4 * m, 3)),
-        constraint=constraint,
-        constraint_projection=np.array(projections),
-        friction=np.zeros((4 * m, 3)),
-        tool=np.where(on_free_face, NO_TOOL, HIDDEN).astype(np.int8),
-        tool_offset=np.zeros(4 * m),
-        w_external=np.zeros(4 * m),
-        w_damping=np.zeros(4 * m),
-        d_friction=np.zeros(4 * m),
-    )
-    tets = Tets(dm_inv, vol, lam, mu, face_area, face_iface, face_side, face_pressure)
+    nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, scale)
+    tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
+    n_if = len(pairs.area)
     ifs = Interfaces(
-        na=na.astype(np.int64),
-        nb=nb.astype(np.int64),
-        area=area,
-        pn=pn,
-        ps=ps,
-        reach=reach,
-        law=iface_law,
-        law_table=law_table,
-        damage=damage,
-        state=state,
+        na=pairs.na.astype(np.int64),
+        nb=pairs.nb.astype(np.int64),
+        area=pairs.area,
+        pn=pairs.pn,
+        ps=pairs.ps,
+        reach=pairs.reach,
+        law=pairs.law,
+        law_table=pairs.law_table,
+        damage=pairs.damage,
+        state=pairs.state,
         fail_time=np.full(n_if, np.nan),
         fail_mode=np.zeros(n_if, dtype=np.int8),
         force=np.zeros((n_if, 3, 3)),
@@ -347,47 +142,10 @@ def build_fdem_model(
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
     )
-    # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
-    # contact (penetrations stay ~1e-4 of it), which keeps the far side of a thin tool apart.
-    surf = _surface_tool_grids(tools, tool_geom, float(np.median(altitude)))
-    tool_arrays = Tools(
-        tool_kind, tool_geom, np.zeros((len(tools), 3)), tool_dir, ttimes, tspeeds, tn, tool_mu, tool_pen,
-        impulse=np.zeros((len(tools), m, 3)), **surf,
-    )
-    controls = Controls(np.asarray(gravity, dtype=float), np.array([float(damping)]))
-
-    # Stable step: per node, bulk tet + interfaces + tool springs (eigenvalue bounds).
-    grads = np.concatenate([-dm_inv.sum(axis=1, keepdims=True), dm_inv], axis=1)  # (m, 4, 3) grad N_k
-    gtg = np.einsum("mki,mkj->mij", grads, grads)
-    lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
-    omega2_tet = 4.0 * (3.0 * lam + 2.0 * mu) * lam_max_g / rho  # lambda_max(M^-1 K_e) bound
-    # Springs on each face (Gershgorin row sums per node): an interface face carries its pair
-    # spring (twice, for the two sides' relative motion) and, once failed, the contact spring
-    # instead; an outer face carries surface contact and tool springs.
-    face_spring = np.zeros((m, 4))
-    pair = 2.0 * np.maximum(np.maximum(pn, ps), default_penalty if contact else 0.0) * area / 3.0
-    face_spring[ta, fa] = pair
-    face_spring[tb, fb] = pair
-    outer = face_iface < 0
-    outer_spring = (2.0 * default_penalty if contact else 0.0) + (tool_pen.max() if len(tools) else 0.0)
-    face_spring[outer] = outer_spring * face_area[outer] / 3.0
-    k_node = np.zeros((m, 4))
-    for f in range(4):
-        k_node[:, FACE_CORNERS[f]] += face_spring[:, f, None]
-    k_node = k_node.ravel()
-    omega2 = np.repeat(omega2_tet, 4) + k_node / mass
-    stable_dt = float(2.0 / np.sqrt(omega2.max()))
-
+    tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
+    stable_dt = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
-    for mat in materials:
-        pz = mat.process_zone
-        if element_size > pz.advised_element_size:
-            model_warnings.append(
-                f"element size {element_size * 1e3:.3g} mm is coarser than the advised "
-                f"{pz.advised_element_size * 1e3:.3g} mm for material '{mat.name}' (a third of the "
-                f"long-crack plastic zone {pz.plastic_zone_long * 1e3:.3g} mm): the fracture process "
-                "zone is under-resolved and peak loads will be over-estimated"
-            )
+    model_warnings = _resolution_warnings(materials, element_size)
     for msg in model_warnings:
         warnings.warn(msg, stacklevel=2)
 
@@ -398,21 +156,242 @@ def build_fdem_model(
         nodes=nodes,
         tets=tets,
         ifs=ifs,
-        tools=tool_arrays,
-        pressures=Pressures(ptimes, pvalues, pn_count),
-        controls=controls,
+        tools=tool_table,
+        pressures=Pressures(*history_tables([p.history for p in pressures])),
+        controls=Controls(np.asarray(gravity, dtype=float), np.array([float(damping)])),
         tool_specs=list(tools),
         pressure_specs=list(pressures),
-        x0=x0,
+        x0=bulk.x0,
         stable_dt=stable_dt,
         element_size=element_size,
         contact_penalty=default_penalty,
         tet_friction=np.array([mat.interface.friction for mat in materials])[tet_material],
-        corner_point=corner_point.astype(np.int64),
+        corner_point=bulk.corner_point.astype(np.int64),
         contact_enabled=contact,
         contact_skin=0.25 * element_size,
         warnings=model_warnings,
     )
+
+
+@dataclass
+class _Bulk:
+    """The exploded tets: node 4e+k is corner k of tet e."""
+
+    x0: np.ndarray  # (4m, 3) reference positions
+    corner_point: np.ndarray  # (4m,) mesh point of each node
+    dm_inv: np.ndarray  # (m, 3, 3) inverse reference edge matrix
+    vol: np.ndarray
+    face_area: np.ndarray  # (m, 4), face f opposite corner f
+    altitude: np.ndarray  # (m, 4) height of each tet over each of its faces
+    E: np.ndarray  # per tet
+    G: np.ndarray
+    lam: np.ndarray
+    mu: np.ndarray
+    rho: np.ndarray
+    mass: np.ndarray  # (4m,) lumped
+
+
+def _exploded_tets(mesh: TetMesh, materials, tet_material) -> _Bulk:
+    points, conn = mesh.points, mesh.tets
+    m = len(conn)
+    dm = np.stack([points[conn[:, k]] - points[conn[:, 0]] for k in (1, 2, 3)], axis=2)
+    vol = np.linalg.det(dm) / 6.0
+    if np.any(vol <= 0):
+        raise ValueError("the mesh has inverted or degenerate tets; run geometry.check_tets on it")
+    face_area = np.empty((m, 4))
+    for f in range(4):
+        c = FACE_CORNERS[f]
+        p0, p1, p2 = (points[conn[:, c[i]]] for i in range(3))
+        face_area[:, f] = 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    G = np.array([mat.shear_modulus for mat in materials])[tet_material]
+    rho = np.array([mat.density for mat in materials])[tet_material]
+    return _Bulk(
+        x0=points[conn].reshape(-1, 3).copy(),
+        corner_point=conn.reshape(-1),
+        dm_inv=np.linalg.inv(dm),
+        vol=vol,
+        face_area=face_area,
+        altitude=3.0 * vol[:, None] / face_area,
+        E=np.array([mat.youngs_modulus for mat in materials])[tet_material],
+        G=G,
+        lam=np.array([mat.lame_lambda for mat in materials])[tet_material],
+        mu=G.copy(),
+        rho=rho,
+        mass=np.repeat(rho * vol / 4.0, 4),
+    )
+
+
+@dataclass
+class _Pairs:
+    """Interfaces on the internal faces, numbered by (A-side tet, face): a block of interfaces
+    then touches a compact range of nodes."""
+
+    ta: np.ndarray  # A-side tet and its local face
+    fa: np.ndarray
+    tb: np.ndarray  # B-side tet and its local face
+    fb: np.ndarray
+    na: np.ndarray  # (k, 3) A nodes, ordered outward from A
+    nb: np.ndarray  # (k, 3) B nodes on the same mesh points
+    boundary_faces: np.ndarray  # (tet, local face) of the outer boundary
+    area: np.ndarray
+    law: np.ndarray  # row of law_table governing each interface
+    law_table: np.ndarray
+    pn: np.ndarray  # N/m^3
+    ps: np.ndarray
+    reach: np.ndarray  # longest edge: how far failed faces may slide and still touch as a pair
+    state: np.ndarray
+    damage: np.ndarray
+
+
+def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk) -> _Pairs:
+    conn = mesh.tets
+    topo = internal_faces(conn)
+    order = np.lexsort((topo.face_local[:, 0], topo.face_tet[:, 0]))
+    ta, tb = topo.face_tet[order, 0], topo.face_tet[order, 1]
+    fa, fb = topo.face_local[order, 0], topo.face_local[order, 1]
+    corners_a = FACE_CORNERS[fa]  # (k, 3) local corners of A's face, outward from A
+    na = 4 * ta[:, None] + corners_a
+    point_a = conn[ta[:, None], corners_a]
+    # B's corner sitting on the same mesh point as each A corner.
+    match = conn[tb][:, None, :] == point_a[:, :, None]  # (k, 3, 4)
+    nb = 4 * tb[:, None] + np.argmax(match, axis=2)
+    n_if = len(ta)
+    h_if = np.minimum(bulk.altitude[ta, fa], bulk.altitude[tb, fb])
+
+    # One law row per material; the weaker side's law governs an interface between two.
+    law_table = np.array([mat.interface.table_row() for mat in materials]).reshape(-1, LAW_COLUMNS)
+    mat_a, mat_b = tet_material[ta], tet_material[tb]
+    ft_of = law_table[:, LAW_FT]
+    iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int16)
+    pn = np.zeros(n_if)
+    ps = np.zeros(n_if)
+    E_min = np.minimum(bulk.E[ta], bulk.E[tb])
+    G_min = np.minimum(bulk.G[ta], bulk.G[tb])
+    for row, mat in enumerate(materials):
+        sel = iface_law == row
+        pn[sel], ps[sel] = mat.interface.stiffness(E_min[sel], G_min[sel], h_if[sel])
+    edge = np.stack([np.linalg.norm(bulk.x0[na[:, i]] - bulk.x0[na[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
+    return _Pairs(
+        ta=ta, fa=fa, tb=tb, fb=fb, na=na, nb=nb, boundary_faces=topo.boundary_faces,
+        area=bulk.face_area[ta, fa], law=iface_law, law_table=law_table, pn=pn, ps=ps,
+        reach=edge.max(axis=1), state=np.full(n_if, INTACT, dtype=np.int8), damage=np.zeros(n_if),
+    )
+
+
+def _precracks(precracks, x0, pairs: _Pairs, scale: float) -> np.ndarray:
+    """Interfaces that start failed (contact only, no cohesion): on a pre-crack plane, centroid
+    inside its box."""
+    na = pairs.na
+    centroid = x0[na].mean(axis=1)
+    mask = np.zeros(len(na), dtype=bool)
+    for crack in precracks:
+        n = np.asarray(crack.normal, float)
+        n = n / np.linalg.norm(n)
+        tol = crack.tol if crack.tol is not None else 1e-6 * scale
+        on_plane = np.all(np.abs((x0[na] - np.asarray(crack.point, float)) @ n) <= tol, axis=1)
+        inside = np.all((centroid >= np.asarray(crack.box_min) - tol) & (centroid <= np.asarray(crack.box_max) + tol), axis=1)
+        mask |= on_plane & inside
+    if precracks and not mask.any():
+        raise ValueError("no internal face lies on the pre-crack plane inside its box: check [[precracks]] point/normal/box")
+    return mask
+
+
+def _face_tables(m: int, pairs: _Pairs) -> tuple[np.ndarray, np.ndarray]:
+    """Per tet face: its interface (-1 on the outer boundary) and whether the tet is its B side."""
+    n_if = len(pairs.ta)
+    face_iface = np.full((m, 4), -1, dtype=np.int32)
+    face_side = np.zeros((m, 4), dtype=np.int8)
+    face_iface[pairs.ta, pairs.fa] = np.arange(n_if)
+    face_iface[pairs.tb, pairs.fb] = np.arange(n_if)
+    face_side[pairs.tb, pairs.fb] = 1
+    return face_iface, face_side
+
+
+def _pressure_faces(pressures, mesh: TetMesh, pairs: _Pairs, precrack: np.ndarray, scale: float) -> np.ndarray:
+    """Per tet face, the pressure acting on it (-1: none)."""
+    conn = mesh.tets
+    face_pressure = np.full((len(conn), 4), -1, dtype=np.int16)
+    for pid, load in enumerate(pressures):
+        if isinstance(load.faces, str):
+            if load.faces != "precrack":
+                raise ValueError(f"pressure faces must be 'precrack' or a selection, not {load.faces!r}")
+            face_pressure[pairs.ta[precrack], pairs.fa[precrack]] = pid
+            face_pressure[pairs.tb[precrack], pairs.fb[precrack]] = pid
+        else:
+            sel = load.faces.mask(mesh.points, scale)
+            bt, bf = pairs.boundary_faces[:, 0], pairs.boundary_faces[:, 1]
+            chosen = np.all(sel[conn[bt[:, None], FACE_CORNERS[bf]]], axis=1)
+            if not chosen.any():
+                raise ValueError(f"pressure {pid}: its selection holds no boundary face")
+            face_pressure[bt[chosen], bf[chosen]] = pid
+    return face_pressure
+
+
+def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, scale: float) -> Nodes:
+    n = len(bulk.x0)
+    v = np.zeros((n, 3))
+    if initial_velocity is not None:
+        iv = np.asarray(initial_velocity, dtype=float)
+        v[:] = iv if iv.shape == (3,) else iv[bulk.corner_point]
+    # Faces free at t = 0 (outer boundary, pre-cracks); nodes on none are hidden from the tools.
+    free_face = face_iface < 0
+    if len(pairs.state):
+        free_face |= pairs.state[np.maximum(face_iface, 0)] == PRECRACK
+    contact_area, on_free_face = _contact_area(bulk.face_area, free_face)
+    constraint, projections = support_constraints(supports, bulk.x0, scale)
+    return Nodes(
+        x=bulk.x0.copy(),
+        v=v,
+        mass=bulk.mass,
+        contact_area=contact_area,
+        force=np.zeros((n, 3)),
+        constraint=constraint,
+        constraint_projection=projections,
+        friction=np.zeros((n, 3)),
+        tool=np.where(on_free_face, NO_TOOL, HIDDEN).astype(np.int8),
+        tool_offset=np.zeros(n),
+        w_external=np.zeros(n),
+        w_damping=np.zeros(n),
+        d_friction=np.zeros(n),
+    )
+
+
+def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tool_penalty: float) -> float:
+    """Largest stable step: per node, bulk tet + interface + contact springs (eigenvalue bounds)."""
+    m = len(bulk.vol)
+    grads = np.concatenate([-bulk.dm_inv.sum(axis=1, keepdims=True), bulk.dm_inv], axis=1)  # (m, 4, 3) grad N_k
+    gtg = np.einsum("mki,mkj->mij", grads, grads)
+    lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
+    omega2_tet = 4.0 * (3.0 * bulk.lam + 2.0 * bulk.mu) * lam_max_g / bulk.rho  # lambda_max(M^-1 K_e) bound
+    # Springs on each face (Gershgorin row sums per node): an interface face carries its pair
+    # spring (twice, for the two sides' relative motion) and, once failed, the contact spring
+    # instead; an outer face carries surface contact and tool springs.
+    face_spring = np.zeros((m, 4))
+    pair = 2.0 * np.maximum(np.maximum(pairs.pn, pairs.ps), surface_penalty) * pairs.area / 3.0
+    face_spring[pairs.ta, pairs.fa] = pair
+    face_spring[pairs.tb, pairs.fb] = pair
+    outer = face_iface < 0
+    outer_spring = 2.0 * surface_penalty + tool_penalty
+    face_spring[outer] = outer_spring * bulk.face_area[outer] / 3.0
+    k_node = np.zeros((m, 4))
+    for f in range(4):
+        k_node[:, FACE_CORNERS[f]] += face_spring[:, f, None]
+    omega2 = np.repeat(omega2_tet, 4) + k_node.ravel() / bulk.mass
+    return float(2.0 / np.sqrt(omega2.max()))
+
+
+def _resolution_warnings(materials, element_size: float) -> list[str]:
+    out = []
+    for mat in materials:
+        pz = mat.process_zone
+        if element_size > pz.advised_element_size:
+            out.append(
+                f"element size {element_size * 1e3:.3g} mm is coarser than the advised "
+                f"{pz.advised_element_size * 1e3:.3g} mm for material '{mat.name}' (a third of the "
+                f"long-crack plastic zone {pz.plastic_zone_long * 1e3:.3g} mm): the fracture process "
+                "zone is under-resolved and peak loads will be over-estimated"
+            )
+    return out
 
 
 def _contact_area(face_area: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -432,108 +411,3 @@ def _contact_area(face_area: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, 
         mean_share[:, k] = face_area[:, others].sum(axis=1) / 9.0
     on_free_face = area > 0.0
     return np.where(on_free_face, area, mean_share).reshape(-1), on_free_face.reshape(-1)
-
-
-def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
-    """Triangle rows and static contact grids of the surface tools (see `Tools`); fills each
-    surface tool's geom row with its grid origin, 1 / cell size and contact depth."""
-    grids = np.zeros((len(tools), 4), dtype=np.int64)
-    starts = [np.zeros(1, dtype=np.int64)]
-    cell_tris = []
-    rows = []
-    n_tri = 0
-    n_entries = 0
-    for j, tool in enumerate(tools):
-        if tool.shape != "surface":
-            continue
-        v, t = tool.vertices, tool.triangles
-        p0, p1, p2 = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-        e1, e2 = p1 - p0, p2 - p0
-        normal = np.cross(e1, e2)
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        d00 = np.einsum("ij,ij->i", e1, e1)
-        d01 = np.einsum("ij,ij->i", e1, e2)
-        d11 = np.einsum("ij,ij->i", e2, e2)
-        row = np.empty((len(t), SURF_TRI_COLUMNS))
-        row[:, 0:3], row[:, 3:6], row[:, 6:9], row[:, 9:12] = p0, e1, e2, normal
-        row[:, 12], row[:, 13], row[:, 14] = d00, d01, d11
-        row[:, 15] = 1.0 / (d00 * d11 - d01 * d01)
-        rows.append(row)
-
-        # Boxes of the triangles widened by the barycentric tolerance, then by the depth.
-        lo = np.minimum(np.minimum(p0, p1), p2)
-        hi = np.maximum(np.maximum(p0, p1), p2)
-        size = hi - lo
-        pad = depth + 2.0 * BARY_TOL * size.max(axis=1, keepdims=True)
-        lo, hi = lo - pad, hi + pad
-        origin = lo.min(axis=0)
-        span = hi.max(axis=0) - origin
-        # Cell: the median triangle size (or the depth), grown until the grid and its entries
-        # stay within a few times the triangle count.
-        cell = max(float(np.median(size.max(axis=1))), depth)
-        while True:
-            dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
-            i_lo = np.clip(np.floor((lo - origin) / cell).astype(np.int64), 0, dims - 1)
-            i_hi = np.clip(np.floor((hi - origin) / cell).astype(np.int64), 0, dims - 1)
-            count = np.prod(i_hi - i_lo + 1, axis=1)
-            if np.prod(dims) <= 8 * len(t) + 4096 and count.sum() <= 32 * len(t) + 4096:
-                break
-            cell *= 1.5
-        # Every (triangle, cell) pair, triangles ascending within a cell: a fixed candidate order.
-        tri_of = np.repeat(np.arange(len(t)), count)
-        local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-        ext = (i_hi - i_lo + 1)[tri_of]
-        k = i_lo[tri_of, 2] + local % ext[:, 2]
-        rest = local // ext[:, 2]
-        jj = i_lo[tri_of, 1] + rest % ext[:, 1]
-        ii = i_lo[tri_of, 0] + rest // ext[:, 1]
-        cell_id = (ii * dims[1] + jj) * dims[2] + k
-        order = np.argsort(cell_id, kind="stable")
-        per_cell = np.bincount(cell_id, minlength=int(np.prod(dims)))
-        grids[j, 0:3] = dims
-        grids[j, 3] = sum(len(a) for a in starts) - 1
-        starts.append(n_entries + np.cumsum(per_cell))
-        cell_tris.append(n_tri + tri_of[order])
-        n_tri += len(t)
-        n_entries += len(order)
-        geom[j, 0:3] = origin
-        geom[j, 3] = 1.0 / cell
-        geom[j, 4] = depth
-    return {
-        "surf_grid": grids,
-        "surf_cell_start": np.concatenate(starts),
-        "surf_cell_tris": np.concatenate(cell_tris) if cell_tris else np.zeros(0, dtype=np.int64),
-        "surf_tri": np.concatenate(rows) if rows else np.zeros((0, SURF_TRI_COLUMNS)),
-    }
-
-
-def _tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pad piecewise-linear histories into (k, n) time and value tables plus point counts."""
-    k = len(histories)
-    n = max((len(h.times) for h in histories), default=1)
-    times = np.zeros((k, n))
-    values = np.zeros((k, n))
-    counts = np.zeros(k, dtype=np.int64)
-    for i, h in enumerate(histories):
-        c = len(h.times)
-        times[i, :c] = h.times
-        values[i, :c] = h.values
-        times[i, c:] = h.times[-1]
-        values[i, c:] = h.values[-1]
-        counts[i] = c
-    return times, values, counts
-
-
-def _velocity_projection(blocked: np.ndarray) -> np.ndarray:
-    """Projector removing the velocity components along the blocked directions (rows)."""
-    basis = []
-    for n in blocked:
-        w = n / np.linalg.norm(n)
-        for b in basis:
-            w = w - np.dot(w, b) * b
-        if np.linalg.norm(w) > 1e-9:
-            basis.append(w / np.linalg.norm(w))
-    proj = np.eye(3)
-    for b in basis:
-        proj -= np.outer(b, b)
-    return proj

@@ -16,8 +16,11 @@ from ..analysis import (
     tip_and_plastic_zone,
 )
 from ..io import plot_crack_growth, plot_fragment_sizes
+from ..solver.failures import FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
-from .kernels import MODE_NAMES, advance, interface_energy, tet_energy_and_stress, tool_contact_state
+from ..loading.loadcell import LoadCell, tool_columns
+from ..loading.tools import tool_contact_totals
+from .kernels import advance, interface_energy, tet_energy_and_stress
 from .topology import INTACT, PRECRACK
 from .model import FdemModel
 
@@ -31,7 +34,7 @@ class FdemSimulation:
         self.model = model
         self.time = 0.0
         self.steps = 0
-        self._reported = np.zeros(model.n_interfaces, dtype=bool)
+        self._failures = FailureRecorder(model.n_interfaces)
         self._tet_energy = np.zeros(model.n_tets)
         self._stress = np.zeros((model.n_tets, 6))
         self._cohesive = np.zeros(model.n_interfaces)
@@ -39,7 +42,8 @@ class FdemSimulation:
         n_tools = len(model.tool_specs)
         self._tool_force = np.zeros((n_tools, 3))
         self._tool_energy = np.zeros(n_tools)
-        self._last_force_time = 0.0
+        self._load_cell = LoadCell()
+        self._no_radius = np.zeros(1)  # tet nodes touch tools with their centre
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1
@@ -111,20 +115,19 @@ class FdemSimulation:
     def tool_names(self) -> list[str]:
         return [t.name for t in self.model.tool_specs]
 
+    def _tool_contact(self) -> None:
+        n = self.model.nodes
+        tool_contact_totals(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction, self.model.tools,
+                            self._tool_force, self._tool_energy)
+
     def tool_forces(self) -> np.ndarray:
-        """Force of each tool on the specimen (N): the mean over the time since the last call
-        (impulse / time, as a load cell with the output interval as its averaging window), or the
-        instantaneous contact force when no time has passed."""
-        m = self.model
-        elapsed = self.time - self._last_force_time
-        if elapsed > 0:
-            forces = m.tools.impulse.sum(axis=1) / elapsed
-        else:
-            tool_contact_state(m.nodes, m.tets, m.ifs, m.tools, self._tool_force, self._tool_energy)
-            forces = self._tool_force.copy()
-        m.tools.impulse[:] = 0.0
-        self._last_force_time = self.time
-        return forces
+        """Force of each tool on the specimen (N), through the load cell."""
+
+        def now():
+            self._tool_contact()
+            return self._tool_force.copy()
+
+        return self._load_cell.read(self.model.tools, self.time, now)
 
     def energies(self, dt: float) -> dict[str, float]:
         m = self.model
@@ -134,7 +137,7 @@ class FdemSimulation:
         x_mid = nodes.x - 0.5 * dt * nodes.v
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
-        tool_contact_state(nodes, m.tets, m.ifs, m.tools, self._tool_force, self._tool_energy)
+        self._tool_contact()
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),
@@ -152,13 +155,7 @@ class FdemSimulation:
         energies = self.energies(dt)
         forces = self.tool_forces()
         m = self.model
-        for j, tool in enumerate(m.tool_specs):
-            u = m.tools.disp[j]
-            f = forces[j]
-            for axis, k in zip("xyz", range(3)):
-                row[f"tool.{tool.name}.f{axis}"] = float(f[k])
-            for axis, k in zip("xyz", range(3)):
-                row[f"tool.{tool.name}.u{axis}"] = float(u[k])
+        row.update(tool_columns(self.tool_names(), forces, m.tools.disp))
         row.update(energies)
         row["broken"] = self.broken
         row["fragments"] = self.fragments().count
@@ -187,14 +184,8 @@ class FdemSimulation:
     def new_events(self):
         """Failures since the last call: times, positions, mode names, interface ids."""
         ifs = self.model.ifs
-        new = (ifs.state != INTACT) & (ifs.state != PRECRACK) & ~self._reported
-        ids = np.flatnonzero(new)
-        self._reported[ids] = True
-        order = np.lexsort((ids, ifs.fail_time[ids]))
-        ids = ids[order]
-        xyz = self.model.iface_centroids(self.model.nodes.x)[ids]
-        modes = [MODE_NAMES[k] for k in ifs.fail_mode[ids]]
-        return ifs.fail_time[ids], xyz, modes, ids
+        failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
+        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids(self.model.nodes.x)[ids])
 
     def fields(self) -> dict:
         """Arrays for a ParaView snapshot on the exploded mesh."""
@@ -208,11 +199,12 @@ class FdemSimulation:
         tet_damage[:] = dmg.max(axis=1)
         return {
             "points": n.x,
-            "tets": np.arange(4 * n_tets).reshape(-1, 4),
             "point_data": {"displacement": n.x - m.x0, "velocity": n.v},
-            "cell_data": {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels},
-            "triangles": m.ifs.na,
-            "triangle_data": {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64)},
+            "blocks": [
+                ("tetra", np.arange(4 * n_tets).reshape(-1, 4),
+                 {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels}),
+                ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64)}),
+            ],
         }
 
     def bounds(self):

@@ -23,27 +23,27 @@ def _as_table(name: str, values, length: int) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
-def _merge_cell_data(tet_data: dict, tri_data: dict, n_tets: int, n_tris: int) -> dict:
-    """One list of two arrays per name; a name missing from a block gets zeros.
+def _merge_cell_data(blocks) -> dict:
+    """One list of arrays (one per block) per name; a name missing from a block gets zeros.
 
-    VTK requires every cell array to cover all cells of the file, so an array
-    given only for tets is padded with zeros over the triangles and vice versa.
+    VTK requires every cell array to cover all cells of the file, so an array given only for
+    some blocks is padded with zeros over the others.
     """
+    names = []
+    for _, _, data in blocks:
+        names += [n for n in data if n not in names]
     merged = {}
-    for name in list(tet_data) + [n for n in tri_data if n not in tet_data]:
-        tet, tri = tet_data.get(name), tri_data.get(name)
-        template = tet if tet is not None else tri
-        if tet is None:
-            tet = np.zeros((n_tets,) + template.shape[1:], dtype=template.dtype)
-        if tri is None:
-            tri = np.zeros((n_tris,) + template.shape[1:], dtype=template.dtype)
-        if tet.shape[1:] != tri.shape[1:]:
-            raise ValueError(
-                f"cell field {name!r} has {tet.shape[1:]} components on tets "
-                f"but {tri.shape[1:]} on triangles"
-            )
-        dtype = np.result_type(tet.dtype, tri.dtype)
-        merged[name] = [tet.astype(dtype, copy=False), tri.astype(dtype, copy=False)]
+    for name in names:
+        arrays = [data.get(name) for _, _, data in blocks]
+        template = next(a for a in arrays if a is not None)
+        shapes = {a.shape[1:] for a in arrays if a is not None}
+        if len(shapes) > 1:
+            raise ValueError(f"cell field {name!r} has different components on different cell blocks: {sorted(shapes)}")
+        dtype = np.result_type(*[a.dtype for a in arrays if a is not None])
+        merged[name] = [
+            (a if a is not None else np.zeros((len(conn),) + template.shape[1:], dtype=dtype)).astype(dtype, copy=False)
+            for a, (_, conn, _) in zip(arrays, blocks)
+        ]
     return merged
 
 
@@ -76,40 +76,34 @@ class FieldWriter:
         ``cell_data`` is per tet, ``triangle_data`` per triangle (e.g. interface
         elements). With triangles, both blocks go into the same file, every
         cell array is padded with zeros on the block it was not given for,
-        and ``cell_kind`` tells tets (0) from triangles (1).
+        and ``cell_kind`` tells tets (0) from triangles (1). See write_blocks.
         """
-        points = np.asarray(points, dtype=np.float64)
-        if points.ndim != 2 or points.shape[1] != 3:
-            raise ValueError(f"points must be (n, 3), got {points.shape}")
         tets = np.asarray(tets, dtype=np.int64).reshape(-1, 4)
-        n_points, n_tets = len(points), len(tets)
-
-        point_fields = {
-            name: _as_table(name, v, n_points) for name, v in (point_data or {}).items()
-        }
-        tet_fields = {
-            name: _as_table(name, v, n_tets) for name, v in (cell_data or {}).items()
-        }
-
         if triangles is None:
             if triangle_data:
                 raise ValueError("triangle_data given without triangles")
-            cells = [("tetra", tets)]
-            tet_fields.setdefault("cell_kind", np.zeros(n_tets, dtype=np.int32))
-            cell_fields = {name: [a] for name, a in tet_fields.items()}
-        else:
-            triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-            n_tris = len(triangles)
-            tri_fields = {
-                name: _as_table(name, v, n_tris)
-                for name, v in (triangle_data or {}).items()
-            }
-            cells = [("tetra", tets), ("triangle", triangles)]
-            cell_fields = _merge_cell_data(tet_fields, tri_fields, n_tets, n_tris)
-            cell_fields.setdefault(
-                "cell_kind",
-                [np.zeros(n_tets, dtype=np.int32), np.ones(n_tris, dtype=np.int32)],
-            )
+            return self.write_blocks(time, points, [("tetra", tets, cell_data or {})], point_data)
+        triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        return self.write_blocks(
+            time, points, [("tetra", tets, cell_data or {}), ("triangle", triangles, triangle_data or {})], point_data
+        )
+
+    def write_blocks(self, time: float, points, blocks, point_data: Mapping | None = None) -> Path:
+        """Write one step of any cells: `blocks` is a list of (meshio cell type, connectivity,
+        {name: per-cell array}); `cell_kind` tells the blocks apart (their index)."""
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"points must be (n, 3), got {points.shape}")
+        n_points = len(points)
+        point_fields = {name: _as_table(name, v, n_points) for name, v in (point_data or {}).items()}
+        tables = []
+        for kind, conn, data in blocks:
+            conn = np.asarray(conn, dtype=np.int64)
+            conn = conn.reshape(len(conn), -1)
+            tables.append((kind, conn, {name: _as_table(name, v, len(conn)) for name, v in data.items()}))
+        cells = [(kind, conn) for kind, conn, _ in tables]
+        cell_fields = _merge_cell_data(tables)
+        cell_fields.setdefault("cell_kind", [np.full(len(conn), k, dtype=np.int32) for k, (_, conn) in enumerate(cells)])
 
         relative = f"fields/step_{len(self.steps):06d}.vtu"
         mesh = meshio.Mesh(points, cells, point_data=point_fields, cell_data=cell_fields)

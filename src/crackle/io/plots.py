@@ -111,9 +111,10 @@ def plot_energies(history, path) -> Path:
         for name in energy_names:
             ax.plot(time * scale, np.asarray(cols[name], float), label=name[7:])
         if "energy.external" in cols:
-            others = [np.asarray(cols[n], float) for n in energy_names if n != "energy.external"]
-            imbalance = np.asarray(cols["energy.external"], float) - sum(others, np.zeros_like(time))
-            ax.plot(time * scale, imbalance, "k--", label="imbalance")
+            from ..solver.energy import imbalance  # here: solver imports io
+
+            terms = {n: np.asarray(cols[n], float) for n in energy_names}
+            ax.plot(time * scale, imbalance(terms), "k--", label="imbalance")
         ax.legend(fontsize="small", ncol=2)
     else:
         ax.text(0.5, 0.5, "no energy data", transform=ax.transAxes, ha="center")

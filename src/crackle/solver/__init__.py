@@ -1,15 +1,7 @@
 """Explicit time integration driver shared by every method.
 
-A method supplies a simulation object with:
-  stable_dt, time, steps, broken            (attributes)
-  advance(n_steps, dt)                      compiled steps, arrays updated in place
-  state_is_finite() -> bool                 False once positions or velocities hold inf/nan
-  sample(dt) -> dict                        one history row (without `time`)
-  new_events() -> (times, xyz, modes, ids)  failures since the last call
-  fields() -> dict                          arrays for a ParaView snapshot
-  tool_names(), bounds(), summary()         set-up facts for outputs
-  extra_plots(out_dir)                      optional: method-specific plots
-The driver chooses the step, runs compiled chunks between outputs, applies the stop conditions,
+A method supplies an object of the Simulation protocol (solver.simulation); its compiled step
+calls the shared pieces (solver.integrator, loading.tools). The driver chooses the step, runs compiled chunks between outputs, applies the stop conditions,
 audits energy, and writes every output of the contract as it goes: a run that goes unstable or
 is interrupted keeps everything written so far.
 """
@@ -24,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from .energy import energy_error
+from .simulation import Simulation
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
 
 
@@ -76,7 +70,7 @@ class RunResult:
     history: dict[str, np.ndarray]
 
 
-def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") -> RunResult:
+def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name: str = "") -> RunResult:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     dt = choose_time_step(sim.stable_dt, control)
@@ -174,22 +168,10 @@ def run(sim, control: RunControl, out_dir: str | Path, scenario_name: str = "") 
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
-        if hasattr(sim, "extra_plots"):
-            sim.extra_plots(out)
+        sim.extra_plots(out)
     if status == "unstable":
         raise UnstableRunError(message + f" (outputs so far are in {out})")
     return RunResult(out, summary, hist)
-
-
-def energy_error(history: dict[str, np.ndarray]) -> float:
-    """Relative imbalance at the end: (external - sum of the other terms) / largest energy seen."""
-    keys = [k for k in history if k.startswith("energy.") and k != "energy.external"]
-    if "energy.external" not in history or not keys:
-        return 0.0
-    ext = history["energy.external"]
-    rest = sum(history[k] for k in keys)
-    scale = max(float(np.max(np.abs(ext))), float(np.max(np.abs(rest))), 1e-300)
-    return float((ext[-1] - rest[-1]) / scale)
 
 
 def _tool_force(row: dict, name: str) -> float:
@@ -213,15 +195,7 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, low_since, no
 
 def _write_fields(writer: FieldWriter, sim) -> None:
     f = sim.fields()
-    writer.write(
-        sim.time,
-        f["points"],
-        f["tets"],
-        point_data=f["point_data"],
-        cell_data=f["cell_data"],
-        triangles=f.get("triangles"),
-        triangle_data=f.get("triangle_data"),
-    )
+    writer.write_blocks(sim.time, f["points"], f["blocks"], point_data=f["point_data"])
 
 
-__all__ = ["RunControl", "RunResult", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "run"]
+__all__ = ["RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "run"]

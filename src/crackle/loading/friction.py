@@ -1,5 +1,6 @@
-"""Coulomb friction with a stick spring: the one stick-slip update every contact in FDEM uses
-(failed interface pairs, tools, node-to-surface contact)."""
+"""Coulomb friction with a stick spring: the one stick-slip update every contact uses (tools
+against any method's nodes or particles; in FDEM also failed interface pairs and node-to-surface
+contact)."""
 
 from __future__ import annotations
 

@@ -1,0 +1,46 @@
+"""Interface laws of FDEM, chosen by name (`law` in [material.interface]).
+
+Each law is one file: its parameters (a validated dataclass that is also its scenario schema),
+its row of the law table (`table_row`), its interface stiffness (`stiffness`) and its compiled
+`intact_step` (forces, damage, dissipation of an intact interface) and `intact_energy` (what it
+stores), side by side. Adding a law: its file, plus one entry in LAWS and one branch in each
+dispatcher below. Failed and pre-cracked faces are the same for every law (paired contact with
+Coulomb friction, fdem.kernels).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from . import bilinear, guo_munjiza
+from .bilinear import BilinearLaw
+from .guo_munjiza import GuoMunjizaLaw
+from .row import LAW_COLUMNS, LAW_FT, LAW_KIND, LAW_MU
+
+# name -> parameter class; the class's `kind` is its code in the law table.
+LAWS = {"guo-munjiza": GuoMunjizaLaw, "bilinear": BilinearLaw}
+assert len({law.kind for law in LAWS.values()}) == len(LAWS)
+KIND_BILINEAR = BilinearLaw.kind
+
+
+@njit(cache=True, inline="always")
+def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+                law, pn, ps, nx, ny, nz):
+    """The law of row `law` on intact interface i; False when it failed and acts as a failed pair
+    from this step on."""
+    if law[LAW_KIND] == KIND_BILINEAR:
+        return bilinear.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
+                                    slip_plastic, e_damage, law, pn, ps, nx, ny, nz)
+    return guo_munjiza.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
+                                   slip_plastic, e_damage, law, pn, ps, nx, ny, nz)
+
+
+@njit(cache=True, inline="always")
+def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz):
+    """Energy stored in intact interface i under the law of row `law`."""
+    if law[LAW_KIND] == KIND_BILINEAR:
+        return bilinear.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz)
+    return guo_munjiza.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz)
+
+
+__all__ = ["LAWS", "LAW_COLUMNS", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "intact_energy", "intact_step"]

@@ -1,0 +1,255 @@
+"""Bilinear cohesive (traction-separation) law of paper 004, Camanho-Davila mixed mode: its
+parameters, its row of the law table, and its forces and stored energy on an intact interface,
+side by side. The interface's own stiffnesses kn, ks (N/m^3) are its penalties pn, ps, intact
+and (as contact) once failed.
+
+* Tractions tn = (1 - D) kn dn in opening, kn dn in compression (never damaged), shear vector
+  ts = (1 - D) ks s: linear to the origin on unloading (secant), a potential at fixed D.
+* Initiation (maximum nominal stress): max(kn <dn> / tn0, ks |s| / ts0) = 1.
+* Effective opening dm = sqrt(<dn>^2 + |s|^2), effective stiffness K = (kn <dn>^2 + ks |s|^2) / dm^2
+  (so the undamaged energy is K dm^2 / 2), initiation opening d0 = dm / max(...) at the current
+  mode mix, final opening df = 2 Gc / (K d0), linear softening
+  D = df (dm - d0) / (dm (df - d0)), never decreasing; a complete failure at a fixed mix
+  dissipates K d0 df / 2 = Gc per unit area.
+* Mixed mode from the energy ratio B = ks |s|^2 / (kn <dn>^2 + ks |s|^2) (G_II / G_T):
+  Benzeggagh-Kenane Gc = GIc + (GIIc - GIc) B^eta, or the power law
+  ((1 - B) Gc / GIc)^alpha + (B Gc / GIIc)^alpha = 1.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar, Literal
+
+import numpy as np
+from numba import njit
+from pydantic import model_validator
+from pydantic.dataclasses import dataclass
+
+from ...schema import STRICT_DATACLASS, NonNegative, Positive
+from ...solver.failures import failure_mode
+from ..interface import centroid_opening, opening
+from ..topology import FAILED
+from .row import LAW_FT, OWN, new_row
+
+# Benzeggagh-Kenane exponent of Camanho & Davila (2002), and the power-law exponent of the
+# quadratic (Ye) criterion.
+DEFAULT_BK_EXPONENT = 1.45
+DEFAULT_POWER_EXPONENT = 2.0
+MIX_POWER, MIX_BK = 0, 1
+
+# The law's own columns of its table row: shear strength ts0, GIc, GIIc, mixed-mode rule and its
+# exponent.
+LAW_TS, LAW_GF1, LAW_GF2, LAW_MIX, LAW_MIX_EXP = range(OWN, OWN + 5)
+
+
+@dataclass(frozen=True, config=STRICT_DATACLASS)
+class BilinearLaw:
+    """Bilinear cohesive law, paper 004; Camanho-Davila mixed mode.
+
+    tensile_strength tn0 and shear_strength ts0 (Pa) are the nominal strengths (initiation when
+    max(<tn>/tn0, ts/ts0) = 1, the normal traction counted only in tension); fracture_energy GIc
+    and fracture_energy_shear GIIc (J/m^2, GIIc defaults to GIc) the energies a unit area
+    dissipates from intact to failed in pure mode I and II; normal_stiffness kn and
+    shear_stiffness ks (N/m^3: a value in N/mm^3 times 1e9) the initial stiffnesses per unit area,
+    also the contact penalties once failed. mixed_mode "bk" (Benzeggagh-Kenane, bk_exponent eta,
+    default 1.45) or "power" (power law, power_exponent alpha, default 2) gives Gc at a mode mix.
+    friction: Coulomb coefficient once failed.
+    """
+
+    tensile_strength: Positive
+    shear_strength: Positive
+    fracture_energy: Positive
+    normal_stiffness: Positive
+    shear_stiffness: Positive
+    fracture_energy_shear: Positive | None = None
+    mixed_mode: Literal["bk", "power"] = "bk"
+    bk_exponent: Positive | None = None
+    power_exponent: Positive | None = None
+    friction: NonNegative = 0.6
+    law: Literal["bilinear"] = "bilinear"
+
+    kind: ClassVar[int] = 1
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.mixed_mode == "bk" and self.power_exponent is not None:
+            raise ValueError('power_exponent is for mixed_mode = "power" (this law uses "bk": set bk_exponent)')
+        if self.mixed_mode == "power" and self.bk_exponent is not None:
+            raise ValueError('bk_exponent is for mixed_mode = "bk" (this law uses "power": set power_exponent)')
+        problem = snap_back(self)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+    @property
+    def gf_shear(self) -> float:
+        return self.fracture_energy if self.fracture_energy_shear is None else self.fracture_energy_shear
+
+    @property
+    def mixed_mode_exponent(self) -> float:
+        if self.mixed_mode == "bk":
+            return DEFAULT_BK_EXPONENT if self.bk_exponent is None else self.bk_exponent
+        return DEFAULT_POWER_EXPONENT if self.power_exponent is None else self.power_exponent
+
+    def table_row(self) -> np.ndarray:
+        row = new_row(self.kind, self.tensile_strength, self.friction)
+        row[LAW_TS] = self.shear_strength
+        row[LAW_GF1] = self.fracture_energy
+        row[LAW_GF2] = self.gf_shear
+        row[LAW_MIX] = MIX_BK if self.mixed_mode == "bk" else MIX_POWER
+        row[LAW_MIX_EXP] = self.mixed_mode_exponent
+        return row
+
+    def stiffness(self, youngs_modulus, shear_modulus, altitude):
+        """(kn, ks) for every interface, whatever the bulk and the mesh."""
+        ones = np.ones_like(np.asarray(altitude, dtype=float))
+        return self.normal_stiffness * ones, self.shear_stiffness * ones
+
+
+def snap_back(law) -> str | None:
+    """Why the law's softening would snap back (Gc below the elastic energy t0^2 / 2k at the
+    peak, so df < d0) in pure mode I or II, or None."""
+    for g, g_name, t0, t_name, k, k_name in (
+        (law.fracture_energy, "fracture_energy", law.tensile_strength, "tensile_strength", law.normal_stiffness, "normal_stiffness"),
+        (law.gf_shear, "fracture_energy_shear", law.shear_strength, "shear_strength", law.shear_stiffness, "shear_stiffness"),
+    ):
+        peak = t0 * t0 / (2.0 * k)
+        if g <= peak:
+            return (
+                f"{g_name} = {g:g} J/m^2 is not above the elastic energy at the peak, "
+                f"{t_name}^2 / (2 {k_name}) = {peak:g} J/m^2: the softening would snap back; "
+                f"raise {g_name} or {k_name}, or lower {t_name}"
+            )
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled pieces.
+
+
+@njit(cache=True, inline="always")
+def mixed_mode_energy(b, law):
+    """Critical energy Gc (J/m^2) at the energy mode ratio b = G_II / (G_I + G_II)."""
+    g1 = law[LAW_GF1]
+    g2 = law[LAW_GF2]
+    e = law[LAW_MIX_EXP]
+    if b <= 0.0:
+        return g1
+    if b >= 1.0:
+        return g2
+    if law[LAW_MIX] == MIX_BK:
+        return g1 + (g2 - g1) * b**e
+    return (((1.0 - b) / g1) ** e + (b / g2) ** e) ** (-1.0 / e)
+
+
+@njit(cache=True, inline="always")
+def bilinear_damage(dn, ds, kn, ks, law):
+    """Damage that the opening dn and slip magnitude ds alone give (0 up to initiation, 1 from
+    the final opening on) and the energy mode ratio B = G_II / G_T there."""
+    dnp = dn if dn > 0.0 else 0.0
+    en = kn * dnp * dnp
+    es = ks * ds * ds
+    e = en + es
+    if e <= 0.0:
+        return 0.0, 0.0
+    b = es / e
+    f_n = kn * dnp / law[LAW_FT]
+    f_s = ks * ds / law[LAW_TS]
+    f = f_n if f_n > f_s else f_s
+    if f <= 1.0:
+        return 0.0, b
+    dm = math.sqrt(dnp * dnp + ds * ds)
+    k = e / (dm * dm)
+    d0 = dm / f
+    df = 2.0 * mixed_mode_energy(b, law) / (k * d0)
+    # Set-up refuses pure-mode snap-back (Gc <= t0^2 / 2k); keep a mixed mode finite anyway.
+    if df < d0 * (1.0 + 1e-9):
+        df = d0 * (1.0 + 1e-9)
+    if dm >= df:
+        return 1.0, b
+    return df * (dm - d0) / (dm * (df - d0)), b
+
+
+@njit(cache=True, inline="always")
+def _potential(x, na, nb, i, area, kn, ks, nx, ny, nz):
+    """Sum over the 3 points of A/3 * (kn <dn>^2 + ks |s|^2) / 2: the undamaged energy in opening
+    and shear; the cohesive energy there is (1 - D) times it."""
+    total = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        if dn > 0.0:
+            total += kn * dn * dn
+        total += ks * (sx * sx + sy * sy + sz * sz)
+    return 0.5 * total * area / 3.0
+
+
+@njit(cache=True, inline="always")
+def _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz):
+    """_potential at the half step x - v dt / 2 (v: the velocities of the step that led to x): the
+    energy a damage step releases, booked there so that the audit of the explicit scheme closes
+    to second order in dt (at x itself it drifts by dD x half a step's work)."""
+    total = 0.0
+    h = 0.5 * dt
+    for p in range(3):
+        a = na[i, p]
+        b = nb[i, p]
+        dx = x[b, 0] - x[a, 0] - h * (v[b, 0] - v[a, 0])
+        dy = x[b, 1] - x[a, 1] - h * (v[b, 1] - v[a, 1])
+        dz = x[b, 2] - x[a, 2] - h * (v[b, 2] - v[a, 2])
+        dn = dx * nx + dy * ny + dz * nz
+        sx = dx - dn * nx
+        sy = dy - dn * ny
+        sz = dz - dn * nz
+        if dn > 0.0:
+            total += kn * dn * dn
+        total += ks * (sx * sx + sy * sy + sz * sz)
+    return 0.5 * total * area / 3.0
+
+
+@njit(cache=True, inline="always")
+def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+                law, kn, ks, nx, ny, nz):
+    """One step of intact interface i: damage from the centroid's effective opening
+    (irreversible), then the point tractions (1 - D) kn dn (kn dn in compression) and
+    (1 - D) ks s into force[i]. Returns False once the interface has failed (D = 1): the caller
+    then treats it as a failed pair in the same step."""
+    a3 = area / 3.0
+    dn_c, ds_c = centroid_opening(x, na, nb, i, nx, ny, nz)
+    d_old = damage[i]
+    d_new, mix = bilinear_damage(dn_c, ds_c, kn, ks, law)
+    d = d_old
+    if d_new > d_old:
+        d = d_new
+        damage[i] = d
+        # The stored energy the damage step releases (at the half step: see the function).
+        e_damage[i] += (d - d_old) * _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz)
+        if d >= 1.0:
+            state[i] = FAILED
+            fail_time[i] = t
+            fail_mode[i] = failure_mode(mix)  # the energy ratio G_II / G_T
+            return False  # its friction traction starts at zero: intact pairs never write it
+    s = 1.0 - d
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        sigma = kn * dn if dn < 0.0 else s * kn * dn
+        tx = s * ks * sx
+        ty = s * ks * sy
+        tz = s * ks * sz
+        force[i, p, 0] = -(sigma * nx + tx) * a3
+        force[i, p, 1] = -(sigma * ny + ty) * a3
+        force[i, p, 2] = -(sigma * nz + tz) * a3
+    return True
+
+
+@njit(cache=True, inline="always")
+def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, kn, ks, nx, ny, nz):
+    """Energy stored in intact interface i: the compression penalty and (1 - D) times the
+    undamaged energy in opening and shear."""
+    a3 = area / 3.0
+    comp = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        if dn < 0.0:
+            comp += 0.5 * kn * dn * dn * a3
+    return comp + (1.0 - damage[i]) * _potential(x, na, nb, i, area, kn, ks, nx, ny, nz)

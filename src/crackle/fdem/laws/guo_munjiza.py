@@ -1,0 +1,334 @@
+"""Guo-Munjiza interface law (paper 001, eqs 3 and 6-8): its parameters, its row of the law
+table, and its forces and stored energy on an intact interface, side by side.
+
+Model (per unit area, for one integration point of an interface):
+
+* Normal branch. Opening dn (positive = separation). Compression (dn < 0) is a penalty
+  sigma = p_n dn and never damages. In tension the undamaged curve is
+  sigma_el = f_t (2x - x^2), x = dn/dnp, up to the peak f_t at dnp = 2 f_t / p_n (the initial
+  slope equals the penalty p_n), and f_t beyond it.
+* Shear: an elastic spring p_s on the slip beyond a plastic slip, capped at z(D) f_s(sigma_n)
+  with f_s = c - sigma_n tan(phi) (eq. 3), sigma_n the point's normal stress capped by the
+  tension cut-off f_t; the excess becomes plastic slip and dissipates. (The paper's
+  f_s (2x - x^2) curve of the total slip has no potential when sigma_n varies and pumps energy
+  into a crushed zone.) Its peak opening dsp = 2 f_s / p_s sets the shear damage.
+* Damage D (eq. 8) from the interface's centroid opening and slip:
+  D = sqrt(Dn^2 + Ds^2), Dn = <dn - dnp> / (dnc - dnp), Ds = <ds - dsp> / (dsc - dsp), capped
+  at 1 and never decreasing. Stresses are z(D) times the undamaged curves (eq. 7 gives z).
+* Stored energy phi = Phi_comp(dn) + z(D) Phi_n(dn) + the shear spring's, with Phi the integrals
+  of the undamaged curves. Unloading is elastic along the damaged curve back to the origin, and
+  a damage step dissipates (z(D_old) - z(D_new)) Phi_n >= 0 plus what the falling shear cap
+  releases.
+* dnc is set so that a full mode-I separation dissipates exactly Gf:
+  (2/3) f_t dnp + f_t (dnc - dnp) Iz = Gf, Iz = integral of z over [0, 1] (0.3863 with the
+  default constants; the paper's d_c = 3 Gf / f is the same relation with Iz ~ 1/3 and dnp ~ 0).
+  The same holds in shear with Gf_II and f_s.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, ClassVar, Literal
+
+import numpy as np
+from numba import njit
+from pydantic import Field
+from pydantic.dataclasses import dataclass
+
+from ...schema import STRICT_DATACLASS, NonNegative, Positive
+from ...solver.failures import failure_mode
+from ..interface import opening
+from ..topology import FAILED
+from .row import LAW_FT, OWN, new_row
+
+# Softening constants of the Munjiza/Guo curve z(D) (paper 001, eq. 7), fitted to direct-tension
+# tests of concrete.
+DEFAULT_SOFTENING = (0.63, 1.8, 6.0)
+
+# Interface penalty: p_n = penalty_factor * E / h and p_s = penalty_factor * G / h, h the smaller
+# altitude of the two tets onto the shared face. Each interface then adds about 1/penalty_factor
+# of a tet's own compliance. Measured softening of the intact exploded mesh in uniaxial tension:
+# 2.7 % at 100, 1.4 % at 200, 0.3 % at 1000 (tests/test_fdem_elastic.py checks < 3 % at the
+# default). The price is the time step, which shrinks as 1/sqrt(penalty_factor) once the
+# interfaces are the stiffest part (the usual FDEM trade-off).
+DEFAULT_PENALTY_FACTOR = 200.0
+
+# The law's own columns of its table row.
+LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ = range(OWN, OWN + 8)
+
+
+@dataclass(frozen=True, config=STRICT_DATACLASS)
+class GuoMunjizaLaw:
+    """Guo-Munjiza interface law: Mohr-Coulomb with tension cut-off and z(D) softening (paper 001).
+
+    tensile_strength ft (Pa), cohesion c (Pa) and friction_angle phi (degrees) give the peaks:
+    f_t in tension and f_s = c - sigma_n tan(phi) in shear (eq. 3). fracture_energy Gf (mode I,
+    J/m^2) and fracture_energy_shear (mode II, defaults to Gf) are the energies one unit area
+    dissipates from intact to failed. softening: the constants (a, b, c) of z(D). friction: the
+    Coulomb coefficient between the faces once failed. penalty_factor: p_n = factor E / h.
+    """
+
+    tensile_strength: Positive
+    cohesion: Positive
+    friction_angle: Annotated[float, Field(ge=0, lt=90)]
+    fracture_energy: Positive
+    fracture_energy_shear: Positive | None = None
+    softening: tuple[Positive, Positive, Positive] = DEFAULT_SOFTENING
+    friction: NonNegative = 0.6
+    penalty_factor: Positive = DEFAULT_PENALTY_FACTOR
+    law: Literal["guo-munjiza"] = "guo-munjiza"
+
+    kind: ClassVar[int] = 0
+
+    @property
+    def gf_shear(self) -> float:
+        return self.fracture_energy if self.fracture_energy_shear is None else self.fracture_energy_shear
+
+    @property
+    def softening_area(self) -> float:
+        return softening_integral(*self.softening)
+
+    def table_row(self) -> np.ndarray:
+        row = new_row(self.kind, self.tensile_strength, self.friction)
+        row[LAW_C] = self.cohesion
+        row[LAW_TANPHI] = np.tan(np.radians(self.friction_angle))
+        row[LAW_GF1] = self.fracture_energy
+        row[LAW_GF2] = self.gf_shear
+        row[LAW_A], row[LAW_B], row[LAW_CS] = self.softening
+        row[LAW_IZ] = self.softening_area
+        return row
+
+    def stiffness(self, youngs_modulus, shear_modulus, altitude):
+        """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude."""
+        return self.penalty_factor * youngs_modulus / altitude, self.penalty_factor * shear_modulus / altitude
+
+
+def softening_z(damage: float, a: float, b: float, c: float) -> float:
+    """Remaining fraction of strength at damage D in [0, 1] (paper 001, eq. 7)."""
+    d = min(max(damage, 0.0), 1.0)
+    decay = 1.0 - (a + b - 1.0) / (a + b) * math.exp(d * (a + c * b) / ((a + b) * (1.0 - a - b)))
+    return decay * (a * (1.0 - d) + b * (1.0 - d) ** c)
+
+
+def softening_integral(a: float, b: float, c: float, n: int = 2000) -> float:
+    """Integral of z(D) over D in [0, 1] (Simpson); 0.3863 for the default constants.
+
+    The paper approximates it by 1/3 to get d_c = 3 Gf / f (eq. 5); we use the exact value so
+    that a full separation dissipates exactly Gf.
+    """
+    h = 1.0 / n
+    s = softening_z(0.0, a, b, c) + softening_z(1.0, a, b, c)
+    for i in range(1, n):
+        s += (4 if i % 2 else 2) * softening_z(i * h, a, b, c)
+    return s * h / 3.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled pieces.
+
+
+@njit(cache=True, inline="always")
+def softening(d, a, b, c):
+    if d <= 0.0:
+        return 1.0
+    if d >= 1.0:
+        return 0.0
+    decay = 1.0 - (a + b - 1.0) / (a + b) * math.exp(d * (a + c * b) / ((a + b) * (1.0 - a - b)))
+    return decay * (a * (1.0 - d) + b * (1.0 - d) ** c)
+
+
+@njit(cache=True, inline="always")
+def peak_curve(delta, peak, delta_p):
+    """Undamaged curve f (2x - x^2) up to the peak at delta_p, flat f beyond; delta >= 0."""
+    if delta >= delta_p:
+        return peak
+    x = delta / delta_p
+    return peak * (2.0 * x - x * x)
+
+
+@njit(cache=True, inline="always")
+def peak_curve_energy(delta, peak, delta_p):
+    """Integral of peak_curve from 0 to delta."""
+    if delta >= delta_p:
+        return peak * delta_p * (2.0 / 3.0) + peak * (delta - delta_p)
+    x = delta / delta_p
+    return peak * delta_p * (x * x - x * x * x / 3.0)
+
+
+# Energy per unit area up to the start of softening, over peak x delta_p: the normal branch's
+# pre-peak curve f (2x - x^2) holds 2/3; the shear branch (elastic ps up to the cap at delta_p / 2,
+# then the cap) 1/4 + 1/2.
+PRE_PEAK_NORMAL = 2.0 / 3.0
+PRE_PEAK_SHEAR = 3.0 / 4.0
+
+
+@njit(cache=True, inline="always")
+def critical_opening(peak, delta_p, gf, iz, pre_peak):
+    """Opening at which the softening curve reaches zero, so that the full curve holds gf."""
+    soft = gf - peak * delta_p * pre_peak
+    # A penalty so soft that the pre-peak part alone exceeds gf: keep a short softening branch
+    # (set-up warns about this case).
+    if soft < 0.05 * gf:
+        soft = 0.05 * gf
+    return delta_p + soft / (peak * iz)
+
+
+@njit(cache=True, inline="always")
+def shear_strength(sigma_n, law):
+    """Mohr-Coulomb with tension cut-off (eq. 3): sigma_n tension-positive, capped at f_t."""
+    s = sigma_n
+    if s > law[LAW_FT]:
+        s = law[LAW_FT]
+    fs = law[LAW_C] - s * law[LAW_TANPHI]
+    # Keep a small positive strength so that dsp stays finite.
+    floor = 1e-6 * law[LAW_C] + 1e-12
+    return fs if fs > floor else floor
+
+
+@njit(cache=True, inline="always")
+def normal_stress(dn, pn, z, law):
+    """Normal stress (tension positive) at opening dn for penalty pn and softening factor z."""
+    if dn < 0.0:
+        return pn * dn
+    dnp = 2.0 * law[LAW_FT] / pn
+    return z * peak_curve(dn, law[LAW_FT], dnp)
+
+
+@njit(cache=True, inline="always")
+def _opening_energy(dn, ft, dnp):
+    """Phi_n(dn): the undamaged normal free energy per unit area at opening dn (none in
+    compression, which is the separate penalty)."""
+    return peak_curve_energy(dn, ft, dnp) if dn > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz):
+    """Sum over the 3 points of A/3 * Phi_n(dn), the undamaged normal free energy in opening;
+    the cohesive energy in opening is z(D) times it."""
+    ft = law[LAW_FT]
+    dnp = 2.0 * ft / pn
+    total = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        total += _opening_energy(dn, ft, dnp)
+    return total * area / 3.0
+
+
+@njit(cache=True, inline="always")
+def _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps):
+    """Elastic shear traction ps (s - s_p) of point p of intact interface i: slip s beyond its
+    plastic slip s_p, which is kept in the global frame and projected on the current tangent plane
+    (it only grows on a damaging interface, whose rotation before failure is small)."""
+    px = slip_plastic[i, p, 0]
+    py = slip_plastic[i, p, 1]
+    pz = slip_plastic[i, p, 2]
+    pdn = px * nx + py * ny + pz * nz
+    return ps * (sx - px + pdn * nx), ps * (sy - py + pdn * ny), ps * (sz - pz + pdn * nz)
+
+
+@njit(cache=True, inline="always")
+def _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, cap, cap_before):
+    """Shear traction of point p of intact interface i from its total slip s: the spring ps on
+    s - s_p, returned onto the cap z(D) f_s(sigma_n) (the excess becomes plastic slip), and the
+    energy the return dissipates per unit area. Written from the total slip, it needs no
+    velocities and no stored traction: while the interface sticks, the shear costs one read of s_p.
+
+    The dissipation splits the excess of the trial traction t over the cap like an incremental
+    update would: the part below cap_before (the cap before this step's damage) is stored energy
+    the falling cap releases, (t_c^2 - cap^2) / 2 ps; the rest is slip at the cap,
+    cap (t - max(t_c, cap)) / ps. Exact for a pure cap drop and for pure sliding."""
+    tx, ty, tz = _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps)
+    t2 = tx * tx + ty * ty + tz * tz
+    cap2 = cap * cap
+    if t2 <= cap2:
+        return tx, ty, tz, 0.0
+    t_trial = math.sqrt(t2)
+    t_carried = min(t_trial, cap_before)
+    lost = 0.0
+    if t_carried > cap:
+        lost = (t_carried * t_carried - cap2) / (2.0 * ps)
+    lost += cap * (t_trial - max(t_carried, cap)) / ps
+    scale = cap / t_trial
+    tx *= scale
+    ty *= scale
+    tz *= scale
+    slip_plastic[i, p, 0] = sx - tx / ps
+    slip_plastic[i, p, 1] = sy - ty / ps
+    slip_plastic[i, p, 2] = sz - tz / ps
+    return tx, ty, tz, lost
+
+
+@njit(cache=True, inline="always")
+def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+                law, pn, ps, nx, ny, nz):
+    """One step of intact interface i: damage from the centroid opening and slip (eq. 8,
+    irreversible), the point tractions into force[i] (B side; A gets their negatives), the energy
+    the step dissipates into e_damage[i]. Always True: a face that fails this step still carries
+    its compression and releases its shear spring here."""
+    a3 = area / 3.0
+    # The three point openings, read once (the stores below may alias x for the compiler, so it
+    # would reload them).
+    dn0, s0x, s0y, s0z = opening(x, na, nb, i, 0, nx, ny, nz)
+    dn1, s1x, s1y, s1z = opening(x, na, nb, i, 1, nx, ny, nz)
+    dn2, s2x, s2y, s2z = opening(x, na, nb, i, 2, nx, ny, nz)
+    dn_c = (dn0 + dn1 + dn2) / 3.0
+    sx_c = (s0x + s1x + s2x) / 3.0
+    sy_c = (s0y + s1y + s2y) / 3.0
+    sz_c = (s0z + s1z + s2z) / 3.0
+    ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
+    a, b, c = law[LAW_A], law[LAW_B], law[LAW_CS]
+    d_old = damage[i]
+    z_old = softening(d_old, a, b, c)
+    ft = law[LAW_FT]
+    dnp = 2.0 * ft / pn
+    dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ], PRE_PEAK_NORMAL)
+    fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
+    dsp = 2.0 * fs_c / ps
+    dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR)
+    d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
+    d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
+    d_new = math.sqrt(d_n * d_n + d_s * d_s)
+    if d_new > 1.0:
+        d_new = 1.0
+    z = z_old
+    if d_new > d_old:
+        z = softening(d_new, a, b, c)
+        damage[i] = d_new
+        # Energy released by the damage step at the current opening (the shear spring releases
+        # its part through the cap, below).
+        e_damage[i] += (z_old - z) * a3 * (
+            _opening_energy(dn0, ft, dnp) + _opening_energy(dn1, ft, dnp) + _opening_energy(dn2, ft, dnp)
+        )
+        if d_new >= 1.0:
+            state[i] = FAILED
+            fail_time[i] = t
+            fail_mode[i] = failure_mode(d_s * d_s / (d_n * d_n + d_s * d_s))
+    # Shear: the spring capped at z(D) f_s(sigma_n); the cap dissipates (at failure z = 0 releases
+    # what the spring still holds).
+    lost = 0.0
+    for p, dn, sx, sy, sz in ((0, dn0, s0x, s0y, s0z), (1, dn1, s1x, s1y, s1z), (2, dn2, s2x, s2y, s2z)):
+        sigma = normal_stress(dn, pn, z, law)
+        fs = shear_strength(sigma, law)
+        tx, ty, tz, released = _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, z * fs, z_old * fs)
+        lost += released
+        force[i, p, 0] = -(sigma * nx + tx) * a3
+        force[i, p, 1] = -(sigma * ny + ty) * a3
+        force[i, p, 2] = -(sigma * nz + tz) * a3
+    e_damage[i] += lost * a3
+    return True
+
+
+@njit(cache=True, inline="always")
+def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz):
+    """Energy stored in intact interface i: compression penalty, shear springs and z(D) times the
+    undamaged normal energy in opening."""
+    a3 = area / 3.0
+    z = softening(damage[i], law[LAW_A], law[LAW_B], law[LAW_CS])
+    springs = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        if dn < 0.0:
+            springs += 0.5 * pn * dn * dn * a3
+        tx, ty, tz = _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps)
+        springs += 0.5 * (tx * tx + ty * ty + tz * tz) / ps * a3
+    return springs + z * _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz)

@@ -1,0 +1,123 @@
+"""FDEM's scenario sections and the build of a validated scenario into an FdemSimulation."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import Discriminator, Tag, model_validator
+
+from ..analysis import CrackSettings, FracturePlane
+from ..geometry import MeshError
+from ..geometry.specimens import specimen_mesh
+from ..loading import Precrack
+from ..loading.build import build_loading, touch_specimen
+from ..materials import Material
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
+from .laws import LAWS
+from .model import build_fdem_model
+from .simulation import FdemSimulation
+
+
+def _law_tag(value):
+    law = value.get("law", "guo-munjiza") if isinstance(value, dict) else getattr(value, "law", "guo-munjiza")
+    return law if law in LAWS else None
+
+
+# [material.interface]: one of the laws by its `law` name ("guo-munjiza" when left out); each
+# law's parameter class is its own schema.
+InterfaceSpec = Annotated[
+    Union[tuple(Annotated[cls, Tag(name)] for name, cls in LAWS.items())],
+    Discriminator(
+        _law_tag,
+        custom_error_type="law",
+        custom_error_message="law must be one of " + ", ".join(f'"{name}"' for name in LAWS),
+    ),
+]
+
+
+class FdemMaterialSpec(ElasticSpec):
+    interface: InterfaceSpec
+
+
+class Scenario(ScenarioBase):
+    """An FDEM scenario: a tet specimen, its material with an interface law, pre-cracks."""
+
+    method: Literal["fdem"] = "fdem"
+    specimen: Specimen
+    material: FdemMaterialSpec
+    # walnut: the suture band's own material (same keys as [material]); without it the suture
+    # is [material] too and differs only by its wall thickness
+    suture: FdemMaterialSpec | None = None
+    precracks: list[PrecrackSpec] = []
+
+    @model_validator(mode="after")
+    def _fdem_checks(self):
+        if self.suture is not None and self.specimen.shape not in ("walnut", "shell"):
+            raise ValueError(f"[suture] is for specimen shapes 'walnut' and 'shell' (this one is '{self.specimen.shape}')")
+        if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
+            raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
+        cracks = self.analysis.cracks
+        if cracks is not None and cracks.wall is None and self.specimen.shape not in ("walnut", "shell"):
+            raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only walnut and shell specimens know their own)")
+        return self
+
+
+def build_material(spec: FdemMaterialSpec) -> Material:
+    return Material(
+        density=spec.density,
+        youngs_modulus=spec.youngs_modulus,
+        poissons_ratio=spec.poissons_ratio,
+        name=spec.name,
+        interface=spec.interface,
+    )
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
+    """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
+    tools, supports, pressures = build_loading(scenario, base)
+    try:
+        mesh, region = specimen_mesh(scenario.specimen, base)
+    except MeshError as err:
+        raise ScenarioError(f"specimen: {err}") from None
+    tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, scenario.all_tools())]
+    material = build_material(scenario.material)
+    tet_material = None
+    if region is not None and scenario.suture is not None:
+        # Material 1 on the suture tets; a face-suture interface takes the weaker law.
+        material = [material, build_material(scenario.suture)]
+        tet_material = region
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the model keeps its warnings for the summary
+            model = build_fdem_model(
+                mesh,
+                material,
+                tet_material,
+                tools=tools,
+                supports=supports,
+                pressures=pressures,
+                precracks=[Precrack(c.point, c.normal, c.box_min, c.box_max, c.tol) for c in scenario.precracks],
+                gravity=scenario.run.gravity,
+                damping=scenario.run.damping,
+                initial_velocity=scenario.specimen.initial_velocity,
+                contact=scenario.run.contact,
+            )
+    except (ValueError, MeshError) as err:
+        raise ScenarioError(str(err)) from None
+    sim = FdemSimulation(model)
+    plane = scenario.analysis.fracture_plane
+    if plane is not None:
+        size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
+        tol = plane.tol if plane.tol is not None else 1e-6 * size
+        sim.fracture_plane = FracturePlane(plane.point, plane.normal, plane.direction, tol)
+    cracks = scenario.analysis.cracks
+    if cracks is not None:
+        sim.crack_settings = CrackSettings(
+            wall=cracks.wall if cracks.wall is not None else scenario.specimen.wall,
+            scale=cracks.scale if cracks.scale is not None else 2.0 * model.element_size,
+            top=cracks.top,
+        )
+    return sim

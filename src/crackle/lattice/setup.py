@@ -1,0 +1,111 @@
+"""The lattice's scenario section and its build into a LatticeSimulation.
+
+[lattice]: a box `size` (m) from `origin` filled with nodes at `spacing`; each node is joined to
+its 6 axial and 12 face-diagonal neighbours by springs of one stiffness k. For such a lattice
+C11 = 3k/a, C12 = C44 = k/a, so E = 2.5 k/a and nu = 1/4: k = 0.4 E a reproduces the
+[material]'s Young's modulus (its Poisson's ratio is not free here). A spring stretched by more
+than `break_strain` breaks (a tension failure). Nodes meet tools at `contact_radius` (default half
+the spacing) with a contact area spacing^2.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from ..loading.arrays import tool_arrays
+from ..loading.build import build_loading
+from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
+from ..schema import NonNegative, Positive, Strict, Vec3
+from ..solver.integrator import support_constraints
+from .kernels import Nodes, Springs
+from .simulation import LatticeSimulation
+
+# Tool penalty per unit contact area: factor x E / spacing (FDEM uses the same factor).
+TOOL_PENALTY_FACTOR = 10.0
+
+
+class LatticeSpec(Strict):
+    size: tuple[Positive, Positive, Positive]
+    spacing: Positive
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    break_strain: Positive = math.inf
+    contact_radius: NonNegative | None = None  # m; default spacing / 2
+
+
+class Scenario(ScenarioBase):
+    method: Literal["lattice"]
+    lattice: LatticeSpec
+    material: ElasticSpec
+
+
+def lattice_arrays(spec: LatticeSpec, material: ElasticSpec):
+    """Node positions, lumped masses, springs (a, b, rest length) of the lattice."""
+    counts = [int(round(L / spec.spacing)) + 1 for L in spec.size]
+    if min(counts) < 2:
+        raise ScenarioError("lattice.spacing: larger than the lattice; give at least two nodes along every side")
+    a = spec.spacing
+    ijk = np.stack(np.meshgrid(*[np.arange(n) for n in counts], indexing="ij"), axis=-1).reshape(-1, 3)
+    x = np.asarray(spec.origin, float) + a * ijk
+    # Lumped mass: a node on a face, edge or corner owns a half, quarter or eighth of a cell.
+    share = np.prod(np.where((ijk == 0) | (ijk == np.array(counts) - 1), 0.5, 1.0), axis=1)
+    mass = material.density * a**3 * share
+    index = np.full(counts, -1, dtype=np.int64)
+    index[tuple(ijk.T)] = np.arange(len(ijk))
+    offsets = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1), (0, 1, 1), (0, 1, -1)]
+    pairs = []
+    for off in offsets:
+        other = ijk + np.array(off)
+        ok = np.all((other >= 0) & (other < np.array(counts)), axis=1)
+        pairs.append(np.stack([np.flatnonzero(ok), index[tuple(other[ok].T)]], axis=1))
+    pairs = np.concatenate(pairs)
+    rest = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+    return x, mass, pairs, rest
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSimulation:
+    spec = scenario.lattice
+    tools, supports, pressures = build_loading(scenario, base)
+    if pressures:
+        raise ScenarioError("pressures: the lattice has no faces to load; remove [[pressures]]")
+    x, mass, pairs, rest = lattice_arrays(spec, scenario.material)
+    n, n_spring = len(x), len(pairs)
+    k = np.full(n_spring, 0.4 * scenario.material.youngs_modulus * spec.spacing)
+    scale = float(max(spec.size))
+    try:
+        constraint, projection = support_constraints(supports, x, scale)
+    except ValueError as err:
+        raise ScenarioError(f"supports: {err}") from None
+    # Node -> (spring, sign) CSR in spring order: the spring force acts on b, its negative on a.
+    ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    signs = np.concatenate([-np.ones(n_spring), np.ones(n_spring)])
+    ids = np.concatenate([np.arange(n_spring), np.arange(n_spring)])
+    order = np.lexsort((ids, ends))
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(start, ends + 1, 1)
+    springs = Springs(
+        a=pairs[:, 0].copy(), b=pairs[:, 1].copy(), rest=rest, k=k, intact=np.ones(n_spring, dtype=np.bool_),
+        fail_time=np.full(n_spring, np.nan), fail_mode=np.zeros(n_spring, dtype=np.int8), e_damage=np.zeros(n_spring),
+        force=np.zeros((n_spring, 3)), node_start=np.cumsum(start), node_spring=ids[order], node_sign=signs[order],
+    )
+    area = np.full(n, spec.spacing**2)
+    penalty = TOOL_PENALTY_FACTOR * scenario.material.youngs_modulus / spec.spacing
+    tool_table = tool_arrays(tools, penalty, spec.spacing, n)
+    nodes = Nodes(
+        x=x, v=np.zeros((n, 3)), mass=mass, area=area, constraint=constraint,
+        projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
+        friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
+    )
+    # Stable step (Gershgorin per node): 2 sqrt(m / sum of its spring and tool stiffnesses).
+    k_node = np.zeros(n)
+    np.add.at(k_node, ends, np.concatenate([k, k]))
+    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
+    stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
+    radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
+    return LatticeSimulation(
+        nodes, springs, tool_table, [t.name for t in tools], radius, spec.break_strain, stable_dt,
+        np.asarray(scenario.run.gravity, float), scenario.run.damping,
+    )

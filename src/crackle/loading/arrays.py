@@ -1,0 +1,141 @@
+"""The loading descriptions (tools, histories) turned into the flat arrays that the compiled step
+of any method reads (see loading.tools)."""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
+
+Tools = namedtuple(
+    "Tools",
+    "kind geom disp direction times speeds n mu penalty impulse surf_grid surf_cell_start surf_cell_tris surf_tri",
+)
+# kind, geom (12 numbers, see Tool.geometry_row), disp (current displacement), direction (unit),
+# times / speeds / n (the speed history table), mu (Coulomb), penalty (N/m^3 per unit contact
+# area), impulse (tool, slot, 3): force x dt summed since the load cell last read it, one slot per
+# block of points that a parallel pass owns.
+# Surface tools (shape "surface"), all of them concatenated: surf_tri (k, SURF_TRI_COLUMNS)
+# triangle rows in each tool's own frame; per tool a uniform grid over the triangles' boxes
+# inflated by the contact depth, in CSR form: surf_grid[j] = (cells along x, y, z, first entry
+# of tool j in surf_cell_start); surf_cell_start[first + c] .. [first + c + 1] delimits cell c's
+# triangles (rows of surf_tri) in surf_cell_tris. Built once: the tools only translate.
+
+SHAPE_CODES = {
+    "plane": TOOL_PLANE,
+    "box": TOOL_BOX,
+    "cylinder": TOOL_CYLINDER,
+    "sphere": TOOL_SPHERE,
+    "surface": TOOL_SURFACE,
+}
+
+
+def tool_arrays(tools, default_penalty: float, contact_depth: float, impulse_slots: int) -> Tools:
+    """Arrays of `tools` (a list of loading.Tool). A tool without its own penalty gets
+    `default_penalty`; a point deeper than `contact_depth` behind a surface tool's triangle is not
+    its contact (keeps the far side of a thin tool apart); `impulse_slots` is the number of
+    parallel slots of the load-cell impulse (the method's blocks, or one per element)."""
+    kind = np.array([SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
+    geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
+    direction = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
+    times, speeds, counts = history_tables([t.speed for t in tools])
+    mu = np.array([t.friction for t in tools], dtype=float)
+    penalty = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
+    surf = _surface_tool_grids(tools, geom, contact_depth)
+    return Tools(
+        kind, geom, np.zeros((len(tools), 3)), direction, times, speeds, counts, mu, penalty,
+        impulse=np.zeros((len(tools), impulse_slots, 3)), **surf,
+    )
+
+
+def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
+    """Triangle rows and static contact grids of the surface tools (see `Tools`); fills each
+    surface tool's geom row with its grid origin, 1 / cell size and contact depth."""
+    grids = np.zeros((len(tools), 4), dtype=np.int64)
+    starts = [np.zeros(1, dtype=np.int64)]
+    cell_tris = []
+    rows = []
+    n_tri = 0
+    n_entries = 0
+    for j, tool in enumerate(tools):
+        if tool.shape != "surface":
+            continue
+        v, t = tool.vertices, tool.triangles
+        p0, p1, p2 = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+        e1, e2 = p1 - p0, p2 - p0
+        normal = np.cross(e1, e2)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        d00 = np.einsum("ij,ij->i", e1, e1)
+        d01 = np.einsum("ij,ij->i", e1, e2)
+        d11 = np.einsum("ij,ij->i", e2, e2)
+        row = np.empty((len(t), SURF_TRI_COLUMNS))
+        row[:, 0:3], row[:, 3:6], row[:, 6:9], row[:, 9:12] = p0, e1, e2, normal
+        row[:, 12], row[:, 13], row[:, 14] = d00, d01, d11
+        row[:, 15] = 1.0 / (d00 * d11 - d01 * d01)
+        rows.append(row)
+
+        # Boxes of the triangles widened by the barycentric tolerance, then by the depth.
+        lo = np.minimum(np.minimum(p0, p1), p2)
+        hi = np.maximum(np.maximum(p0, p1), p2)
+        size = hi - lo
+        pad = depth + 2.0 * BARY_TOL * size.max(axis=1, keepdims=True)
+        lo, hi = lo - pad, hi + pad
+        origin = lo.min(axis=0)
+        span = hi.max(axis=0) - origin
+        # Cell: the median triangle size (or the depth), grown until the grid and its entries
+        # stay within a few times the triangle count.
+        cell = max(float(np.median(size.max(axis=1))), depth)
+        while True:
+            dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
+            i_lo = np.clip(np.floor((lo - origin) / cell).astype(np.int64), 0, dims - 1)
+            i_hi = np.clip(np.floor((hi - origin) / cell).astype(np.int64), 0, dims - 1)
+            count = np.prod(i_hi - i_lo + 1, axis=1)
+            if np.prod(dims) <= 8 * len(t) + 4096 and count.sum() <= 32 * len(t) + 4096:
+                break
+            cell *= 1.5
+        # Every (triangle, cell) pair, triangles ascending within a cell: a fixed candidate order.
+        tri_of = np.repeat(np.arange(len(t)), count)
+        local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        ext = (i_hi - i_lo + 1)[tri_of]
+        k = i_lo[tri_of, 2] + local % ext[:, 2]
+        rest = local // ext[:, 2]
+        jj = i_lo[tri_of, 1] + rest % ext[:, 1]
+        ii = i_lo[tri_of, 0] + rest // ext[:, 1]
+        cell_id = (ii * dims[1] + jj) * dims[2] + k
+        order = np.argsort(cell_id, kind="stable")
+        per_cell = np.bincount(cell_id, minlength=int(np.prod(dims)))
+        grids[j, 0:3] = dims
+        grids[j, 3] = sum(len(a) for a in starts) - 1
+        starts.append(n_entries + np.cumsum(per_cell))
+        cell_tris.append(n_tri + tri_of[order])
+        n_tri += len(t)
+        n_entries += len(order)
+        geom[j, 0:3] = origin
+        geom[j, 3] = 1.0 / cell
+        geom[j, 4] = depth
+    return {
+        "surf_grid": grids,
+        "surf_cell_start": np.concatenate(starts),
+        "surf_cell_tris": np.concatenate(cell_tris) if cell_tris else np.zeros(0, dtype=np.int64),
+        "surf_tri": np.concatenate(rows) if rows else np.zeros((0, SURF_TRI_COLUMNS)),
+    }
+
+
+def history_tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Piecewise-linear histories padded into (k, n) time and value tables plus point counts
+    (what loading.tools.interp_history reads)."""
+    k = len(histories)
+    n = max((len(h.times) for h in histories), default=1)
+    times = np.zeros((k, n))
+    values = np.zeros((k, n))
+    counts = np.zeros(k, dtype=np.int64)
+    for i, h in enumerate(histories):
+        c = len(h.times)
+        times[i, :c] = h.times
+        values[i, :c] = h.values
+        times[i, c:] = h.times[-1]
+        values[i, c:] = h.values[-1]
+        counts[i] = c
+    return times, values, counts

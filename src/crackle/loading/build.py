@@ -1,0 +1,125 @@
+"""Scenario sections (tools, plates, loading angle, supports, pressures) turned into the
+method-agnostic loading descriptions of crackle.loading; every method builds from these."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..scenario import ScenarioError, resolve_path
+from . import History, Pressure, Selection, Support, Tool, load_surface
+
+
+def _history_of(spec) -> History:
+    if spec.speed_table is not None:
+        return History(tuple(spec.speed_table.time), tuple(spec.speed_table.speed))
+    return History.ramp(spec.speed, spec.ramp_time)
+
+
+def selection(where) -> Selection:
+    return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol)
+
+
+def rotation_matrix(angle_deg: float, axis) -> np.ndarray:
+    """Right-handed rotation by `angle_deg` degrees about `axis` (Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    k = k / np.linalg.norm(k)
+    a = math.radians(angle_deg)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * (K @ K)
+
+
+def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
+    """Tools of a scenario; `loading` (a LoadingSpec) rotates all of them rigidly about its
+    axis through its center: positions, directions, normals, axes and surface vertices."""
+    R = None
+    if loading is not None and loading.angle % 360.0 != 0.0:
+        R = rotation_matrix(loading.angle, loading.axis)
+        c0 = np.asarray(loading.center, dtype=float)
+
+    def vec(v):
+        return v if R is None else tuple(float(x) for x in R @ np.asarray(v, dtype=float))
+
+    def point(p):
+        return p if R is None else tuple(float(x) for x in c0 + R @ (np.asarray(p, dtype=float) - c0))
+
+    tools = []
+    for i, t in enumerate(specs):
+        surface = {}
+        if t.shape == "surface":
+            path = resolve_path(t.file, base)
+            try:
+                vertices, triangles = load_surface(path, scale=t.scale, offset=t.offset)
+            except ValueError as err:  # MeshError included
+                raise ScenarioError(f"tools.{i}.file: {err}") from None
+            if R is not None:
+                vertices = c0 + (np.asarray(vertices, dtype=float) - c0) @ R.T
+            surface = {"surface": str(path), "vertices": vertices, "triangles": triangles}
+        tools.append(
+            Tool(
+                name=t.name,
+                shape=t.shape,
+                direction=vec(t.direction),
+                speed=_history_of(t),
+                friction=t.friction,
+                center=point(t.center),
+                normal=vec(t.normal),
+                size=t.size,
+                axes=(vec(t.axes[0]), vec(t.axes[1])),
+                axis=vec(t.axis),
+                radius=t.radius,
+                length=t.length,
+                penalty=t.penalty,
+                **surface,
+            )
+        )
+    return tools
+
+
+def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
+    """The tool shifted along its direction so that its leading extreme along the direction lies
+    on the specimen's extreme point along it: a platen placed on the mesh as meshed, whatever
+    the facets of a curved surface and the loading angle."""
+    d = np.asarray(tool.direction, dtype=float)
+    d /= np.linalg.norm(d)
+    c = np.asarray(tool.center, dtype=float)
+    if tool.shape == "sphere":
+        lead = float(c @ d) + tool.radius
+    else:  # box: the corner furthest along d
+        a1 = np.asarray(tool.axes[0], dtype=float)
+        a1 /= np.linalg.norm(a1)
+        a2 = np.asarray(tool.axes[1], dtype=float)
+        a2 = a2 - (a2 @ a1) * a1
+        a2 /= np.linalg.norm(a2)
+        a3 = np.cross(a1, a2)
+        half = 0.5 * np.asarray(tool.size, dtype=float)
+        lead = float(c @ d) + sum(h * abs(float(a @ d)) for h, a in zip(half, (a1, a2, a3)))
+    shift = float(np.min(points @ d)) - lead
+    return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
+
+
+def build_pressures(specs, end_time: float) -> list[Pressure]:
+    out = []
+    for p in specs:
+        if p.rate is not None:
+            history = History.rate(p.rate, end_time)
+        elif p.table is not None:
+            history = History(tuple(p.table.time), tuple(p.table.speed))
+        else:
+            history = History.ramp(p.value, p.ramp_time)
+        out.append(Pressure(history, "precrack" if p.faces == "precrack" else selection(p.where)))
+    return out
+
+
+def build_supports(specs) -> list[Support]:
+    return [Support(s.kind, selection(s.where), s.normal) for s in specs]
+
+
+def build_loading(scenario, base: Path | None):
+    """The tools (before meshing: a bad surface file fails fast), supports and pressures of a
+    scenario."""
+    tools = build_tools(scenario.all_tools(), base, scenario.loading)
+    return tools, build_supports(scenario.supports), build_pressures(scenario.pressures, scenario.run.end_time)

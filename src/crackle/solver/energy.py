@@ -1,0 +1,38 @@
+"""The energy audit, shared by every method: external work (tools, pressures, gravity, initial
+kinetic energy) = kinetic + stored (elastic, cohesive, contact) + dissipated (damage, friction,
+damping). Each method reports its terms as `energy.*` history columns; this module is the one
+place that turns them into an imbalance."""
+
+from __future__ import annotations
+
+import numpy as np
+
+EXTERNAL = "energy.external"
+PREFIX = "energy."
+
+
+def _accounted(terms):
+    """The sum of every energy term but the external work."""
+    return sum(v for k, v in terms.items() if k.startswith(PREFIX) and k != EXTERNAL)
+
+
+def imbalance(terms):
+    """external - the sum of every other energy term, from a mapping of `energy.*` values (a
+    history row, or whole history columns: then per row)."""
+    return terms[EXTERNAL] - _accounted(terms)
+
+
+def relative_imbalance(terms) -> float:
+    """imbalance / external work: for a single state with work put in."""
+    return imbalance(terms) / terms[EXTERNAL]
+
+
+def energy_error(history: dict[str, np.ndarray]) -> float:
+    """Relative imbalance at the end of a history: imbalance / the largest energy seen (the
+    external work or the sum of the other terms)."""
+    if EXTERNAL not in history or not any(k.startswith(PREFIX) and k != EXTERNAL for k in history):
+        return 0.0
+    ext = history[EXTERNAL]
+    rest = _accounted(history)
+    scale = max(float(np.max(np.abs(ext))), float(np.max(np.abs(rest))), 1e-300)
+    return float((ext[-1] - rest[-1]) / scale)

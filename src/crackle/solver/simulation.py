@@ -1,0 +1,53 @@
+"""What a method gives the driver (solver.run): the Simulation protocol."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+
+class Simulation(Protocol):
+    """One method's model and its compiled step, as the driver sees it.
+
+    Histories: `sample` returns one row of history.csv (without `time`): `tool.NAME.f*` (the
+    load cell's mean force over the interval since the last sample) and `tool.NAME.u*`, every
+    `energy.*` term of the audit (solver.energy), `broken`, and anything the method adds.
+    Events: `new_events` reports each failure once (solver.failures.FailureRecorder).
+    """
+
+    method: str  # the registered name (crackle.methods)
+    stable_dt: float  # largest stable step (s), without safety factor
+    time: float  # simulated time reached (s)
+    steps: int  # steps taken
+    broken: int  # bonds, links or interfaces failed so far
+
+    def advance(self, n_steps: int, dt: float) -> None:
+        """n_steps compiled steps; state updated in place; time = steps x dt."""
+
+    def state_is_finite(self) -> bool:
+        """False once positions or velocities hold inf or nan."""
+
+    def sample(self, dt: float) -> dict[str, float]:
+        """One history row at the current time."""
+
+    def new_events(self) -> tuple[np.ndarray, np.ndarray, list[str], np.ndarray]:
+        """Failures since the last call: times, positions (k, 3), mode names, ids."""
+
+    def fields(self) -> dict:
+        """Arrays for a ParaView snapshot: `points`, `point_data` ({name: per-point array}) and
+        `blocks`, a list of (meshio cell type, connectivity, {name: per-cell array})."""
+
+    def tool_names(self) -> list[str]:
+        """Names of the tools, in the order of their history columns."""
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corner of the specimen at set-up (for plots)."""
+
+    def summary(self) -> dict:
+        """Set-up facts and final results for summary.json: at least `elements`, `particles`
+        or `nodes`, and `warnings`."""
+
+    def extra_plots(self, out_dir: Path) -> None:
+        """Method-specific plots into out_dir / 'plots' (may do nothing)."""
