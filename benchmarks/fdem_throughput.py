@@ -97,7 +97,7 @@ def build(target_tets: int, cell: float):
     from crackle.geometry import structured_box
     from crackle.loading import History, Selection, Support, Tool
     from crackle.fdem.laws import GuoMunjizaLaw
-from crackle.materials import Material
+    from crackle.materials import Material
 
     rock = Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
     nx, ny, nz = beam_cells(target_tets)

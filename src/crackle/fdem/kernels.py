@@ -193,6 +193,8 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
     constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
+    impulse = tools.impulse
+    n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
     for e in range(lo, hi):
@@ -250,7 +252,7 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             # the tool's load-cell impulse is kept per tet (slot e).
             if free_faces & ~(1 << k):
                 cx, cy, cz, tool_work = contact_with_tools(
-                    g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, e, tools,
+                    g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, e, tools, n_tool, impulse,
                     tool_v_prev, tool_v_next, tool_of, tool_offset, friction, d_friction,
                 )
             # Node-to-surface contact between free surfaces: internal to the specimen.

@@ -1,4 +1,4 @@
-"""FDEM behind the method-agnostic solver interface (see crackle.solver.Simulation)."""
+"""FDEM behind the driver's Simulation protocol (solver.simulation)."""
 
 from __future__ import annotations
 

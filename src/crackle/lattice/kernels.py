@@ -67,7 +67,12 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
 
 @njit(cache=True)
 def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
-    x, v = nodes.x, nodes.v
+    # Unpacked once per block (an attribute read per node costs reference counting).
+    x, v, mass, area = nodes.x, nodes.v, nodes.mass, nodes.area
+    node_tool, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
+    constraint, projection, w_external, w_damping = nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping
+    impulse = tools.impulse
+    n_tool = tools.kind.shape[0]
     start, node_spring, node_sign, force = springs.node_start, springs.node_spring, springs.node_sign, springs.force
     for g in range(lo, hi):
         fx = 0.0
@@ -79,13 +84,13 @@ def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, rad
             fx += sign * force[s, 0]
             fy += sign * force[s, 1]
             fz += sign * force[s, 2]
-        m = nodes.mass[g]
+        m = mass[g]
         cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, nodes.area[g], dt, g, tools,
-            tool_v_prev, tool_v_next, nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction,
+            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, area[g], dt, g, tools, n_tool, impulse,
+            tool_v_prev, tool_v_next, node_tool, tool_offset, friction, d_friction,
         )
         update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
-                        m, alpha, dt, nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping)
+                        m, alpha, dt, constraint, projection, w_external, w_damping)
         move(g, x, v, dt)
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry.meshes import read_surface, surface_arrays
+from .arrays import SHAPE_CODES
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,7 @@ class History:
         return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(knots)))
 
 
-TOOL_SHAPES = ("plane", "box", "cylinder", "sphere", "surface")
+TOOL_SHAPES = tuple(SHAPE_CODES)
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,7 @@ class Tool:
         object.__setattr__(self, "triangles", triangles)
 
     def geometry_row(self) -> np.ndarray:
-        """The 12 numbers the contact kernels read (see fdem.kernels.tool_gap)."""
+        """The 12 numbers the contact kernels read (see loading.tools.tool_gap)."""
         row = np.zeros(12)
         row[0:3] = self.center
         if self.shape == "plane":

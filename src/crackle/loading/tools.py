@@ -160,6 +160,9 @@ def tool_gap(j, px, py, pz, radius, tools):
         rho = math.sqrt(rx * rx + ry * ry + rz * rz)
         radial = rho - g[6]
         axial = abs(s) - g[7]
+        if max(radial, axial) >= radius:
+            # Clear of the ball: a lower bound of the gap is enough.
+            return max(radial, axial) - radius, 0.0, 0.0, 0.0
         sg = 1.0 if s >= 0.0 else -1.0
         if rho > 0.0:
             rx /= rho
@@ -188,6 +191,10 @@ def tool_gap(j, px, py, pz, radius, tools):
     o1 = abs(q1) - g[3]
     o2 = abs(q2) - g[4]
     o3 = abs(q3) - g[5]
+    o_max = max(o1, max(o2, o3))
+    if o_max >= radius:
+        # Clear of the ball whatever the nearest point: a lower bound of the gap is enough.
+        return o_max - radius, 0.0, 0.0, 0.0
     s1 = 1.0 if q1 >= 0.0 else -1.0
     s2 = 1.0 if q2 >= 0.0 else -1.0
     s3 = 1.0 if q3 >= 0.0 else -1.0
@@ -210,8 +217,8 @@ def tool_gap(j, px, py, pz, radius, tools):
 
 
 @njit(cache=True, inline="always")
-def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, tool_v_prev, tool_v_next,
-                       node_tool, node_offset, friction, d_friction):
+def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, impulse, tool_v_prev,
+                       tool_v_next, node_tool, node_offset, friction, d_friction):
     """Penalty contact of point g (position p at time t, velocity v over the half step before t,
     contact radius `radius`, contact area `area`) against every tool; returns the total force on
     the point and the work the tools did on it over the step.
@@ -219,8 +226,10 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
     The penalty per point is the tool's penalty (N/m^3) times `area`. Only the first tool touched
     carries Coulomb friction, with a stick spring of the normal stiffness; its tangential force
     lives in friction[g] and the dissipation goes to d_friction[g]. Each tool's force x dt adds
-    to tools.impulse[tool, slot] (slots are disjoint between parallel blocks), from which the
-    load cell reads its mean force over an output interval.
+    to impulse[tool, slot] (tools.impulse; slots are disjoint between parallel blocks), from
+    which the load cell reads its mean force over an output interval. n_tool and impulse are
+    passed in, read once per block by the caller: an attribute read per point costs an atomic
+    reference count on an array every thread shares.
 
     node_tool[g] and node_offset[g] carry the point's contact state between steps (see NO_TOOL,
     HIDDEN): a point exposed (HIDDEN before) while already inside a tool starts its spring
@@ -233,8 +242,7 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
     prev = node_tool[g]
     offset = node_offset[g]
     touching = -1
-    impulse = tools.impulse
-    for j in range(tools.kind.shape[0]):
+    for j in range(n_tool):
         gap, nx, ny, nz = tool_gap(j, px, py, pz, radius, tools)
         if j == prev and offset < 0.0 and gap < 0.0:
             gap -= offset
