@@ -34,8 +34,9 @@ SHAPE_CODES = {
 
 def tool_arrays(tools, default_penalty: float, contact_depth: float, impulse_slots: int) -> Tools:
     """Arrays of `tools` (a list of loading.Tool). A tool without its own penalty gets
-    `default_penalty`; a point deeper than `contact_depth` behind a surface tool's triangle is not
-    its contact (keeps the far side of a thin tool apart); `impulse_slots` is the number of
+    `default_penalty`; a point further than `contact_depth` behind (or, with a contact radius, in
+    front of) a surface tool's triangle is not its contact (keeps the far side of a thin tool
+    apart; make it at least the largest contact radius); `impulse_slots` is the number of
     parallel slots of the load-cell impulse (the method's blocks, or one per element)."""
     kind = np.array([SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
     geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
