@@ -123,3 +123,48 @@ def test_fpz_json_matches_paper_001():
     assert data["plastic_zone_long"] == pytest.approx(8.5e-3, rel=0.01)
     assert data["plastic_zone_short"] == pytest.approx(21.7e-3, rel=0.01)
     assert data["advised_element_size"] == pytest.approx(data["plastic_zone_long"] / 3, rel=1e-12)
+
+
+def _mistakes(tmp_path):
+    """(argv, text the one-line message must hold) for the mistakes a new user makes."""
+    scenario = _write(tmp_path, BASE)
+    a_file = tmp_path / "a-file.txt"
+    a_file.write_text("x")
+    no_quick = _write(tmp_path, BASE[: BASE.index("[quick]")], "no-quick.toml")
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + BASE.replace("[material]", "[materail]", 1).encode())
+    return [
+        ([str(tmp_path)], "is a folder"),
+        ([scenario, "--set", "specimen.element_size.x.y=1"], "'specimen.element_size' is a value"),
+        ([scenario, "--set", "run.end_time=inf"], "run.end_time"),
+        ([scenario, "--set", "run.end_time=nan"], "run.end_time: nan"),
+        ([scenario, "--set", "tools.0.center=[nan, 0.0, 0.0]"], "tools.0.center.0: nan"),
+        ([scenario, "--out", str(a_file)], "is a file"),
+        ([scenario, "--out", str(a_file / "run1")], "lies under"),
+        ([scenario, "--out", "/sys/crackle-out"], "cannot write"),
+        ([str(bom)], "unknown section materail; did you mean material?"),
+        ([scenario, "--set", "tools.middle.speed=1.0"], "0 (top), 1 (left), 2 (right)"),
+        ([no_quick, "--quick"], "no [quick] section"),
+    ]
+
+
+def test_mistakes_exit_2_with_one_message(tmp_path, capsys):
+    """Each mistake: exit code 2, one line that names what is wrong, no traceback, nothing
+    written (the output folder is tmp_path/out unless the case names its own)."""
+    for argv, expected in _mistakes(tmp_path):
+        if "--out" not in argv:
+            argv = argv + ["--out", str(tmp_path / "out")]
+        code, err = _run(capsys, *argv)
+        assert code == 2, (argv, err)
+        assert expected in err, (argv, err)
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert not (tmp_path / "out").exists()
+
+
+def test_tools_set_by_name():
+    """--set tools.NAME.key is the same as tools.NUMBER.key."""
+    from crackle.scenario import load_scenario
+
+    by_name, _ = load_scenario("three-point-bending", ["tools.left.friction=0.25"])
+    by_number, _ = load_scenario("three-point-bending", ["tools.1.friction=0.25"])
+    assert by_name.tools[1].friction == 0.25 and by_name == by_number

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 from .methods import get_method
@@ -36,7 +37,25 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
 def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None) -> RunResult:
     """Validate, build and run a scenario file or shipped example; returns the result."""
     scenario, base = load_scenario(source, overrides, quick)
+    out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
+    check_output_folder(out)
     sim, control = build_simulation(scenario, base)
     control.progress = progress
-    out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
     return run(sim, control, out, scenario_name=scenario.name)
+
+
+def check_output_folder(out: Path) -> None:
+    """Refuse, before any work, an output folder that is a file, lies under a file, or cannot be
+    written (itself, or the nearest existing folder it would be made in)."""
+    nearest = out
+    while not nearest.exists() and nearest != nearest.parent:
+        nearest = nearest.parent
+    if nearest.exists() and not nearest.is_dir():
+        where = "is a file" if nearest == out else f"lies under {nearest}, a file"
+        raise ScenarioError(f"--out {out}: {where}; give a folder")
+    try:
+        # A probe that leaves nothing behind (os.access says yes to root on read-only mounts).
+        with tempfile.TemporaryFile(dir=nearest):
+            pass
+    except OSError as err:
+        raise ScenarioError(f"--out {out}: cannot write in {nearest} ({err.strerror}); choose a folder you can write to") from None

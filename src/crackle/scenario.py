@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from .schema import NonNegative, Positive, Strict, Vec3
+from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 
 
 class ScenarioError(ValueError):
@@ -95,7 +95,7 @@ class ToolSpec(Strict):
     axes: tuple[Vec3, Vec3] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
     axis: Vec3 = (0.0, 0.0, 1.0)
     radius: NonNegative = 0.0
-    length: Positive = math.inf
+    length: PositiveOrInf = math.inf  # cylinder: inf for an endless roller
     penalty: Positive | None = None
     # box, sphere: shift the tool along `direction` (either way) at set-up until its leading
     # extreme just reaches the specimen's extreme node along `direction` (no initial gap)
@@ -321,10 +321,18 @@ def list_examples() -> dict[str, str]:
 def read_scenario_data(source: str | Path) -> tuple[dict, Path | None]:
     """Raw TOML data of a file path or shipped example name, and the folder relative paths use."""
     path = Path(source)
+    if path.is_dir():
+        inside = sorted(p.name for p in path.glob("*.toml"))
+        hint = f" (it holds {', '.join(inside)})" if inside else ""
+        raise ScenarioError(f"{path} is a folder{hint}: give a .toml scenario file or a shipped example name")
     if path.suffix == ".toml" or path.exists():
         if not path.exists():
             raise ScenarioError(f"scenario file {path} does not exist; check the path or run 'crackle examples'")
-        text, base = path.read_text(), path.parent
+        try:
+            # utf-8-sig: a byte-order mark (some Windows editors write one) is not TOML.
+            text, base = path.read_text(encoding="utf-8-sig"), path.parent
+        except UnicodeDecodeError as err:
+            raise ScenarioError(f"{path}: not UTF-8 text ({err.reason} at byte {err.start}); save it as UTF-8") from None
     else:
         entry = examples_dir() / f"{source}.toml"
         if not entry.is_file():
@@ -350,18 +358,20 @@ def apply_overrides(data: dict, overrides: dict[str, Any] | list[str]) -> dict:
     for key, value in items:
         parts = key.split(".")
         node = data
-        for part in parts[:-1]:
+        for k, part in enumerate(parts[:-1]):
             if isinstance(node, list):
-                node = node[_index(part, key, len(node))]
-            else:
+                node = node[_index(part, key, node)]
+            elif isinstance(node, dict):
                 node = node.setdefault(part, {})
+            else:
+                raise ScenarioError(f"--set {key}: '{'.'.join(parts[:k])}' is a value ({node!r}), not a table; set it directly")
         last = parts[-1]
         if isinstance(node, list):
-            node[_index(last, key, len(node))] = value
+            node[_index(last, key, node)] = value
         elif isinstance(node, dict):
             node[last] = value
         else:
-            raise ScenarioError(f"--set {key}: '{'.'.join(parts[:-1])}' is not a table")
+            raise ScenarioError(f"--set {key}: '{'.'.join(parts[:-1])}' is a value ({node!r}), not a table; set it directly")
     return data
 
 
@@ -376,10 +386,15 @@ def _split_override(text: str) -> tuple[str, Any]:
     return key.strip(), value
 
 
-def _index(part: str, key: str, n: int) -> int:
-    if not part.isdigit() or int(part) >= n:
-        raise ScenarioError(f"--set {key}: '{part}' is not an index below {n}")
-    return int(part)
+def _index(part: str, key: str, items: list) -> int:
+    """The position of `part` in a list of tables: its number, or the `name` of one of them."""
+    if part.isdigit() and int(part) < len(items):
+        return int(part)
+    names = [item.get("name") if isinstance(item, dict) else None for item in items]
+    if part in names:
+        return names.index(part)
+    listed = ", ".join(f"{i} ({n})" if n else str(i) for i, n in enumerate(names)) or "none"
+    raise ScenarioError(f"--set {key}: '{part}' is neither the number nor the name of an entry; entries: {listed}")
 
 
 def load_scenario(source: str | Path, overrides: list[str] | None = None, quick: bool = False) -> tuple[ScenarioBase, Path | None]:
@@ -389,6 +404,8 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
 
     data, base = read_scenario_data(source)
     if quick:
+        if not data.get("quick"):
+            raise ScenarioError(f"--quick: {source} has no [quick] section; run it without --quick or add one")
         data = apply_overrides(data, data.get("quick", {}))
     if overrides:
         data = apply_overrides(data, overrides)
@@ -396,10 +413,11 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
         schema = get_method(data.get("method", "fdem")).Scenario
     except KeyError as err:
         raise ScenarioError(f"{source}: method: {err.args[0]}") from None
+    _refuse_nan(data, source)
     try:
         scenario = schema.model_validate(data)
     except ValidationError as err:
-        raise ScenarioError(_describe(err, source)) from None
+        raise ScenarioError(_describe(err, source, schema)) from None
     for i, tool in enumerate(scenario.tools):
         if tool.shape == "surface":
             path = resolve_path(tool.file, base)
@@ -423,15 +441,50 @@ def resolve_path(file: str, base: Path | None) -> Path:
 TAGGED_CHOICES = ("interface",)
 
 
-def _describe(err: ValidationError, source) -> str:
-    first = err.errors()[0]
+def _refuse_nan(data, source, where: str = "") -> None:
+    """No value of a scenario may be nan (pydantic takes it for a float)."""
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for key, value in items:
+        path = f"{where}.{key}" if where else str(key)
+        if isinstance(value, float) and math.isnan(value):
+            raise ScenarioError(f"{source}: {path}: nan is not a value; give a number")
+        _refuse_nan(value, source, path)
+
+
+def _field_names(model, seen=None) -> set[str]:
+    """Every field name of a schema and the schemas nested in it (for did-you-mean hints)."""
+    import typing
+
+    seen = set() if seen is None else seen
+    if model in seen or not hasattr(model, "model_fields"):
+        return set()
+    seen.add(model)
+    names = set(model.model_fields)
+    for field in model.model_fields.values():
+        stack = [field.annotation]
+        while stack:
+            t = stack.pop()
+            stack.extend(typing.get_args(t))
+            names |= _field_names(t, seen)
+    return names
+
+
+def _describe(err: ValidationError, source, schema=None) -> str:
+    errors = err.errors()
+    # A misspelt key also leaves the right one missing: name the unknown key first.
+    errors.sort(key=lambda e: e["type"] not in ("extra_forbidden", "unexpected_keyword_argument"))
+    first = errors[0]
     loc = first["loc"]
     # The tag of a choice by name that pydantic puts in the path (material.interface.bilinear.kn).
     loc = [p for k, p in enumerate(loc) if not (0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES)]
     where = ".".join(str(p) for p in loc) or "(top level)"
     kind = first["type"]
     if kind in ("extra_forbidden", "unexpected_keyword_argument"):
-        hint = "unknown key: remove it or check its spelling"
+        import difflib
+
+        what = "section" if len(loc) == 1 else "key"
+        close = difflib.get_close_matches(str(loc[-1]), sorted(_field_names(schema)) if schema else [], n=1)
+        hint = f"unknown {what} {loc[-1]}; " + (f"did you mean {close[0]}?" if close else "remove it or check its spelling")
     elif kind == "missing":
         hint = "required: add it"
     else:

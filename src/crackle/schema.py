@@ -8,8 +8,11 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field
 
 Vec3 = tuple[float, float, float]
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
+# Finite: an infinite time, size or modulus is a mistake (inf where it means "none" is
+# PositiveOrInf).
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+PositiveOrInf = Annotated[float, Field(gt=0)]
 # Scenario sections: unknown keys are errors, values are immutable.
 STRICT = ConfigDict(extra="forbid", frozen=True)
 # The same for parameter dataclasses (which are frozen by their decorator).

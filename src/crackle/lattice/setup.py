@@ -19,7 +19,7 @@ import numpy as np
 from ..loading.arrays import tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
-from ..schema import NonNegative, Positive, Strict, Vec3
+from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import Nodes, Springs
 from .simulation import LatticeSimulation
@@ -32,7 +32,7 @@ class LatticeSpec(Strict):
     size: tuple[Positive, Positive, Positive]
     spacing: Positive
     origin: Vec3 = (0.0, 0.0, 0.0)
-    break_strain: Positive = math.inf
+    break_strain: PositiveOrInf = math.inf
     contact_radius: NonNegative | None = None  # m; default spacing / 2
 
 
