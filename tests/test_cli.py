@@ -168,3 +168,46 @@ def test_tools_set_by_name():
     by_name, _ = load_scenario("three-point-bending", ["tools.left.friction=0.25"])
     by_number, _ = load_scenario("three-point-bending", ["tools.1.friction=0.25"])
     assert by_name.tools[1].friction == 0.25 and by_name == by_number
+
+
+def test_rerun_clears_only_crackles_outputs(tmp_path):
+    """A rerun into a folder that holds an earlier run leaves none of its frames (fewer frames
+    the second time) and keeps a file of the user's."""
+    from crackle.io import read_pvd
+
+    out = tmp_path / "out"
+    args = ["run", "single-fracture", "--quick", "--out", str(out)]
+    assert main(args + ["--set", "run.field_frames=6"]) == 0
+    first = len(list((out / "fields").glob("*.vtu")))
+    (out / "notes.txt").write_text("mine")
+    assert main(args + ["--set", "run.field_frames=2", "--set", "run.history_samples=20"]) == 0
+    frames = sorted((out / "fields").glob("*.vtu"))
+    assert len(frames) < first and frames == sorted(path for _, path in read_pvd(out / "fields.pvd"))
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_ctrl_c_stops_consistently_with_exit_130(tmp_path):
+    """SIGINT during a run: exit 130, status "interrupted", and summary, history and events end
+    at the same state (one event row per failure counted in the summary)."""
+    import signal
+    import time
+
+    from crackle.io import read_events_csv, read_history_csv
+
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "crackle.cli", "run", "sphere-impact-fast", "--quick", "--out", str(out),
+         "--set", "run.field_frames=0", "--set", "run.history_samples=2000"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((out / "history.csv").exists() and len((out / "history.csv").read_text().splitlines()) > 40):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted"
+    assert len(read_events_csv(out / "events.csv")["id"]) == s["broken"]
+    h = read_history_csv(out / "history.csv")
+    assert h["time"][-1] == s["end_time"] and h["broken"][-1] == s["broken"]

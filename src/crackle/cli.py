@@ -33,7 +33,7 @@ def _cmd_run(args) -> int:
     for w in s.get("warnings", []):
         print(f"  warning: {w}")
     print(f"  outputs in {result.out_dir}")
-    return 0
+    return 130 if s["status"] == "interrupted" else 0
 
 
 def _cmd_examples(args) -> int:

@@ -9,6 +9,9 @@ is interrupted keeps everything written so far.
 from __future__ import annotations
 
 import math
+import signal
+import sys
+import threading
 import time as wallclock
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,6 +76,7 @@ class RunResult:
 def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name: str = "") -> RunResult:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    clear_outputs(out)
     dt = choose_time_step(sim.stable_dt, control)
     total_steps = max(1, int(math.ceil(control.end_time / dt - 1e-9)))
     chunk = max(1, total_steps // max(1, control.history_samples))
@@ -91,7 +95,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
 
     with HistoryWriter(out / "history.csv", columns) as history, EventWriter(out / "events.csv") as events, Progress(
         control.end_time, enabled=control.progress
-    ) as progress:
+    ) as progress, _InterruptRequest() as interrupt:
         history.append(first)
         if fields is not None:
             _write_fields(fields, sim)
@@ -141,10 +145,11 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 if reason:
                     status, message = "stopped", reason
                     break
+                if interrupt.requested:
+                    status, message = "interrupted", f"interrupted by the user at t = {sim.time:.4e} s"
+                    break
         except UnstableRunError as err:
             status, message = "unstable", str(err)
-        except KeyboardInterrupt:
-            status, message = "interrupted", "interrupted by the user"
         if fields is not None and status != "unstable" and sim.steps % field_every:
             _write_fields(fields, sim)
 
@@ -191,6 +196,47 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, low_since, no
         if now - low_since >= hold:
             return f"tool force stayed below {stop.force_drop:.0%} of its peak {peak_force:.4g} N for {now - low_since:.3g} s"
     return ""
+
+
+class _InterruptRequest:
+    """Ctrl-C during a run asks it to stop after the chunk in progress, so that the history, the
+    events and the summary end at the same consistent state; a second Ctrl-C interrupts at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\ncrackle: stopping after this chunk (Ctrl-C again to stop at once)", file=sys.stderr, flush=True)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+
+# What a run writes into its output folder (and a rerun into the same folder removes first).
+OUTPUT_FILES = ("summary.json", "history.csv", "events.csv", "fields.pvd") + tuple(
+    f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth")
+)
+OUTPUT_GLOBS = ("fields/step_*.vtu",)
+
+
+def clear_outputs(out: Path) -> None:
+    """Remove an earlier run's outputs from `out` (only crackle's own files), so that ParaView
+    and readers never mix two runs."""
+    for name in OUTPUT_FILES:
+        (out / name).unlink(missing_ok=True)
+    for pattern in OUTPUT_GLOBS:
+        for path in out.glob(pattern):
+            path.unlink()
 
 
 def _write_fields(writer: FieldWriter, sim) -> None:
