@@ -145,6 +145,11 @@ def _mistakes(tmp_path):
         ([str(bom)], "unknown section materail; did you mean material?"),
         ([scenario, "--set", "tools.middle.speed=1.0"], "0 (top), 1 (left), 2 (right)"),
         ([no_quick, "--quick"], "no [quick] section"),
+        # unit slips: mm for m, GPa for Pa, g/cm^3 for kg/m^3
+        ([scenario, "--set", "specimen.element_size=10"], "larger than the specimen"),
+        ([scenario, "--set", "specimen.element_size=1e-9"], "below 1e-5 of the specimen"),
+        ([scenario, "--set", "material.youngs_modulus=26"], "if that is GPa, write 26e9"),
+        ([scenario, "--set", "material.density=2.34"], "2.34 g/cm^3 is 2340 kg/m^3"),
     ]
 
 

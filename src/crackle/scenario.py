@@ -64,7 +64,30 @@ class Specimen(Strict):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        extent = self.extent()
+        h = self.element_size
+        if h is not None and extent is not None:
+            # gmsh would clamp a too-large size silently; a tiny one would mesh for hours.
+            if h > extent:
+                raise ValueError(
+                    f"element_size = {h:g} m is larger than the specimen ({extent:g} m across); sizes are in "
+                    f"metres (10 mm is 0.01)"
+                )
+            if h < 1e-5 * extent:
+                raise ValueError(
+                    f"element_size = {h:g} m is below 1e-5 of the specimen ({extent:g} m across): "
+                    f"{(extent / h) ** 3:.1e} elements; sizes are in metres"
+                )
         return self
+
+    def extent(self) -> float | None:
+        """The specimen's largest dimension (m), where the scenario gives it."""
+        dims = {
+            "box": self.size, "beam": self.size,
+            "disc": (self.diameter, self.thickness), "cylinder": (self.diameter, self.thickness),
+            "sphere": (self.diameter,), "walnut": (self.length, self.width, self.thickness),
+        }.get(self.shape)
+        return max(dims) if dims else None
 
 
 class ElasticSpec(Strict):
@@ -74,6 +97,26 @@ class ElasticSpec(Strict):
     density: Positive  # kg/m^3
     youngs_modulus: Positive  # Pa
     poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
+
+    @field_validator("density")
+    @classmethod
+    def _density_in_kg_per_m3(cls, rho):
+        # Solids from foams (~30) to tungsten (19,300): a value of a few units is g/cm^3 or t/m^3.
+        if not 10.0 <= rho <= 30000.0:
+            hint = f"; {rho:g} g/cm^3 is {rho * 1000:g} kg/m^3" if rho < 10.0 else ""
+            raise ValueError(f"density = {rho:g} kg/m^3 is outside the range of solids (10-30,000 kg/m^3){hint}")
+        return rho
+
+    @field_validator("youngs_modulus")
+    @classmethod
+    def _modulus_in_pa(cls, E):
+        # Solids from soft polymers (~1 MPa) to diamond (~1.2 TPa).
+        if not 1e5 <= E <= 2e12:
+            hint = ""
+            if E < 1e5:
+                hint = f"; if that is GPa, write {E:g}e9, if MPa, {E:g}e6"
+            raise ValueError(f"youngs_modulus = {E:g} Pa is outside the range of solids (1e5-2e12 Pa){hint}")
+        return E
 
 
 class VelocityTable(Strict):
@@ -488,7 +531,7 @@ def _describe(err: ValidationError, source, schema=None) -> str:
     elif kind == "missing":
         hint = "required: add it"
     else:
-        hint = first["msg"]
+        hint = first["msg"].removeprefix("Value error, ")
         if first.get("input") is not None and kind != "value_error":
             hint += f" (got {first['input']!r})"
     more = f" (and {len(err.errors()) - 1} more problem(s))" if len(err.errors()) > 1 else ""
