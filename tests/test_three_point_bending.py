@@ -42,9 +42,11 @@ def test_energy_audited_with_fracture_and_friction(quick_run):
 def test_outputs_follow_the_contract(quick_run):
     out = quick_run.out_dir
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("method", "scenario", "steps", "dt", "wall_time", "elements", "broken", "peak_force", "energy_error", "crackle_version"):
+    for key in ("method", "scenario", "steps", "dt", "wall_time", "elements", "broken", "peak_force", "peak_force_tool", "energy_error", "crackle_version"):
         assert key in summary, key
     assert summary["method"] == "fdem" and summary["elements"] == 960
+    # The loading platen carries the sum of the two support reactions: the peak is its own.
+    assert summary["peak_force_tool"] == "top"
     assert summary["broken"] == len(read_events_csv(out / "events.csv")["time"])
     hist = read_history_csv(out / "history.csv")
     for col in ["time", "broken"] + [f"tool.top.{c}" for c in ("fx", "fy", "fz", "ux", "uy", "uz")] + [

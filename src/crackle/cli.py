@@ -21,7 +21,8 @@ def _cmd_run(args) -> int:
         print(f"crackle: {err}", file=sys.stderr)
         return 3
     s = result.summary
-    force = f"peak force {s['peak_force']:.4g} N, " if s['peak_force'] > 0 else ""  # no tools: no force
+    # No tools: no force.
+    force = f"peak force {s['peak_force']:.4g} N ({s['peak_force_tool']}), " if s["peak_force"] > 0 else ""
     print(
         f"{s['scenario']}: {s['status']} after {s['steps']} steps ({s['wall_time']:.1f} s), "
         f"t = {s['end_time']:.4g} s, broken {s['broken']}, {force}energy error {s['energy_error']:.2%}"

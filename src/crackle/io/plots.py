@@ -74,16 +74,22 @@ def _magnitude(cols: dict, prefix: str, components: tuple[str, ...]) -> np.ndarr
 
 
 def plot_load_displacement(history, path) -> Path:
-    """Force magnitude (kN) against displacement magnitude (mm), one curve per tool."""
+    """Force magnitude (kN) against displacement magnitude (mm), one curve per tool. A tool that
+    never moves (a support plate) is drawn against the travel of the moving tools (the largest
+    of their displacements), where its reaction belongs, not as a vertical line at 0."""
     cols = _columns(history)
     fig = _new_figure(figsize=(6, 4.5))
     ax = fig.add_subplot()
     tools = tool_names(cols)
+    disp = {tool: _magnitude(cols, f"tool.{tool}.", ("ux", "uy", "uz")) for tool in tools}
+    moving = [d for d in disp.values() if np.any(d != 0.0)]
+    travel = np.max(moving, axis=0) if moving else None
     for tool in tools:
-        prefix = f"tool.{tool}."
-        force = _magnitude(cols, prefix, ("fx", "fy", "fz"))
-        disp = _magnitude(cols, prefix, ("ux", "uy", "uz"))
-        ax.plot(disp * 1e3, force * 1e-3, label=tool)
+        force = _magnitude(cols, f"tool.{tool}.", ("fx", "fy", "fz"))
+        if travel is not None and not np.any(disp[tool] != 0.0):
+            ax.plot(travel * 1e3, force * 1e-3, "--", label=f"{tool} (fixed)")
+        else:
+            ax.plot(disp[tool] * 1e3, force * 1e-3, label=tool)
     if tools:
         ax.legend(title="tool")
     else:

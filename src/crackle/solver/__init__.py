@@ -24,6 +24,10 @@ from .simulation import Simulation
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
 
 
+# |energy_error| above which the summary and the screen warn.
+ENERGY_WARNING = 0.05
+
+
 class UnstableRunError(RuntimeError):
     """The run blew up (non-finite or runaway energy); outputs up to that point are kept."""
 
@@ -86,6 +90,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     columns = list(first)
     tool_names = sim.tool_names()
     peak_force = 0.0
+    peak_tool = None
     status = "completed"
     message = ""
     started = wallclock.perf_counter()
@@ -135,8 +140,9 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                         f"the run went unstable at t = {sim.time:.4e} s (energy grew without work "
                         "put in); reduce run.dt or run.safety"
                     )
-                force = max((_tool_force(row, name) for name in tool_names), default=0.0)
-                peak_force = max(peak_force, force)
+                force, name = max(((_tool_force(row, name), name) for name in tool_names), default=(0.0, None))
+                if force > peak_force:
+                    peak_force, peak_tool = force, name
                 if force >= (control.stop.force_drop or 0.0) * peak_force or sim.broken == 0:
                     low_since = None
                 elif low_since is None:
@@ -166,10 +172,18 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         "wall_time": wallclock.perf_counter() - started,
         "broken": sim.broken,
         "peak_force": peak_force,
+        "peak_force_tool": peak_tool,
         "energy_error": energy_error(hist),
         "crackle_version": __version__,
         **sim.summary(),
     }
+    if abs(summary["energy_error"]) > ENERGY_WARNING:
+        summary["warnings"] = [
+            *summary.get("warnings", []),
+            f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
+            f"{ENERGY_WARNING:.0%}): results may not be trustworthy; reduce run.safety or check the contact "
+            "penalties (energies.png shows when the imbalance grew)",
+        ]
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
