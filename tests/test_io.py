@@ -323,3 +323,16 @@ def test_progress_enabled_stays_silent_for_short_runs(capsys):
     with Progress(1e-3, enabled=True) as progress:  # default delay of ~3 s
         progress.update(5e-4, 10, 1)
     assert capsys.readouterr().out == ""
+
+
+def test_field_component_names(tmp_path):
+    """Named columns (stress xx .. xz) are labelled in the VTU for ParaView and read back intact."""
+    points, tets, _ = two_tet_mesh()
+    stress = np.arange(12.0).reshape(2, 6)
+    path = FieldWriter(tmp_path).write_blocks(
+        0.0, points, [("tetra", tets, {"stress": stress})],
+        component_names={"stress": ("xx", "yy", "zz", "xy", "yz", "xz")},
+    )
+    text = path.read_text()
+    assert 'ComponentName0="xx"' in text and 'ComponentName5="xz"' in text
+    np.testing.assert_array_equal(meshio.read(path).cell_data["stress"][0], stress)

@@ -63,7 +63,10 @@ def _cmd_fpz(args) -> int:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="crackle", description="Dynamic fracture of brittle solids (FDEM).")
+    from . import __version__
+
+    parser = argparse.ArgumentParser(prog="crackle", description="Dynamic fracture of brittle solids and shells.")
+    parser.add_argument("--version", action="version", version=f"crackle {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("run", help="run a scenario file or a shipped example")
     p.add_argument("scenario", help="a .toml scenario or the name of a shipped example")

@@ -48,6 +48,7 @@ class Specimen(Strict):
     axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
     file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...); shell: its outer surface
     initial_velocity: Vec3 = (0.0, 0.0, 0.0)  # m/s, the whole specimen at t = 0
+    angular_velocity: Vec3 = (0.0, 0.0, 0.0)  # rad/s at t = 0, a rigid spin about the centre of mass
 
     @model_validator(mode="after")
     def _needs(self):

@@ -90,11 +90,13 @@ def build_fdem_model(
     damping: float = 0.0,
     initial_velocity=None,
     contact: bool = False,
+    angular_velocity=None,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
     `damping` is a mass-proportional coefficient alpha (1/s): force -alpha m v per node.
-    `initial_velocity` is a (3,) vector or an (n_points, 3) array on the mesh points.
+    `initial_velocity` is a (3,) vector or an (n_points, 3) array on the mesh points;
+    `angular_velocity` (rad/s, a (3,) vector) adds a rigid spin about the centre of mass.
     `contact` switches on node-to-surface contact between all free surfaces (fragments, fracture
     faces that slid apart, self-contact); without it only the paired faces of failed interfaces
     and the tools touch. Off by default while it is being validated on fracturing runs.
@@ -120,7 +122,7 @@ def build_fdem_model(
     # contact (penetrations stay ~1e-4 of it); the load-cell impulse is kept per tet.
     tool_table = tool_arrays(tools, default_penalty, median_altitude, m)
 
-    nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, scale)
+    nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
     n_if = len(pairs.area)
     ifs = Interfaces(
@@ -327,12 +329,15 @@ def _pressure_faces(pressures, mesh: TetMesh, pairs: _Pairs, precrack: np.ndarra
     return face_pressure
 
 
-def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, scale: float) -> Nodes:
+def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, angular_velocity, scale: float) -> Nodes:
     n = len(bulk.x0)
     v = np.zeros((n, 3))
     if initial_velocity is not None:
         iv = np.asarray(initial_velocity, dtype=float)
         v[:] = iv if iv.shape == (3,) else iv[bulk.corner_point]
+    if angular_velocity is not None and np.any(angular_velocity):
+        centre = bulk.mass @ bulk.x0 / bulk.mass.sum()
+        v += np.cross(np.asarray(angular_velocity, dtype=float), bulk.x0 - centre)
     # Faces free at t = 0 (outer boundary, pre-cracks); nodes on none are hidden from the tools.
     free_face = face_iface < 0
     if len(pairs.state):

@@ -103,6 +103,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 gravity=scenario.run.gravity,
                 damping=scenario.run.damping,
                 initial_velocity=scenario.specimen.initial_velocity,
+                angular_velocity=scenario.specimen.angular_velocity,
                 contact=scenario.run.contact,
             )
     except (ValueError, MeshError) as err:

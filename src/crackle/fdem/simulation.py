@@ -25,6 +25,10 @@ from .topology import INTACT, PRECRACK
 from .model import FdemModel
 
 
+# Columns of the Cauchy stress per tet in the fields (Pa).
+STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
+
+
 class FdemSimulation:
     """Steps an FdemModel and reports histories, events and fields."""
 
@@ -205,6 +209,7 @@ class FdemSimulation:
                  {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels}),
                 ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64)}),
             ],
+            "component_names": {"stress": STRESS_COMPONENTS},
         }
 
     def bounds(self):

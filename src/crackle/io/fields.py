@@ -23,6 +23,16 @@ def _as_table(name: str, values, length: int) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def _name_components(path: Path, component_names: Mapping) -> None:
+    """Add VTK's ComponentName attributes (which meshio does not write) to the named arrays."""
+    text = path.read_text(encoding="utf-8")
+    for name, comps in component_names.items():
+        tag = f'Name="{name}" NumberOfComponents="{len(comps)}"'
+        labels = " ".join(f'ComponentName{i}="{c}"' for i, c in enumerate(comps))
+        text = text.replace(tag, f"{tag} {labels}")
+    path.write_text(text, encoding="utf-8")
+
+
 def _merge_cell_data(blocks) -> dict:
     """One list of arrays (one per block) per name; a name missing from a block gets zeros.
 
@@ -88,9 +98,12 @@ class FieldWriter:
             time, points, [("tetra", tets, cell_data or {}), ("triangle", triangles, triangle_data or {})], point_data
         )
 
-    def write_blocks(self, time: float, points, blocks, point_data: Mapping | None = None) -> Path:
+    def write_blocks(self, time: float, points, blocks, point_data: Mapping | None = None,
+                     component_names: Mapping | None = None) -> Path:
         """Write one step of any cells: `blocks` is a list of (meshio cell type, connectivity,
-        {name: per-cell array}); `cell_kind` tells the blocks apart (their index)."""
+        {name: per-cell array}); `cell_kind` tells the blocks apart (their index).
+        `component_names` ({array name: names of its columns}) labels the columns of an array in
+        ParaView (e.g. stress: xx, yy, zz, xy, yz, xz)."""
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
             raise ValueError(f"points must be (n, 3), got {points.shape}")
@@ -110,6 +123,8 @@ class FieldWriter:
         meshio.write(
             self.out_dir / relative, mesh, file_format="vtu", binary=True, compression=None
         )
+        if component_names:
+            _name_components(self.out_dir / relative, component_names)
         self.steps.append((float(time), relative))
         self._write_pvd()
         return self.out_dir / relative

@@ -255,7 +255,8 @@ def clear_outputs(out: Path) -> None:
 
 def _write_fields(writer: FieldWriter, sim) -> None:
     f = sim.fields()
-    writer.write_blocks(sim.time, f["points"], f["blocks"], point_data=f["point_data"])
+    writer.write_blocks(sim.time, f["points"], f["blocks"], point_data=f["point_data"],
+                        component_names=f.get("component_names"))
 
 
 __all__ = ["RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "run"]

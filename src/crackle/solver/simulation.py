@@ -37,7 +37,8 @@ class Simulation(Protocol):
 
     def fields(self) -> dict:
         """Arrays for a ParaView snapshot: `points`, `point_data` ({name: per-point array}) and
-        `blocks`, a list of (meshio cell type, connectivity, {name: per-cell array})."""
+        `blocks`, a list of (meshio cell type, connectivity, {name: per-cell array}); optionally
+        `component_names` ({array name: names of its columns})."""
 
     def tool_names(self) -> list[str]:
         """Names of the tools, in the order of their history columns."""
