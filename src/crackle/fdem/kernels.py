@@ -22,7 +22,7 @@ from numba import njit, prange
 
 from ..loading.friction import coulomb_update
 from ..loading.tools import contact_with_tools, interp_history, move_tools, tool_velocities
-from ..solver.integrator import update_velocity
+from ..solver.integrator import move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
@@ -261,22 +261,11 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
                 f[g, 0] += sx
                 f[g, 1] += sy
                 f[g, 2] += sz
-            vx, vy, vz, external, damping = update_velocity(
-                vx0, vy0, vz0, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt,
-                constraint[g], constraint_projection,
-            )
-            if external != 0.0:
-                w_external[g] += external
-            if damping != 0.0:
-                w_damping[g] += damping
-            v[g, 0] = vx
-            v[g, 1] = vy
-            v[g, 2] = vz
+            update_velocity(g, v, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt,
+                            constraint, constraint_projection, w_external, w_damping)
         # Positions last: the pressure on a face above used the corners' positions at time t.
         for g in range(n0, n0 + 4):
-            x[g, 0] += v[g, 0] * dt
-            x[g, 1] += v[g, 1] * dt
-            x[g, 2] += v[g, 2] * dt
+            move(g, x, v, dt)
 
 
 @njit(parallel=True, cache=True)

@@ -13,7 +13,7 @@ from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, move_tools, tool_velocities
 from ..solver.failures import MODE_TENSION
-from ..solver.integrator import update_velocity
+from ..solver.integrator import move, update_velocity
 
 Nodes = namedtuple(
     "Nodes",
@@ -89,20 +89,9 @@ def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, rad
             g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, area[g], dt, g, tools, n_tool, impulse,
             tool_v_prev, tool_v_next, node_tool, tool_offset, friction, d_friction,
         )
-        vx, vy, vz, external, damping = update_velocity(
-            v[g, 0], v[g, 1], v[g, 2], fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz,
-            tool_work, m, alpha, dt, constraint[g], projection,
-        )
-        if external != 0.0:
-            w_external[g] += external
-        if damping != 0.0:
-            w_damping[g] += damping
-        v[g, 0] = vx
-        v[g, 1] = vy
-        v[g, 2] = vz
-        x[g, 0] += vx * dt
-        x[g, 1] += vy * dt
-        x[g, 2] += vz * dt
+        update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
+                        m, alpha, dt, constraint, projection, w_external, w_damping)
+        move(g, x, v, dt)
 
 
 @njit(parallel=True, cache=True)

@@ -19,18 +19,18 @@ FREE, FIXED = -1, 0
 
 
 @njit(cache=True, inline="always")
-def update_velocity(vx0, vy0, vz0, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, con, projection):
-    """New half-step velocity of a node from its previous one (v0) and its forces, and the work
-    done on it over the step: returns (vx, vy, vz, external work, damping loss).
+def update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint, projection,
+                    w_external, w_damping):
+    """New half-step velocity of node g into v[g] and the node's work accounting.
 
     f: the method's internal forces (elements, bonds, cohesive and self-contact); e: external
     forces that work on the node's own motion (pressure, gravity); c: tool contact forces, whose
     work `tool_work` the tool contact counted itself (at the tool's velocity); alpha: the
-    mass-proportional damping coefficient (force -alpha m v on the previous half-step velocity);
-    con: the node's support (constraint table entry, FREE or a row of `projection`), which
-    projects the new velocity. Scalars in and out on purpose: an array passed per node costs
-    reference counting. The caller adds a non-zero work to its accumulators (only then: each is
-    a read-write of memory) and moves the node, x += v dt."""
+    mass-proportional damping coefficient (force -alpha m v on the previous half-step velocity).
+    The supports project the new velocity (constraint[g], see support_constraints). Work of e and
+    of the tools goes to w_external[g], the damping's loss to w_damping[g]; the accumulators are
+    only touched where a force works (each touch is a read-write of memory)."""
+    vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
     dx = -alpha * m * vx0
     dy = -alpha * m * vy0
     dz = -alpha * m * vz0
@@ -38,6 +38,7 @@ def update_velocity(vx0, vy0, vz0, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work
     vx = vx0 + (fx + ex + cx + dx) * inv_m
     vy = vy0 + (fy + ey + cy + dy) * inv_m
     vz = vz0 + (fz + ez + cz + dz) * inv_m
+    con = constraint[g]
     if con >= 0:
         pr = projection[con]
         px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
@@ -47,13 +48,21 @@ def update_velocity(vx0, vy0, vz0, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work
     mx = 0.5 * (vx0 + vx) * dt
     my = 0.5 * (vy0 + vy) * dt
     mz = 0.5 * (vz0 + vz) * dt
-    external = 0.0
     if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0:
-        external = ex * mx + ey * my + ez * mz + tool_work
-    damping = 0.0
+        w_external[g] += ex * mx + ey * my + ez * mz + tool_work
     if alpha != 0.0:
-        damping = -(dx * mx + dy * my + dz * mz)
-    return vx, vy, vz, external, damping
+        w_damping[g] -= dx * mx + dy * my + dz * mz
+    v[g, 0] = vx
+    v[g, 1] = vy
+    v[g, 2] = vz
+
+
+@njit(cache=True, inline="always")
+def move(g, x, v, dt):
+    """x(t + dt) = x(t) + dt v(t + dt/2) for node g."""
+    x[g, 0] += v[g, 0] * dt
+    x[g, 1] += v[g, 1] * dt
+    x[g, 2] += v[g, 2] * dt
 
 
 def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
