@@ -14,18 +14,17 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..loading.arrays import Tools, history_tables, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, tool_arrays
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
 from .laws import LAW_COLUMNS, LAW_FT
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 
-# Contact (tools and free surfaces): penalty per unit contact area CONTACT_PENALTY_FACTOR E / h, h
+# Contact (tools and free surfaces): penalty per unit contact area TOOL_PENALTY_FACTOR E / h, h
 # the median tet altitude (the usual FDEM order of magnitude, ~10 E / h). Much softer than the
 # interfaces on purpose: in the exploded mesh several coincident nodes can press on one triangle
 # corner, and their springs add up there; penetrations stay ~1e-4 h at 100 MPa.
-CONTACT_PENALTY_FACTOR = 10.0
 
 Nodes = namedtuple(
     "Nodes",
@@ -117,7 +116,7 @@ def build_fdem_model(
     face_pressure = _pressure_faces(pressures, mesh, pairs, precrack, scale)
 
     median_altitude = float(np.median(bulk.altitude))
-    default_penalty = CONTACT_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
+    default_penalty = TOOL_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
     # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
     # contact (penetrations stay ~1e-4 of it); the load-cell impulse is kept per tet.
     tool_table = tool_arrays(tools, default_penalty, median_altitude, m)

@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..loading.arrays import tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
@@ -24,8 +24,6 @@ from ..solver.integrator import support_constraints
 from .kernels import Nodes, Springs
 from .simulation import LatticeSimulation
 
-# Tool penalty per unit contact area: factor x E / spacing (FDEM uses the same factor).
-TOOL_PENALTY_FACTOR = 10.0
 
 
 class LatticeSpec(Strict):
@@ -105,7 +103,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
     stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
     radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
-    return LatticeSimulation(
+    sim = LatticeSimulation(
         nodes, springs, tool_table, [t.name for t in tools], radius, spec.break_strain, stable_dt,
         np.asarray(scenario.run.gravity, float), scenario.run.damping,
     )
+    nu = scenario.material.poissons_ratio
+    if nu != 0.25:
+        sim.warnings.append(f"material.poissons_ratio = {nu:g} is not used: this lattice's Poisson's ratio is 1/4")
+    return sim

@@ -29,6 +29,7 @@ class LatticeSimulation:
         self._tool_energy = np.zeros(len(tool_names))
         self._load_cell = LoadCell()
         self._failures = FailureRecorder(len(springs.a))
+        self.warnings: list[str] = []
 
     def advance(self, n_steps: int, dt: float) -> None:
         advance(n_steps, self.steps * dt, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
@@ -98,7 +99,7 @@ class LatticeSimulation:
         return self.x0.min(axis=0), self.x0.max(axis=0)
 
     def summary(self) -> dict:
-        return {"nodes": len(self.nodes.x), "springs": len(self.springs.a), "warnings": []}
+        return {"nodes": len(self.nodes.x), "springs": len(self.springs.a), "warnings": list(self.warnings)}
 
     def extra_plots(self, out_dir) -> None:
         pass

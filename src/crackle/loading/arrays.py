@@ -23,6 +23,10 @@ Tools = namedtuple(
 # of tool j in surf_cell_start); surf_cell_start[first + c] .. [first + c + 1] delimits cell c's
 # triangles (rows of surf_tri) in surf_cell_tris. Built once: the tools only translate.
 
+# Default tool penalty per unit contact area: TOOL_PENALTY_FACTOR x E / h, h the method's length
+# scale (FDEM: the median tet altitude; lattice: the spacing), the usual explicit-contact order.
+TOOL_PENALTY_FACTOR = 10.0
+
 SHAPE_CODES = {
     "plane": TOOL_PLANE,
     "box": TOOL_BOX,
