@@ -22,7 +22,7 @@ from numba import njit, prange
 
 from ..loading.friction import coulomb_update
 from ..loading.tools import contact_with_tools, interp_history, move_tools, tool_velocities
-from ..solver.integrator import move, update_velocity
+from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
@@ -64,7 +64,7 @@ def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction
     return lost * a3
 
 
-@njit(cache=True)
+@block_kernel
 def _interface_block(lo, hi, t, dt, x, v, ifs):
     """Interfaces lo..hi-1: kinematics, Guo-Munjiza or bilinear law or (once failed) paired penalty
     contact with Coulomb friction; the force on each B-side node into ifs.force (A gets its
@@ -172,15 +172,15 @@ def _tet_forces(e, x, dm_inv, vol, lam, mu, f):
 
 
 # The parallel loops run over fixed blocks of elements, each block one call of a serial function
-# that unpacks the named tuples once. A function call per element from the prange body costs
-# reference counting and struct copies that dominated the step; inlining the element code into
-# the prange body itself is not an option (numba 0.68 drops writes through named-tuple attributes
-# there).
+# (block_kernel: no reference counting) that unpacks the named tuples once. A function call per
+# element from the prange body costs reference counting and struct copies that dominated the
+# step; inlining the element code into the prange body itself is not an option (numba 0.68 drops
+# writes through named-tuple attributes there).
 INTERFACE_BLOCK = 1024
 TET_BLOCK = 512
 
 
-@njit(cache=True)
+@block_kernel
 def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
     gravity and the central-difference update of each tet's own 4 nodes."""

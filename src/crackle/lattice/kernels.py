@@ -13,7 +13,7 @@ from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, move_tools, tool_velocities
 from ..solver.failures import MODE_TENSION
-from ..solver.integrator import move, update_velocity
+from ..solver.integrator import block_kernel, move, update_velocity
 
 Nodes = namedtuple(
     "Nodes",
@@ -33,7 +33,7 @@ def _spring_length(x, a, b):
 BLOCK = 256  # springs or nodes per parallel task
 
 
-@njit(cache=True)
+@block_kernel
 def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
     """Spring forces on their b node (a gets the negative); a spring stretched beyond
     break_strain breaks and releases its energy at the mid-step positions x - v dt/2 (the
@@ -65,7 +65,7 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
         force[s, 2] = scale * dz
 
 
-@njit(cache=True)
+@block_kernel
 def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
     # Unpacked once per block (an attribute read per node costs reference counting).
     x, v, mass, area = nodes.x, nodes.v, nodes.mass, nodes.area

@@ -13,6 +13,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# The serial block functions that a method's parallel loop calls once per block of elements
+# (particles, nodes), and that call the inline pieces below, are compiled without numba's
+# reference counting (NRT). With it, every array handed to an inline function gets an atomic
+# reference count per call wherever the array is used only inside a branch (numba's pruning
+# misses that case), and with 2 or more threads those atomics fight over the arrays' shared
+# counters: measured a quarter of the FDEM step at 2 threads. Such a block cannot allocate
+# arrays (numba refuses to compile one that tries); allocate in the caller.
+block_kernel = njit(cache=True, _nrt=False)
+
 # constraint[node]: FREE, or the row of the node's velocity projector in the projection table
 # (row FIXED = 0 is the zero matrix: no motion).
 FREE, FIXED = -1, 0
