@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .methods import get_method
 from .scenario import RunSpec, ScenarioBase, ScenarioError, load_scenario
-from .solver import RunControl, RunResult, StopConditions, choose_time_step, run
+from .solver import RunControl, RunResult, StopConditions, choose_time_step, load_cell_steps, run
 
 
 def run_control(run: RunSpec) -> RunControl:
@@ -18,6 +18,7 @@ def run_control(run: RunSpec) -> RunControl:
         safety=run.safety,
         history_samples=run.history_samples,
         field_frames=run.field_frames,
+        load_cell_window=run.load_cell_window,
         stop=StopConditions(run.stop.tool_displacement, run.stop.tool, run.stop.force_drop, run.stop.force_drop_hold),
     )
 
@@ -28,7 +29,7 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     sim = get_method(scenario.method).build_simulation(scenario, base)
     control = run_control(scenario.run)
     try:
-        choose_time_step(sim.stable_dt, control)
+        load_cell_steps(control, choose_time_step(sim.stable_dt, control), sim.wave_transit)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
     return sim, control

@@ -289,6 +289,7 @@ class RunSpec(Strict):
     gravity: Vec3 = (0.0, 0.0, 0.0)
     history_samples: Annotated[int, Field(ge=1)] = 400
     field_frames: Annotated[int, Field(ge=0)] = 10
+    load_cell_window: Positive | None = None  # s, the tool force's averaging window; default 4 element wave transits
     stop: Stop = Stop()
 
 

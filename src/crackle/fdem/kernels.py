@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.friction import coulomb_update
-from ..loading.tools import contact_with_tools, interp_history, move_tools, tool_velocities
+from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .interface import mid_normal, opening
@@ -181,9 +181,10 @@ TET_BLOCK = 512
 
 
 @block_kernel
-def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
-    """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact, damping,
-    gravity and the central-difference update of each tet's own 4 nodes."""
+def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
+    """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact (forces
+    on the tools into their `slot`), damping, gravity and the central-difference update of each
+    tet's own 4 nodes."""
     x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
@@ -193,7 +194,7 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
     constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
-    impulse = tools.impulse
+    force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
@@ -248,11 +249,10 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
             cy = 0.0
             cz = 0.0
             tool_work = 0.0
-            # A node on a free face (any but face k) may touch a tool, with its fixed contact area;
-            # the tool's load-cell impulse is kept per tet (slot e).
+            # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
             if free_faces & ~(1 << k):
                 cx, cy, cz, tool_work = contact_with_tools(
-                    g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, e, tools, n_tool, impulse,
+                    g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, slot, tools, n_tool, force_slots,
                     tool_v_prev, tool_v_next, tool_of, tool_offset, friction, d_friction,
                 )
             # Node-to-surface contact between free surfaces: internal to the specimen.
@@ -269,8 +269,9 @@ def _tet_block(lo, hi, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
-    """Run n_steps central-difference steps from time t0; arrays are updated in place."""
+def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
+    """Run n_steps central-difference steps from step number first_step (time first_step x dt:
+    the same times however a run is split into calls); arrays are updated in place."""
     n_if = ifs.na.shape[0]
     n_tet = tets.vol.shape[0]
     n_tool = tools.kind.shape[0]
@@ -282,7 +283,7 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     for step in range(n_steps):
-        t = t0 + step * dt
+        t = (first_step + step) * dt
         for q in range(n_press):
             pressure_now[q] = interp_history(t, pressures.times[q], pressures.values[q], pressures.n[q])
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
@@ -295,8 +296,9 @@ def advance(n_steps, t0, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
             reaction_lists(contact)
         for blk in prange(n_tet_blocks):
             lo = blk * TET_BLOCK
-            _tet_block(lo, min(lo + TET_BLOCK, n_tet), dt, nodes, tets, ifs, contact, tools, pressure_now,
+            _tet_block(lo, min(lo + TET_BLOCK, n_tet), blk, dt, nodes, tets, ifs, contact, tools, pressure_now,
                        tool_v_prev, tool_v_next, ctrl)
+        load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 
 

@@ -18,6 +18,7 @@ from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, tool_ar
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
+from .kernels import TET_BLOCK
 from .laws import LAW_COLUMNS, LAW_FT
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 
@@ -57,6 +58,7 @@ class FdemModel:
     x0: np.ndarray  # reference positions of the exploded nodes
     stable_dt: float  # largest stable step (no safety factor)
     element_size: float
+    wave_transit: float  # s: element size over the fastest P-wave speed of the bulk
     contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
     tet_friction: np.ndarray  # Coulomb coefficient of each tet's material between fracture faces
     corner_point: np.ndarray  # mesh point of each exploded node
@@ -118,8 +120,9 @@ def build_fdem_model(
     median_altitude = float(np.median(bulk.altitude))
     default_penalty = TOOL_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
     # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
-    # contact (penetrations stay ~1e-4 of it); the load-cell impulse is kept per tet.
-    tool_table = tool_arrays(tools, default_penalty, median_altitude, m)
+    # contact (penetrations stay ~1e-4 of it); each block of the tet pass writes its own slot of
+    # the tool forces.
+    tool_table = tool_arrays(tools, default_penalty, median_altitude, -(-m // TET_BLOCK))
 
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
@@ -146,6 +149,7 @@ def build_fdem_model(
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
     stable_dt = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
+    wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     model_warnings = _resolution_warnings(materials, element_size)
     for msg in model_warnings:
         warnings.warn(msg, stacklevel=2)
@@ -165,6 +169,7 @@ def build_fdem_model(
         x0=bulk.x0,
         stable_dt=stable_dt,
         element_size=element_size,
+        wave_transit=wave_transit,
         contact_penalty=default_penalty,
         tet_friction=np.array([mat.interface.friction for mat in materials])[tet_material],
         corner_point=bulk.corner_point.astype(np.int64),

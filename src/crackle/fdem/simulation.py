@@ -46,7 +46,7 @@ class FdemSimulation:
         n_tools = len(model.tool_specs)
         self._tool_force = np.zeros((n_tools, 3))
         self._tool_energy = np.zeros(n_tools)
-        self._load_cell = LoadCell()
+        self.load_cell = LoadCell(model.tools)
         self._no_radius = np.zeros(1)  # tet nodes touch tools with their centre
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
         self._contact_ref = None  # positions at the last broad phase
@@ -67,6 +67,10 @@ class FdemSimulation:
     def stable_dt(self) -> float:
         return self.model.stable_dt
 
+    @property
+    def wave_transit(self) -> float:
+        return self.model.wave_transit
+
     def advance(self, n_steps: int, dt: float) -> None:
         """n_steps compiled steps, split where the contact candidate lists must be rebuilt."""
         m = self.model
@@ -80,7 +84,7 @@ class FdemSimulation:
                 vmax = float(np.sqrt(np.max(np.einsum("ij,ij->i", m.nodes.v, m.nodes.v)))) if len(m.nodes.v) else 0.0
                 if vmax > 0.0:
                     n = min(n, max(1, int(0.25 * m.contact_skin / (2.0 * vmax * dt))))
-            advance(n, self.steps * dt, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls)
+            advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls)
             self.steps += n
             done += n
         self._dt = dt
@@ -131,7 +135,7 @@ class FdemSimulation:
             self._tool_contact()
             return self._tool_force.copy()
 
-        return self._load_cell.read(self.model.tools, self.time, now)
+        return self.load_cell.forces(now)
 
     def energies(self, dt: float) -> dict[str, float]:
         m = self.model

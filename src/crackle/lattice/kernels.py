@@ -11,7 +11,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, move_tools, tool_velocities
+from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
 from ..solver.failures import MODE_TENSION
 from ..solver.integrator import block_kernel, move, update_velocity
 
@@ -66,12 +66,11 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
 
 
 @block_kernel
-def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
-    # Unpacked once per block (an attribute read per node costs reference counting).
+def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
     x, v, mass, area = nodes.x, nodes.v, nodes.mass, nodes.area
     node_tool, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
     constraint, projection, w_external, w_damping = nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping
-    impulse = tools.impulse
+    force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     start, node_spring, node_sign, force = springs.node_start, springs.node_spring, springs.node_sign, springs.force
     for g in range(lo, hi):
@@ -86,7 +85,7 @@ def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, rad
             fz += sign * force[s, 2]
         m = mass[g]
         cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, area[g], dt, g, tools, n_tool, impulse,
+            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, area[g], dt, slot, tools, n_tool, force_slots,
             tool_v_prev, tool_v_next, node_tool, tool_offset, friction, d_friction,
         )
         update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
@@ -95,21 +94,23 @@ def _node_block(lo, hi, dt, nodes, springs, tools, tool_v_prev, tool_v_next, rad
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, t0, dt, nodes, springs, tools, radius, break_strain, gravity, alpha):
-    """n_steps central-difference steps from time t0; arrays updated in place."""
+def advance(n_steps, first_step, dt, nodes, springs, tools, radius, break_strain, gravity, alpha):
+    """n_steps central-difference steps from step number first_step (time first_step x dt, the
+    same however a run is split into calls); arrays updated in place."""
     n_tool = tools.kind.shape[0]
     n_spring = springs.a.shape[0]
     n_node = nodes.x.shape[0]
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     for step in range(n_steps):
-        t = t0 + step * dt
+        t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         for blk in prange((n_spring + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _spring_block(lo, min(lo + BLOCK, n_spring), t, dt, nodes.x, nodes.v, springs, break_strain)
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
-            _node_block(lo, min(lo + BLOCK, n_node), dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius,
-                        gravity, alpha)
+            _node_block(lo, min(lo + BLOCK, n_node), blk, dt, nodes, springs, tools, tool_v_prev, tool_v_next,
+                        radius, gravity, alpha)
+        load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

@@ -21,7 +21,7 @@ from ..loading.build import build_loading
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
-from .kernels import Nodes, Springs
+from .kernels import BLOCK, Nodes, Springs
 from .simulation import LatticeSimulation
 
 
@@ -91,7 +91,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     )
     area = np.full(n, spec.spacing**2)
     penalty = TOOL_PENALTY_FACTOR * scenario.material.youngs_modulus / spec.spacing
-    tool_table = tool_arrays(tools, penalty, spec.spacing, n)
+    tool_table = tool_arrays(tools, penalty, spec.spacing, -(-n // BLOCK))
     nodes = Nodes(
         x=x, v=np.zeros((n, 3)), mass=mass, area=area, constraint=constraint,
         projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
@@ -103,9 +103,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
     stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
     radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
+    # P-wave speed of the lattice: C11 = 3k/a = 1.2 E.
+    wave_transit = spec.spacing / math.sqrt(1.2 * scenario.material.youngs_modulus / scenario.material.density)
     sim = LatticeSimulation(
         nodes, springs, tool_table, [t.name for t in tools], radius, spec.break_strain, stable_dt,
-        np.asarray(scenario.run.gravity, float), scenario.run.damping,
+        wave_transit, np.asarray(scenario.run.gravity, float), scenario.run.damping,
     )
     nu = scenario.material.poissons_ratio
     if nu != 0.25:

@@ -13,12 +13,14 @@ from .kernels import advance
 class LatticeSimulation:
     method = "lattice"
 
-    def __init__(self, nodes, springs, tools, tool_names, radius, break_strain, stable_dt, gravity, damping):
+    def __init__(self, nodes, springs, tools, tool_names, radius, break_strain, stable_dt, wave_transit, gravity,
+                 damping):
         self.nodes, self.springs, self.tools = nodes, springs, tools
         self._tool_names = list(tool_names)
         self.radius = float(radius)
         self.break_strain = float(break_strain)
         self.stable_dt = stable_dt
+        self.wave_transit = wave_transit
         self.gravity = gravity
         self.damping = float(damping)
         self.time = 0.0
@@ -27,12 +29,12 @@ class LatticeSimulation:
         self._radius = np.array([self.radius])
         self._tool_force = np.zeros((len(tool_names), 3))
         self._tool_energy = np.zeros(len(tool_names))
-        self._load_cell = LoadCell()
+        self.load_cell = LoadCell(tools)
         self._failures = FailureRecorder(len(springs.a))
         self.warnings: list[str] = []
 
     def advance(self, n_steps: int, dt: float) -> None:
-        advance(n_steps, self.steps * dt, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
+        advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
                 self.gravity, self.damping)
         self.steps += n_steps
         self.time = self.steps * dt
@@ -76,7 +78,7 @@ class LatticeSimulation:
             self._tool_contact()
             return self._tool_force.copy()
 
-        forces = self._load_cell.read(self.tools, self.time, now)
+        forces = self.load_cell.forces(now)
         return {**tool_columns(self._tool_names, forces, self.tools.disp), **energies, "broken": self.broken}
 
     def new_events(self):

@@ -11,12 +11,16 @@ from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLA
 
 Tools = namedtuple(
     "Tools",
-    "kind geom disp direction times speeds n mu penalty impulse surf_grid surf_cell_start surf_cell_tris surf_tri",
+    "kind geom disp direction times speeds n mu penalty force_slots cell_ring cell_state cell_count "
+    "surf_grid surf_cell_start surf_cell_tris surf_tri",
 )
 # kind, geom (12 numbers, see Tool.geometry_row), disp (current displacement), direction (unit),
 # times / speeds / n (the speed history table), mu (Coulomb), penalty (N/m^3 per unit contact
-# area), impulse (tool, slot, 3): force x dt summed since the load cell last read it, one slot per
-# block of points that a parallel pass owns.
+# area), force_slots (tool, slot, 3): the step's contact force on the tool, one slot per block of
+# points that a parallel pass owns; the load cell (see loading.tools.load_cell_step and
+# loading.loadcell): cell_ring (tool, LOAD_CELL_RING, 3) the forces of the recent steps,
+# cell_state (tool, 5) the moving sum over the window, the peak of its mean and the peak's time,
+# cell_count [steps seen, window in steps].
 # Surface tools (shape "surface"), all of them concatenated: surf_tri (k, SURF_TRI_COLUMNS)
 # triangle rows in each tool's own frame; per tool a uniform grid over the triangles' boxes
 # inflated by the contact depth, in CSR form: surf_grid[j] = (cells along x, y, z, first entry
@@ -27,6 +31,9 @@ Tools = namedtuple(
 # scale (FDEM: the median tet altitude; lattice: the spacing), the usual explicit-contact order.
 TOOL_PENALTY_FACTOR = 10.0
 
+# The longest load-cell window, in steps (the ring holds that many steps per tool).
+LOAD_CELL_RING = 4096
+
 SHAPE_CODES = {
     "plane": TOOL_PLANE,
     "box": TOOL_BOX,
@@ -36,12 +43,13 @@ SHAPE_CODES = {
 }
 
 
-def tool_arrays(tools, default_penalty: float, contact_depth: float, impulse_slots: int) -> Tools:
+def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots: int) -> Tools:
     """Arrays of `tools` (a list of loading.Tool). A tool without its own penalty gets
     `default_penalty`; a point further than `contact_depth` behind (or, with a contact radius, in
     front of) a surface tool's triangle is not its contact (keeps the far side of a thin tool
-    apart; make it at least the largest contact radius); `impulse_slots` is the number of
-    parallel slots of the load-cell impulse (the method's blocks, or one per element)."""
+    apart; make it at least the largest contact radius); `force_slots` is the number of parallel
+    blocks that write tool forces (one slot each). The load cell starts with a one-step window
+    (loading.loadcell.LoadCell.set_window sets it)."""
     kind = np.array([SHAPE_CODES[t.shape] for t in tools], dtype=np.int64)
     geom = np.array([t.geometry_row() for t in tools]).reshape(len(tools), 12)
     direction = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
@@ -51,7 +59,8 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, impulse_slo
     surf = _surface_tool_grids(tools, geom, contact_depth)
     return Tools(
         kind, geom, np.zeros((len(tools), 3)), direction, times, speeds, counts, mu, penalty,
-        impulse=np.zeros((len(tools), impulse_slots, 3)), **surf,
+        force_slots=np.zeros((len(tools), force_slots, 3)), cell_ring=np.zeros((len(tools), LOAD_CELL_RING, 3)),
+        cell_state=np.zeros((len(tools), 5)), cell_count=np.array([0, 1], dtype=np.int64), **surf,
     )
 
 

@@ -4,23 +4,47 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import LOAD_CELL_RING
+
 
 class LoadCell:
-    """Each tool's force on the specimen as the mean over the time since the last reading:
-    the impulse the compiled step summed into tools.impulse, over that time (a load cell whose
-    averaging window is the output interval). With no time elapsed (the first row), the
-    instantaneous contact force instead."""
+    """Each tool's force on the specimen as a load cell with a fixed averaging window reads it:
+    the mean of the contact force over the last `window` steps, updated after every step by the
+    compiled `loading.tools.load_cell_step`. Neither the force in history.csv nor the peak (the
+    largest mean over every step, not only over the rows written) depends on how often the
+    history is sampled. Before the first step, the instantaneous contact force."""
 
-    def __init__(self):
-        self._last_time = 0.0
+    def __init__(self, tools):
+        self.tools = tools
 
-    def read(self, tools, time: float, instantaneous) -> np.ndarray:
-        """(n_tools, 3) forces; `instantaneous()` gives the contact forces now."""
-        elapsed = time - self._last_time
-        forces = tools.impulse.sum(axis=1) / elapsed if elapsed > 0 else instantaneous()
-        tools.impulse[:] = 0.0
-        self._last_time = time
-        return forces
+    @property
+    def window(self) -> int:
+        return int(self.tools.cell_count[1])
+
+    def set_window(self, steps: int) -> None:
+        """Average over `steps` steps (1 to LOAD_CELL_RING); clears what the cell has seen."""
+        if not 1 <= steps <= LOAD_CELL_RING:
+            raise ValueError(
+                f"a load-cell window of {steps} steps is outside 1..{LOAD_CELL_RING}; "
+                "shorten run.load_cell_window"
+            )
+        t = self.tools
+        t.cell_ring[:] = 0.0
+        t.cell_state[:] = 0.0
+        t.cell_count[:] = (0, steps)
+
+    def forces(self, instantaneous) -> np.ndarray:
+        """(n_tools, 3) forces (N); `instantaneous()` gives the contact forces now (used before
+        the first step)."""
+        t = self.tools
+        seen = int(t.cell_count[0])
+        if seen == 0:
+            return instantaneous()
+        return t.cell_state[:, :3] / min(seen, self.window)
+
+    def peaks(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per tool, the largest magnitude of the windowed force so far (N) and its time (s)."""
+        return self.tools.cell_state[:, 3].copy(), self.tools.cell_state[:, 4].copy()
 
 
 def tool_columns(names, forces: np.ndarray, displacements: np.ndarray) -> dict[str, float]:

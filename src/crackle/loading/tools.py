@@ -1,6 +1,7 @@
 """Compiled tool pieces every method's step calls: history interpolation, the signed distance of a
 point to a rigid tool, and the penalty + Coulomb contact of one node (or particle, or shell node)
-against all tools, with its work and its share of the tool's load-cell impulse.
+against all tools, with its work and its share of the tool's load-cell force; the load cell's
+per-step update.
 
 All are numba ``inline="always"`` functions over the arrays of ``loading.arrays.Tools``: a
 method's fused step loop calls them directly (a Python callback into a numba kernel would defeat
@@ -217,7 +218,7 @@ def tool_gap(j, px, py, pz, radius, tools):
 
 
 @njit(cache=True, inline="always")
-def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, impulse, tool_v_prev,
+def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, force_slots, tool_v_prev,
                        tool_v_next, node_tool, node_offset, friction, d_friction):
     """Penalty contact of point g (position p at time t, velocity v over the half step before t,
     contact radius `radius`, contact area `area`) against every tool; returns the total force on
@@ -225,11 +226,10 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
 
     The penalty per point is the tool's penalty (N/m^3) times `area`. Only the first tool touched
     carries Coulomb friction, with a stick spring of the normal stiffness; its tangential force
-    lives in friction[g] and the dissipation goes to d_friction[g]. Each tool's force x dt adds
-    to impulse[tool, slot] (tools.impulse; slots are disjoint between parallel blocks), from
-    which the load cell reads its mean force over an output interval. n_tool and impulse are
-    passed in, read once per block by the caller: an attribute read per point costs an atomic
-    reference count on an array every thread shares.
+    lives in friction[g] and the dissipation goes to d_friction[g]. Each tool's force adds to
+    force_slots[tool, slot] (tools.force_slots; one slot per parallel block, so that blocks never
+    write the same entry), which `load_cell_step` sums and clears after every step. n_tool and
+    force_slots are passed in, read once per block by the caller.
 
     node_tool[g] and node_offset[g] carry the point's contact state between steps (see NO_TOOL,
     HIDDEN): a point exposed (HIDDEN before) while already inside a tool starts its spring
@@ -284,9 +284,9 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
         cx += fx
         cy += fy
         cz += fz
-        impulse[j, slot, 0] += fx * dt
-        impulse[j, slot, 1] += fy * dt
-        impulse[j, slot, 2] += fz * dt
+        force_slots[j, slot, 0] += fx
+        force_slots[j, slot, 1] += fy
+        force_slots[j, slot, 2] += fz
         work += (fx * tvx + fy * tvy + fz * tvz) * dt
     if touching < 0:
         offset = 0.0
@@ -296,6 +296,39 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
     node_tool[g] = touching
     node_offset[g] = offset
     return cx, cy, cz, work
+
+
+@njit(cache=True)
+def load_cell_step(time, tools):
+    """The load cell, after every step ending at `time`: the step's force of each tool (its
+    force_slots summed in slot order, then cleared) enters a ring of the recent steps; the cell
+    reads the mean over the last `window` steps (tools.cell_count = [steps seen, window]) and
+    keeps the largest magnitude of that mean and its time (tools.cell_state[j] = moving sum x, y,
+    z, peak, peak time). Serial, in a fixed order: the same with any thread count."""
+    slots, ring, state = tools.force_slots, tools.cell_ring, tools.cell_state
+    count, window = tools.cell_count[0], tools.cell_count[1]
+    pos = count % window
+    n_mean = min(count + 1, window)
+    for j in range(slots.shape[0]):
+        for a in range(3):
+            f = 0.0
+            for b in range(slots.shape[1]):
+                f += slots[j, b, a]
+                slots[j, b, a] = 0.0
+            # The running sum drops the force that leaves the window (0 while the ring fills);
+            # re-summed exactly once per turn of the ring so that rounding cannot build up.
+            state[j, a] += f - ring[j, pos, a]
+            ring[j, pos, a] = f
+            if pos == window - 1:
+                total = 0.0
+                for i in range(window):
+                    total += ring[j, i, a]
+                state[j, a] = total
+        mean = math.sqrt(state[j, 0] ** 2 + state[j, 1] ** 2 + state[j, 2] ** 2) / n_mean
+        if mean > state[j, 3]:
+            state[j, 3] = mean
+            state[j, 4] = time
+    tools.cell_count[0] = count + 1
 
 
 @njit(cache=True, inline="always")

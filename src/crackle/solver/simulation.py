@@ -7,21 +7,26 @@ from typing import Protocol
 
 import numpy as np
 
+from ..loading.loadcell import LoadCell
+
 
 class Simulation(Protocol):
     """One method's model and its compiled step, as the driver sees it.
 
     Histories: `sample` returns one row of history.csv (without `time`): `tool.NAME.f*` (the
-    load cell's mean force over the interval since the last sample) and `tool.NAME.u*`, every
+    force `load_cell` reads: the mean over its window of steps) and `tool.NAME.u*`, every
     `energy.*` term of the audit (solver.energy), `broken`, and anything the method adds.
     Events: `new_events` reports each failure once (solver.failures.FailureRecorder).
     """
 
     method: str  # the registered name (crackle.methods)
     stable_dt: float  # largest stable step (s), without safety factor
+    wave_transit: float  # s: a P-wave's time across one element (particle, spacing), the period
+    # scale of contact chatter; the default load-cell window is a few of it
     time: float  # simulated time reached (s)
     steps: int  # steps taken
     broken: int  # bonds, links or interfaces failed so far
+    load_cell: LoadCell  # over the method's Tools arrays; its kernel calls load_cell_step every step
 
     def advance(self, n_steps: int, dt: float) -> None:
         """n_steps compiled steps; state updated in place; time = steps x dt."""
