@@ -38,7 +38,8 @@ def test_no_energy_at_all_is_no_error(rows):
 
 
 def test_a_run_without_loads_reports_zero_and_no_warning(tmp_path):
-    """A specimen at rest with no tool, support, pressure or gravity: every energy stays 0."""
+    """A specimen at rest with no tool, support, pressure or gravity: its energies stay at
+    rounding noise (~1e-27 J), which is no imbalance (it read -100 % before)."""
     path = tmp_path / "rest.toml"
     path.write_text(
         """
