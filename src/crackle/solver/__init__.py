@@ -198,6 +198,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         "peak_force": float(peaks[peak]) if peak is not None else 0.0,
         "peak_force_tool": tool_names[peak] if peak is not None else None,
         "peak_force_time": float(peak_times[peak]) if peak is not None else None,
+        "peak_forces": {name: float(f) for name, f in zip(tool_names, peaks)},
         "load_cell_window": sim.load_cell.window * dt,
         "energy_error": energy_error(hist),
         "crackle_version": __version__,
