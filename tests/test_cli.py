@@ -150,6 +150,7 @@ def _mistakes(tmp_path):
         ([scenario, "--set", "specimen.element_size=1e-9"], "below 1e-5 of the specimen"),
         ([scenario, "--set", "material.youngs_modulus=26"], "if that is GPa, write 26e9"),
         ([scenario, "--set", "material.density=2.34"], "2.34 g/cm^3 is 2340 kg/m^3"),
+        ([scenario, "--set", "run.load_cell_window=1.0"], "more than the 4096 the load cell holds"),
     ]
 
 

@@ -7,7 +7,18 @@ from pathlib import Path
 
 from .methods import get_method
 from .scenario import RunSpec, ScenarioBase, ScenarioError, load_scenario
-from .solver import RunControl, RunResult, StopConditions, choose_time_step, load_cell_steps, run
+from .solver import (
+    CheckpointError,
+    RunControl,
+    RunResult,
+    StopConditions,
+    choose_time_step,
+    steps_to,
+    load_cell_steps,
+    load_checkpoint,
+    run,
+)
+from .solver.checkpoint import scenario_changes
 
 
 def run_control(run: RunSpec) -> RunControl:
@@ -19,6 +30,7 @@ def run_control(run: RunSpec) -> RunControl:
         history_samples=run.history_samples,
         field_frames=run.field_frames,
         load_cell_window=run.load_cell_window,
+        checkpoint=run.checkpoint,
         stop=StopConditions(run.stop.tool_displacement, run.stop.tool, run.stop.force_drop, run.stop.force_drop_hold),
     )
 
@@ -35,14 +47,44 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     return sim, control
 
 
-def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None) -> RunResult:
-    """Validate, build and run a scenario file or shipped example; returns the result."""
+def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None,
+                 resume=None) -> RunResult:
+    """Validate, build and run a scenario file or shipped example; returns the result.
+
+    `resume`: the output folder of an earlier run of the same scenario (same file, --quick and
+    --set, except the end time and what is written); continues it from its checkpoint to this
+    scenario's run.end_time, in that folder."""
     scenario, base = load_scenario(source, overrides, quick)
-    out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
-    check_output_folder(out)
-    sim, control = build_simulation(scenario, base)
+    record = scenario.model_dump(mode="json")
+    if resume is not None:
+        out = Path(resume)
+        if out_dir is not None and Path(out_dir).resolve() != out.resolve():
+            raise ScenarioError(f"--out {out_dir} with --resume {resume}: a resumed run continues in its own folder; drop --out")
+        check_output_folder(out)
+        try:
+            checkpoint = load_checkpoint(out)
+        except CheckpointError as err:
+            raise ScenarioError(str(err)) from None
+        changes = scenario_changes(checkpoint.scenario, record)
+        if changes:
+            raise ScenarioError(
+                f"--resume {resume}: the scenario differs from the run being resumed: {'; '.join(changes)}. Give the "
+                "same file, --quick and --set as that run (only run.end_time, run.history_samples, run.field_frames "
+                "and run.stop may change)"
+            )
+        sim, control = checkpoint.sim, run_control(scenario.run)
+        if steps_to(scenario.run.end_time, checkpoint.dt) <= sim.steps:
+            raise ScenarioError(
+                f"--resume {resume}: the run is already at t = {sim.time:.6g} s, run.end_time = {scenario.run.end_time:.6g} s; "
+                f"set a later end, e.g. --set run.end_time={2 * sim.time:.3g}"
+            )
+    else:
+        out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
+        check_output_folder(out)
+        sim, control = build_simulation(scenario, base)
+        checkpoint = None
     control.progress = progress
-    return run(sim, control, out, scenario_name=scenario.name)
+    return run(sim, control, out, scenario_name=scenario.name, scenario=record, resume=checkpoint)
 
 
 def check_output_folder(out: Path) -> None:

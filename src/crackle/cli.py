@@ -13,7 +13,7 @@ def _cmd_run(args) -> int:
     from .solver import UnstableRunError
 
     try:
-        result = run_scenario(args.scenario, args.out, args.set, args.quick)
+        result = run_scenario(args.scenario, args.out, args.set, args.quick, resume=args.resume)
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
@@ -73,6 +73,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", help="output folder (default crackle-out/NAME)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario value, e.g. run.end_time=1e-3")
     p.add_argument("--quick", action="store_true", help="the example's quick form: coarser, shorter")
+    p.add_argument("--resume", metavar="DIR", help="continue the run in DIR (its checkpoint) to run.end_time; "
+                   "give the same scenario, --quick and --set as that run")
     p.set_defaults(func=_cmd_run)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)

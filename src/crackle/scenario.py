@@ -290,6 +290,7 @@ class RunSpec(Strict):
     history_samples: Annotated[int, Field(ge=1)] = 400
     field_frames: Annotated[int, Field(ge=0)] = 10
     load_cell_window: Positive | None = None  # s, the tool force's averaging window; default 4 element wave transits
+    checkpoint: bool = True  # leave checkpoint.pkl in the output folder, for crackle run --resume
     stop: Stop = Stop()
 
 

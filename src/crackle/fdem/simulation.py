@@ -28,6 +28,10 @@ from .model import FdemModel
 # Columns of the Cauchy stress per tet in the fields (Pa).
 STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
 
+# Longest run of steps between two checks of the contact surface: new fracture faces take part in
+# surface contact at most this many steps after they fail.
+CONTACT_REFRESH_STEPS = 100
+
 
 class FdemSimulation:
     """Steps an FdemModel and reports histories, events and fields."""
@@ -51,6 +55,7 @@ class FdemSimulation:
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1
+        self._next_refresh = 0  # step of the next contact refresh
         self.rebuilds = 0
         self.fracture_plane: FracturePlane | None = None  # followed in the history when set
         self._tips: list[float] = []
@@ -72,24 +77,32 @@ class FdemSimulation:
         return self.model.wave_transit
 
     def advance(self, n_steps: int, dt: float) -> None:
-        """n_steps compiled steps, split where the contact candidate lists must be rebuilt."""
+        """n_steps compiled steps, split where the contact candidate lists are refreshed. The
+        refreshes follow their own schedule in steps, not the driver's chunks, so the state after
+        a step does not depend on how often the history is sampled (nor on a resume)."""
         m = self.model
-        done = 0
-        while done < n_steps:
-            n = n_steps - done
+        end = self.steps + n_steps
+        while self.steps < end:
+            n = end - self.steps
             if m.contact_enabled:
-                self._refresh_contact()
-                # No node may move more than half the skin between two broad phases; the
-                # fastest node, allowing it to double its speed, sets the chunk length.
-                vmax = float(np.sqrt(np.max(np.einsum("ij,ij->i", m.nodes.v, m.nodes.v)))) if len(m.nodes.v) else 0.0
-                if vmax > 0.0:
-                    n = min(n, max(1, int(0.25 * m.contact_skin / (2.0 * vmax * dt))))
+                if self.steps >= self._next_refresh:
+                    self._refresh_contact()
+                    self._next_refresh = self.steps + self._refresh_interval(dt)
+                n = min(n, self._next_refresh - self.steps)
             advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls)
             self.steps += n
-            done += n
-        self._dt = dt
         # Exact time of the step count, not an accumulated sum of dt.
         self.time = self.steps * dt
+
+    def _refresh_interval(self, dt: float) -> int:
+        """Steps to the next contact refresh: no node may move more than half the skin between two
+        broad phases (the fastest node, allowing it to double its speed, sets it), and new fracture
+        faces join the surface within CONTACT_REFRESH_STEPS."""
+        m = self.model
+        vmax = float(np.sqrt(np.max(np.einsum("ij,ij->i", m.nodes.v, m.nodes.v)))) if len(m.nodes.v) else 0.0
+        if vmax == 0.0:
+            return CONTACT_REFRESH_STEPS
+        return min(CONTACT_REFRESH_STEPS, max(1, int(0.25 * m.contact_skin / (2.0 * vmax * dt))))
 
     def state_is_finite(self) -> bool:
         n = self.model.nodes
@@ -193,7 +206,7 @@ class FdemSimulation:
         """Failures since the last call: times, positions, mode names, interface ids."""
         ifs = self.model.ifs
         failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
-        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids(self.model.nodes.x)[ids])
+        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids()[ids])
 
     def fields(self) -> dict:
         """Arrays for a ParaView snapshot on the exploded mesh."""

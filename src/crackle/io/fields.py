@@ -64,12 +64,21 @@ class FieldWriter:
     even while the run is going or after it crashed.
     """
 
-    def __init__(self, out_dir: str | os.PathLike):
+    def __init__(self, out_dir: str | os.PathLike, keep_until: float | None = None):
+        """`keep_until`: continue an existing series (a resumed run), keeping its snapshots up
+        to that time and deleting later ones."""
         self.out_dir = Path(out_dir)
         self.fields_dir = self.out_dir / "fields"
         self.fields_dir.mkdir(parents=True, exist_ok=True)
         self.pvd_path = self.out_dir / "fields.pvd"
         self.steps: list[tuple[float, str]] = []  # (time, path relative to out_dir)
+        if keep_until is not None and self.pvd_path.exists():
+            for time, path in read_pvd(self.pvd_path):
+                if time <= keep_until:
+                    self.steps.append((time, path.relative_to(self.out_dir).as_posix()))
+                else:
+                    path.unlink(missing_ok=True)
+            self._write_pvd()
 
     def write(
         self,

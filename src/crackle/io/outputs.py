@@ -49,17 +49,22 @@ class HistoryWriter:
     ``append`` takes a dict (missing columns are written as nan, unknown
     keys raise KeyError so that typos show up at the first row) or a
     sequence of values in column order.
+
+    ``keep_until``: continue an existing file (a resumed run): its rows up to
+    that time are kept, later ones dropped; its columns must be ``columns``.
     """
 
-    def __init__(self, path: str | os.PathLike, columns: Sequence[str]):
+    def __init__(self, path: str | os.PathLike, columns: Sequence[str], keep_until: float | None = None):
         self.columns = _check_names(columns)
         if not self.columns or self.columns[0] != "time":
             raise ValueError("history columns must start with 'time'")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._index = {name: i for i, name in enumerate(self.columns)}
+        kept = _rows_until(self.path, self.columns, keep_until) if keep_until is not None else []
         self._file = open(self.path, "w", encoding="utf-8", newline="")
-        self._write_line(self.columns)
+        self._file.write("".join(line + "\n" for line in [",".join(self.columns), *kept]))
+        self._file.flush()
 
     def _write_line(self, fields: Sequence[str]) -> None:
         self._file.write(",".join(fields) + "\n")
@@ -96,11 +101,12 @@ class HistoryWriter:
 class EventWriter:
     """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id``."""
 
-    def __init__(self, path: str | os.PathLike):
+    def __init__(self, path: str | os.PathLike, keep_until: float | None = None):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        kept = _rows_until(self.path, EVENT_COLUMNS, keep_until) if keep_until is not None else []
         self._file = open(self.path, "w", encoding="utf-8", newline="")
-        self._file.write(",".join(EVENT_COLUMNS) + "\n")
+        self._file.write("".join(line + "\n" for line in [",".join(EVENT_COLUMNS), *kept]))
         self._file.flush()
 
     def append_many(self, times, xyz, modes, ids) -> None:
@@ -155,6 +161,17 @@ def _complete_lines(path: Path) -> tuple[list[str], list[str]]:
         header = f.readline().rstrip("\r\n").split(",")
         lines = f.read().split("\n")[:-1]
     return header, [ln.rstrip("\r") for ln in lines if ln.strip()]
+
+
+def _rows_until(path: Path, columns: Sequence[str], until: float) -> list[str]:
+    """The complete data lines of an existing CSV whose first field (a time) is at most `until`;
+    refuses a file with other columns (it belongs to another kind of run)."""
+    if not path.exists():
+        raise FileNotFoundError(f"{path} does not exist: nothing to continue")
+    header, lines = _complete_lines(path)
+    if header != list(columns):
+        raise ValueError(f"{path} has other columns than this run writes; it belongs to another run")
+    return [ln for ln in lines if float(ln.split(",", 1)[0]) <= until]
 
 
 def read_history_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:

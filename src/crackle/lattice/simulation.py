@@ -84,7 +84,7 @@ class LatticeSimulation:
     def new_events(self):
         s = self.springs
         return self._failures.new(~s.intact, s.fail_time, s.fail_mode,
-                                  lambda ids: 0.5 * (self.nodes.x[s.a[ids]] + self.nodes.x[s.b[ids]]))
+                                  lambda ids: 0.5 * (self.x0[s.a[ids]] + self.x0[s.b[ids]]))
 
     def fields(self) -> dict:
         s = self.springs

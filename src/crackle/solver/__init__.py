@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import __version__
 from ..loading.arrays import LOAD_CELL_RING
+from .checkpoint import CHECKPOINT_FILE, Checkpoint, CheckpointError, load_checkpoint, save_checkpoint
 from .energy import energy_error
 from .simulation import Simulation
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
@@ -56,6 +57,7 @@ class RunControl:
     load_cell_window: float | None = None  # s; None: LOAD_CELL_TRANSITS element wave transits
     stop: StopConditions = field(default_factory=StopConditions)
     plots: bool = True
+    checkpoint: bool = True  # leave checkpoint.pkl for --resume
     progress: bool | None = None  # None: only on a terminal
 
 
@@ -79,6 +81,11 @@ def load_cell_steps(control: RunControl, dt: float, wave_transit: float) -> int:
     return steps
 
 
+def steps_to(end_time: float, dt: float) -> int:
+    """Steps of dt a run to end_time takes (the last one reaches or passes it)."""
+    return max(1, int(math.ceil(end_time / dt - 1e-9)))
+
+
 def choose_time_step(stable_dt: float, control: RunControl) -> float:
     """The step to use; refuses one larger than safety x stable."""
     limit = control.safety * stable_dt
@@ -99,15 +106,27 @@ class RunResult:
     history: dict[str, np.ndarray]
 
 
-def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name: str = "") -> RunResult:
+def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name: str = "",
+        scenario: dict | None = None, resume: Checkpoint | None = None) -> RunResult:
+    """Run `sim` to control.end_time, writing the outputs into out_dir, and leave a checkpoint
+    there (control.checkpoint). `scenario` (the validated scenario as a dict) goes into the
+    checkpoint; `resume`, a checkpoint whose `sim` is `sim`, continues that run in out_dir: its
+    outputs up to the checkpoint are kept and the new rows follow them.
+
+    Rows fall on a grid of steps fixed by end_time and history_samples (and the field frames),
+    from step 0: a resumed run writes the rows an uninterrupted one would."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    clear_outputs(out)
-    dt = choose_time_step(sim.stable_dt, control)
-    total_steps = max(1, int(math.ceil(control.end_time / dt - 1e-9)))
+    if resume is None:
+        clear_outputs(out)
+        dt = choose_time_step(sim.stable_dt, control)
+        sim.load_cell.set_window(load_cell_steps(control, dt, sim.wave_transit))
+    else:
+        dt = resume.dt  # the window of the load cell comes with it
+    total_steps = steps_to(control.end_time, dt)
     chunk = max(1, total_steps // max(1, control.history_samples))
     field_every = max(1, total_steps // control.field_frames) if control.field_frames > 0 else 0
-    sim.load_cell.set_window(load_cell_steps(control, dt, sim.wave_transit))
+    resumed_from = sim.time if resume is not None else None
 
     first = {"time": sim.time, **sim.sample(dt)}
     columns = list(first)
@@ -116,24 +135,26 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     status = "completed"
     message = ""
     started = wallclock.perf_counter()
-    fields = FieldWriter(out) if field_every else None
-    next_field = 0
-    low_since = None  # time since which the tool force has stayed low after a failure
+    keep = resumed_from  # a resumed run continues the files of the run it resumes
+    fields = FieldWriter(out, keep_until=keep) if field_every else None
+    low_since = resume.low_since if resume is not None else None  # since when the tool force stayed low after a failure
 
-    with HistoryWriter(out / "history.csv", columns) as history, EventWriter(out / "events.csv") as events, Progress(
-        control.end_time, enabled=control.progress
-    ) as progress, _InterruptRequest() as interrupt:
-        history.append(first)
-        if fields is not None:
-            _write_fields(fields, sim)
-            next_field = field_every
-        scale = max(1.0, abs(first.get("energy.external", 0.0)))
+    with HistoryWriter(out / "history.csv", columns, keep_until=keep) as history, EventWriter(
+        out / "events.csv", keep_until=keep
+    ) as events, Progress(control.end_time, enabled=control.progress) as progress, _InterruptRequest() as interrupt:
+        if resume is None:
+            history.append(first)
+            if fields is not None:
+                _write_fields(fields, sim)
+            scale = max(1.0, abs(first.get("energy.external", 0.0)))
+        else:
+            scale = resume.energy_scale
         try:
             while sim.steps < total_steps:
-                n = min(chunk, total_steps - sim.steps)
+                stop_at = min(total_steps, _next_multiple(sim.steps, chunk))
                 if fields is not None:
-                    n = min(n, next_field - sim.steps)
-                sim.advance(n, dt)
+                    stop_at = min(stop_at, _next_multiple(sim.steps, field_every))
+                sim.advance(stop_at - sim.steps, dt)
                 if not sim.state_is_finite():
                     raise UnstableRunError(
                         f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
@@ -144,9 +165,8 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 t, xyz, modes, ids = sim.new_events()
                 if len(ids):
                     events.append_many(t, xyz, modes, ids)
-                if fields is not None and sim.steps >= next_field:
+                if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
-                    next_field += field_every
                 progress.update(sim.time, sim.steps, sim.broken)
 
                 energy_terms = [v for k, v in row.items() if k.startswith("energy.")]
@@ -180,6 +200,8 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             status, message = "unstable", str(err)
         if fields is not None and status != "unstable" and sim.steps % field_every:
             _write_fields(fields, sim)
+        if status != "unstable" and control.checkpoint:
+            save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
 
     hist = read_history_csv(out / "history.csv")
     peaks, peak_times = sim.load_cell.peaks()
@@ -202,6 +224,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         "load_cell_window": sim.load_cell.window * dt,
         "energy_error": energy_error(hist),
         "crackle_version": __version__,
+        **({"resumed_from": resumed_from} if resumed_from is not None else {}),
         **sim.summary(),
     }
     if abs(summary["energy_error"]) > ENERGY_WARNING:
@@ -218,6 +241,11 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     if status == "unstable":
         raise UnstableRunError(message + f" (outputs so far are in {out})")
     return RunResult(out, summary, hist)
+
+
+def _next_multiple(step: int, every: int) -> int:
+    """The first multiple of `every` after `step`."""
+    return (step // every + 1) * every
 
 
 def _tool_force(row: dict, name: str) -> float:
@@ -240,8 +268,9 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, low_since, no
 
 
 class _InterruptRequest:
-    """Ctrl-C during a run asks it to stop after the chunk in progress, so that the history, the
-    events and the summary end at the same consistent state; a second Ctrl-C interrupts at once."""
+    """Ctrl-C (or a polite kill, SIGTERM, e.g. a batch system's time limit) during a run asks it
+    to stop after the chunk in progress, so that the history, the events, the summary and the
+    checkpoint end at the same consistent state; a second one interrupts at once."""
 
     def __init__(self):
         self.requested = False
@@ -255,16 +284,16 @@ class _InterruptRequest:
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
+            self._previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
         return self
 
     def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        for sig, handler in (self._previous or {}).items():
+            signal.signal(sig, handler)
 
 
 # What a run writes into its output folder (and a rerun into the same folder removes first).
-OUTPUT_FILES = ("summary.json", "history.csv", "events.csv", "fields.pvd") + tuple(
+OUTPUT_FILES = ("summary.json", "history.csv", "events.csv", "fields.pvd", CHECKPOINT_FILE) + tuple(
     f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth")
 )
 OUTPUT_GLOBS = ("fields/step_*.vtu",)
@@ -286,4 +315,4 @@ def _write_fields(writer: FieldWriter, sim) -> None:
                         component_names=f.get("component_names"))
 
 
-__all__ = ["RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "load_cell_steps", "run"]
+__all__ = ["Checkpoint", "CheckpointError", "RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "load_cell_steps", "load_checkpoint", "run", "steps_to"]

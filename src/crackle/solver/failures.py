@@ -50,7 +50,9 @@ class FailureRecorder:
     def new(self, failed: np.ndarray, fail_time: np.ndarray, fail_mode: np.ndarray, positions):
         """Failures not reported yet, in the order of their time then id: (times, xyz, mode names,
         ids). `failed` is a mask over the method's bonds; `positions(ids)` gives their (k, 3)
-        positions now."""
+        positions in the reference (undeformed) configuration: where on the specimen each
+        failure is, the same whenever it is reported (so events.csv does not depend on how
+        often the history is sampled)."""
         ids = np.flatnonzero(failed & ~self._reported)
         self._reported[ids] = True
         ids = ids[np.lexsort((ids, fail_time[ids]))]

@@ -1,0 +1,98 @@
+"""Checkpoints: the complete state of a run at its last step, so that `crackle run --resume DIR`
+continues an interrupted or finished run to a later end time.
+
+The checkpoint holds the method's Simulation object as it is (every array of its model, tools,
+load cell, contact lists and failure records: nothing to forget when a method adds state), the
+driver's own state, and the validated scenario it was built from. It is a pickle: load only
+checkpoints you wrote (like any restart file, it can run code when read).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import __version__
+
+CHECKPOINT_FILE = "checkpoint.pkl"
+# Bumped when what a checkpoint holds changes; an older one is refused with a message.
+CHECKPOINT_FORMAT = 1
+
+# Scenario keys a resumed run may change: how far it goes and what it writes, never the model.
+RESUMABLE_KEYS = ("run.end_time", "run.history_samples", "run.field_frames", "run.stop", "run.checkpoint",
+                  "description", "quick")
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be resumed; the message says why and what to do."""
+
+
+@dataclass
+class Checkpoint:
+    sim: object  # the method's Simulation, after its last step
+    dt: float  # the step the run used (a resumed run keeps it)
+    energy_scale: float  # the driver's largest external work seen (for the instability check)
+    low_since: float | None  # the driver's force-drop clock
+    scenario: dict  # the validated scenario (model_dump), for the resume check
+    crackle_version: str = __version__
+    format: int = CHECKPOINT_FORMAT
+
+
+def save_checkpoint(out_dir: Path, checkpoint: Checkpoint) -> Path:
+    """Write the checkpoint next to the run's outputs (write, then rename: a run killed while
+    writing leaves the previous checkpoint whole)."""
+    path = Path(out_dir) / CHECKPOINT_FILE
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        pickle.dump(checkpoint, f, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(tmp, path)
+    return path
+
+
+def load_checkpoint(run_dir: Path) -> Checkpoint:
+    path = Path(run_dir) / CHECKPOINT_FILE
+    if not path.is_file():
+        raise CheckpointError(
+            f"--resume {run_dir}: no {CHECKPOINT_FILE} there; give the output folder of a run that completed, "
+            "stopped or was interrupted (an unstable run, or one with run.checkpoint = false, leaves none)"
+        )
+    try:
+        with open(path, "rb") as f:
+            checkpoint = pickle.load(f)
+    except Exception as err:  # a torn or foreign file: say so rather than show the unpickler's error
+        raise CheckpointError(f"--resume {run_dir}: {CHECKPOINT_FILE} cannot be read ({err}); rerun from the start") from None
+    if not isinstance(checkpoint, Checkpoint) or checkpoint.format != CHECKPOINT_FORMAT:
+        raise CheckpointError(
+            f"--resume {run_dir}: {CHECKPOINT_FILE} was written by another crackle version "
+            f"({getattr(checkpoint, 'crackle_version', 'unknown')}); rerun from the start"
+        )
+    return checkpoint
+
+
+def scenario_changes(saved: dict, now: dict) -> list[str]:
+    """The keys (dotted) where `now` differs from `saved` other than RESUMABLE_KEYS, each with
+    both values."""
+    a, b = _flatten(saved), _flatten(now)
+    changed = []
+    for key in sorted(set(a) | set(b)):
+        if any(key == k or key.startswith(k + ".") for k in RESUMABLE_KEYS):
+            continue
+        if a.get(key) != b.get(key):
+            changed.append(f"{key} = {b.get(key)!r} (the checkpoint's run had {a.get(key)!r})")
+    return changed
+
+
+def _flatten(value, prefix: str = "") -> dict:
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            out.update(_flatten(v, f"{prefix}{k}."))
+        return out
+    if isinstance(value, list):
+        out = {}
+        for i, v in enumerate(value):
+            out.update(_flatten(v, f"{prefix}{i}."))
+        return out
+    return {prefix[:-1]: value}

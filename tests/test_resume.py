@@ -1,0 +1,106 @@
+"""Checkpoint and restart (crackle run --resume DIR): a resumed run's history, events and
+results are bit-identical to an uninterrupted run's, for an interrupted run (Ctrl-C) and for a
+finished one continued to a later end time; a resume that would not be the same run is refused."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crackle.cli import main
+from crackle.io import read_events_csv, read_history_csv, read_pvd
+
+LATTICE = str(Path(__file__).parent / "data" / "lattice-platen.toml")
+# Results that must match; wall time, status and message describe the session, not the physics.
+SAME = ("steps", "end_time", "broken", "peak_force", "peak_force_time", "peak_forces", "energy_error", "fragments")
+
+
+def _summary(out: Path) -> dict:
+    return json.loads((out / "summary.json").read_text())
+
+
+def _same_files(a: Path, b: Path, rows_after: float = -1.0) -> None:
+    """history.csv rows later than `rows_after` and the whole events.csv identical, bit for bit."""
+    ha, hb = read_history_csv(a / "history.csv"), read_history_csv(b / "history.csv")
+    assert list(ha) == list(hb)
+    ka, kb = ha["time"] > rows_after, hb["time"] > rows_after
+    assert ka.sum() == kb.sum() > 0
+    for name in ha:
+        assert np.array_equal(ha[name][ka], hb[name][kb], equal_nan=True), name
+    assert (a / "events.csv").read_bytes() == (b / "events.csv").read_bytes()
+    sa, sb = _summary(a), _summary(b)
+    for key in SAME:
+        assert sa.get(key) == sb.get(key), key
+
+
+def test_interrupted_run_resumed_is_bit_identical(tmp_path):
+    """Ctrl-C a fracturing impact with surface contact, resume it to the same end: every row of
+    history.csv, events.csv and the results equal those of the run never interrupted; the
+    snapshots continue the series (with the one the interrupted run wrote when it stopped)."""
+    args = ["sphere-impact-fast", "--quick", "--set", "run.end_time=5e-5", "--set", "run.history_samples=300",
+            "--set", "run.field_frames=3"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    assert main(["run", *args, "--out", str(whole)]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "crackle.cli", "run", *args, "--out", str(cut)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((cut / "history.csv").exists() and len((cut / "history.csv").read_text().splitlines()) > 100):
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    stopped_at = _summary(cut)["end_time"]
+    assert 0.0 < stopped_at < _summary(whole)["end_time"]
+
+    assert main(["run", *args, "--resume", str(cut)]) == 0
+    _same_files(whole, cut)
+    assert _summary(cut)["resumed_from"] == stopped_at and _summary(cut)["status"] == "completed"
+    frames = read_pvd(cut / "fields.pvd")
+    assert sorted({t for t, _ in read_pvd(whole / "fields.pvd")} | {stopped_at}) == [t for t, _ in frames]
+    assert all(path.exists() for _, path in frames)
+
+
+def test_finished_run_continued_to_a_later_end(tmp_path):
+    """The lattice run to half its end time, then resumed to the end: the rows after the half
+    (on the grid of the full run) equal the uninterrupted run's; the earlier rows are the first
+    run's own."""
+    whole, half = tmp_path / "whole", tmp_path / "half"
+    assert main(["run", LATTICE, "--out", str(whole)]) == 0
+    end = _summary(whole)["end_time"]
+    assert main(["run", LATTICE, "--out", str(half), "--set", f"run.end_time={end / 2!r}"]) == 0
+    assert _summary(half)["broken"] < _summary(whole)["broken"]  # the failures come after the half
+    assert main(["run", LATTICE, "--resume", str(half)]) == 0
+    _same_files(whole, half, rows_after=end / 2)
+
+
+def test_resume_refusals(tmp_path, capsys):
+    """Exit 2 with one message: no checkpoint; a changed model; an end time already reached."""
+    out = tmp_path / "run"
+    assert main(["run", LATTICE, "--out", str(out)]) == 0
+    capsys.readouterr()
+    cases = [
+        ([LATTICE, "--resume", str(tmp_path)], "no checkpoint.pkl"),
+        ([LATTICE, "--resume", str(out), "--set", "material.youngs_modulus=30e9", "--set", "run.end_time=1e-4"],
+         "material.youngs_modulus = 30000000000.0 (the checkpoint's run had 26000000000.0)"),
+        ([LATTICE, "--resume", str(out)], "the run is already at t = 4.01"),
+        ([LATTICE, "--resume", str(out), "--out", str(tmp_path / "elsewhere")], "drop --out"),
+    ]
+    history = (out / "history.csv").read_bytes()
+    for argv, expected in cases:
+        assert main(["run", *argv]) == 2
+        err = capsys.readouterr().err
+        assert expected in err and len(err.strip().splitlines()) == 1, err
+    assert (out / "history.csv").read_bytes() == history  # a refused resume touches nothing
+
+
+def test_checkpoint_can_be_switched_off(tmp_path):
+    out = tmp_path / "run"
+    assert main(["run", LATTICE, "--out", str(out), "--set", "run.checkpoint=false"]) == 0
+    assert not (out / "checkpoint.pkl").exists()
