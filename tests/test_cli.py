@@ -217,3 +217,21 @@ def test_ctrl_c_stops_consistently_with_exit_130(tmp_path):
     assert len(read_events_csv(out / "events.csv")["id"]) == s["broken"]
     h = read_history_csv(out / "history.csv")
     assert h["time"][-1] == s["end_time"] and h["broken"][-1] == s["broken"]
+
+
+def test_setup_lines_and_coarse_mesh_advice_before_the_run(tmp_path, capsys):
+    """Before the first step: one line with the size and the steps, then the coarse-mesh advice
+    (paper-001 rock at 17.9 mm against the advised 2.84 mm); the advice is left out when the loads
+    cannot reach the strength (ft = 10 GPa: the platen's 0.1 m/s over 40 us squeezed into one
+    element gives at most E u / h = 5.8 MPa)."""
+    args = ["run", "three-point-bending", "--quick", "--set", "run.end_time=4e-5", "--set", "run.field_frames=0"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("three-point-bending: 960 tets, 1,672 interfaces; 626 steps of")
+    assert lines[1].startswith("  warning: element size 17.9 mm is coarser than the advised 2.84 mm")
+    assert lines[2].startswith("three-point-bending: completed")
+    strong = ["--set", "material.interface.tensile_strength=1e10", "--set", "material.interface.cohesion=5e10"]
+    assert main(args + strong + ["--out", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "warning" not in out
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["warnings"] == []

@@ -320,9 +320,16 @@ def test_progress_enabled_draws_after_delay(capsys):
 
 
 def test_progress_enabled_stays_silent_for_short_runs(capsys):
-    with Progress(1e-3, enabled=True) as progress:  # default delay of ~3 s
+    with Progress(1e-3, enabled=True) as progress:  # default delay of 1 s
         progress.update(5e-4, 10, 1)
     assert capsys.readouterr().out == ""
+
+
+def test_progress_stage_shows_at_once(capsys):
+    """Before the first step (compiling kernels) the bar is drawn at once with what is going on."""
+    with Progress(1e-3, enabled=True, delay=60.0) as progress:
+        progress.stage("compiling kernels")
+    assert "compiling kernels" in capsys.readouterr().out
 
 
 def test_field_component_names(tmp_path):

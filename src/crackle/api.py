@@ -48,12 +48,13 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
 
 
 def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None,
-                 resume=None) -> RunResult:
+                 resume=None, report=None) -> RunResult:
     """Validate, build and run a scenario file or shipped example; returns the result.
 
     `resume`: the output folder of an earlier run of the same scenario (same file, --quick and
     --set, except the end time and what is written); continues it from its checkpoint to this
-    scenario's run.end_time, in that folder."""
+    scenario's run.end_time, in that folder. `report` (a callable taking a line of text) gets the
+    set-up lines, advice and cost estimate before the first step (nothing when None)."""
     scenario, base = load_scenario(source, overrides, quick)
     record = scenario.model_dump(mode="json")
     if resume is not None:
@@ -84,6 +85,7 @@ def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick
         sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress
+    control.report = report
     return run(sim, control, out, scenario_name=scenario.name, scenario=record, resume=checkpoint)
 
 

@@ -13,7 +13,8 @@ def _cmd_run(args) -> int:
     from .solver import UnstableRunError
 
     try:
-        result = run_scenario(args.scenario, args.out, args.set, args.quick, resume=args.resume)
+        result = run_scenario(args.scenario, args.out, args.set, args.quick, resume=args.resume,
+                              report=lambda text: print(text, flush=True))
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
@@ -31,8 +32,6 @@ def _cmd_run(args) -> int:
         print(f"  plastic zone while the fracture grows: {s['plastic_zone_length'] * 1e3:.1f} mm")
     if s.get("message"):
         print(f"  {s['message']}")
-    for w in s.get("warnings", []):
-        print(f"  warning: {w}")
     print(f"  outputs in {result.out_dir}")
     return 130 if s["status"] == "interrupted" else 0
 

@@ -92,6 +92,7 @@ def build_fdem_model(
     initial_velocity=None,
     contact: bool = False,
     angular_velocity=None,
+    end_time: float | None = None,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -101,6 +102,8 @@ def build_fdem_model(
     `contact` switches on node-to-surface contact between all free surfaces (fragments, fracture
     faces that slid apart, self-contact); without it only the paired faces of failed interfaces
     and the tools touch. Off by default while it is being validated on fracturing runs.
+    `end_time` (s), when given, lets the coarse-mesh advice be left out of a run whose loads
+    cannot bring any interface to its strength by then (_fracture_reachable).
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -150,7 +153,10 @@ def build_fdem_model(
     stable_dt = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
-    model_warnings = _resolution_warnings(materials, element_size)
+    reachable = end_time is None or _fracture_reachable(
+        materials, bulk, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
+    )
+    model_warnings = _resolution_warnings(materials, element_size) if reachable else []
     for msg in model_warnings:
         warnings.warn(msg, stacklevel=2)
 
@@ -387,6 +393,35 @@ def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, t
         k_node[:, FACE_CORNERS[f]] += face_spring[:, f, None]
     omega2 = np.repeat(omega2_tet, 4) + k_node.ravel() / bulk.mass
     return float(2.0 / np.sqrt(omega2.max()))
+
+
+# A hole's stress concentration: the factor on a pressure's stress in the bound below.
+_CONCENTRATION = 3.0
+
+
+def _fracture_reachable(materials, bulk, nodes, tools, pressures, precracks, gravity, scale, element_size,
+                        end_time) -> bool:
+    """Whether the loads could bring an interface to the weakest tensile strength by end_time,
+    by a generous upper bound of the stress they can cause: an impact rho c_p v at the fastest
+    relative speed of specimen and tools, a tool's whole travel squeezed into one element
+    E u / h, a pressure times a hole's concentration, the weight rho |g| L. A pre-crack under any
+    load concentrates stress without bound."""
+    ft = min(mat.interface.tensile_strength for mat in materials)
+    rho, E = float(np.max(bulk.rho)), max(mat.youngs_modulus for mat in materials)
+    c_p = max(mat.p_wave_speed for mat in materials)
+    tool_speed = max((max(abs(v) for v in t.speed.values) for t in tools), default=0.0)
+    node_speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", nodes.v, nodes.v)))) if len(nodes.v) else 0.0
+    pressure = max((max(abs(v) for v in p.history.values) for p in pressures), default=0.0)
+    loaded = tool_speed > 0 or node_speed > 0 or pressure > 0 or np.any(gravity)
+    if precracks and loaded:
+        return True
+    bound = max(
+        rho * c_p * (node_speed + tool_speed),
+        E * tool_speed * end_time / element_size,
+        _CONCENTRATION * pressure,
+        rho * float(np.linalg.norm(gravity)) * scale,
+    )
+    return bound >= ft
 
 
 def _resolution_warnings(materials, element_size: float) -> list[str]:

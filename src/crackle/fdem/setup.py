@@ -105,6 +105,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 initial_velocity=scenario.specimen.initial_velocity,
                 angular_velocity=scenario.specimen.angular_velocity,
                 contact=scenario.run.contact,
+                end_time=scenario.run.end_time,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None

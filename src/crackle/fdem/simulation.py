@@ -125,6 +125,13 @@ class FdemSimulation:
         self.rebuilds += 1
 
     # -- diagnostics --------------------------------------------------------------------------
+    @property
+    def warnings(self) -> list[str]:
+        return self.model.warnings
+
+    def describe(self) -> str:
+        return f"{self.model.n_tets:,} tets, {self.model.n_interfaces:,} interfaces"
+
     def _kinetic(self) -> float:
         n = self.model.nodes
         return float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)))
@@ -307,5 +314,5 @@ class FdemSimulation:
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
-            "warnings": list(m.warnings),
+            "warnings": list(self.warnings),
         }

@@ -72,6 +72,7 @@ class FieldWriter:
         self.fields_dir.mkdir(parents=True, exist_ok=True)
         self.pvd_path = self.out_dir / "fields.pvd"
         self.steps: list[tuple[float, str]] = []  # (time, path relative to out_dir)
+        self.last_frame_bytes = 0  # size of the latest snapshot written
         if keep_until is not None and self.pvd_path.exists():
             for time, path in read_pvd(self.pvd_path):
                 if time <= keep_until:
@@ -135,6 +136,7 @@ class FieldWriter:
         if component_names:
             _name_components(self.out_dir / relative, component_names)
         self.steps.append((float(time), relative))
+        self.last_frame_bytes = (self.out_dir / relative).stat().st_size
         self._write_pvd()
         return self.out_dir / relative
 

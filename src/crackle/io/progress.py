@@ -20,15 +20,17 @@ class Progress:
 
     ``enabled=None`` means: only when stdout is a terminal, so logs and CI
     output stay clean. Even when enabled, nothing is drawn before the run
-    has lasted ``delay`` seconds, so short runs print nothing. ``update`` is
-    cheap: between redraws (every ``refresh_interval`` s) it only reads the clock.
+    has lasted ``delay`` seconds (default 1 s). ``update`` is cheap: between
+    redraws (every ``refresh_interval`` s) it only reads the clock. ``stage``
+    shows at once what the run is doing before its first step (e.g. compiling
+    kernels); ``note`` prints a line above the bar.
     """
 
     def __init__(
         self,
         end_time: float,
         enabled: bool | None = None,
-        delay: float = 3.0,
+        delay: float = 1.0,
         refresh_interval: float = 0.1,
     ):
         self.end_time = float(end_time)
@@ -39,6 +41,7 @@ class Progress:
         self._bar = None
         self._task = None
         self._last = (0.0, 0, 0)  # latest (time, steps, broken)
+        self._stage = ""
         self._restart_clock()
 
     def _restart_clock(self) -> None:
@@ -66,6 +69,23 @@ class Progress:
             self._open_bar()
         self._draw(now)
 
+    def stage(self, text: str) -> None:
+        """Show `text` beside the bar now (opening it), or clear it with ""."""
+        if not self.enabled:
+            return
+        self._stage = text
+        if self._bar is None and text:
+            self._open_bar()
+        if self._bar is not None:
+            self._draw(monotonic())
+
+    def note(self, text: str, fallback=print) -> None:
+        """A line of text above the bar (through `fallback` while no bar is drawn)."""
+        if self._bar is not None:
+            self._bar.console.print(text, highlight=False, markup=False)
+        else:
+            fallback(text)
+
     def _open_bar(self) -> None:
         from rich.console import Console
         from rich.progress import (
@@ -86,11 +106,12 @@ class Progress:
             TimeElapsedColumn(),
             TextColumn("ETA"),
             TimeRemainingColumn(),
+            TextColumn("{task.fields[stage]}"),
             console=Console(file=sys.stdout),
             auto_refresh=False,  # we redraw from update(): no background thread
         )
         self._task = self._bar.add_task(
-            "run", total=self.end_time, sim_time="", rate="", broken=0
+            "run", total=self.end_time, sim_time="", rate="", broken=0, stage=""
         )
         self._bar.start()
 
@@ -109,6 +130,7 @@ class Progress:
                      f"{self.end_time * self._scale:.4g} {self._unit}",
             rate=f"{self._rate or 0.0:,.0f}",
             broken=int(broken),
+            stage=self._stage,
         )
         self._bar.refresh()
 

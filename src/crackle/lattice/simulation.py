@@ -94,6 +94,9 @@ class LatticeSimulation:
             "blocks": [("line", np.stack([s.a, s.b], axis=1), {"intact": s.intact.astype(np.int64)})],
         }
 
+    def describe(self) -> str:
+        return f"{len(self.nodes.x):,} nodes, {len(self.springs.a):,} springs"
+
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
 

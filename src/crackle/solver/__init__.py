@@ -8,12 +8,14 @@ is interrupted keeps everything written so far.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import sys
 import threading
 import time as wallclock
 from dataclasses import dataclass, field
+from typing import Callable
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +60,7 @@ class RunControl:
     stop: StopConditions = field(default_factory=StopConditions)
     plots: bool = True
     checkpoint: bool = True  # leave checkpoint.pkl for --resume
+    report: Callable[[str], None] | None = None  # where set-up lines, warnings and the cost estimate go
     progress: bool | None = None  # None: only on a terminal
 
 
@@ -128,20 +131,30 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     field_every = max(1, total_steps // control.field_frames) if control.field_frames > 0 else 0
     resumed_from = sim.time if resume is not None else None
 
-    first = {"time": sim.time, **sim.sample(dt)}
-    columns = list(first)
     tool_names = sim.tool_names()
     peak_force = 0.0
     status = "completed"
     message = ""
     started = wallclock.perf_counter()
     keep = resumed_from  # a resumed run continues the files of the run it resumes
-    fields = FieldWriter(out, keep_until=keep) if field_every else None
     low_since = resume.low_since if resume is not None else None  # since when the tool force stayed low after a failure
 
-    with HistoryWriter(out / "history.csv", columns, keep_until=keep) as history, EventWriter(
-        out / "events.csv", keep_until=keep
-    ) as events, Progress(control.end_time, enabled=control.progress) as progress, _InterruptRequest() as interrupt:
+    with contextlib.ExitStack() as stack:
+        progress = stack.enter_context(Progress(control.end_time, enabled=control.progress))
+        interrupt = stack.enter_context(_InterruptRequest())
+
+        def say(text: str) -> None:
+            progress.note(text, control.report or _silent)
+
+        say(f"{scenario_name or sim.method}: {sim.describe()}; {total_steps - sim.steps:,} steps of {dt:.3g} s to "
+            f"t = {control.end_time:.4g} s" + (f" from {sim.time:.4g} s" if resume is not None else ""))
+        for warning in sim.warnings:
+            say(f"  warning: {warning}")
+        progress.stage("compiling kernels")  # the first sample and step compile them (or load them from the cache)
+        first = {"time": sim.time, **sim.sample(dt)}
+        history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=keep))
+        events = stack.enter_context(EventWriter(out / "events.csv", keep_until=keep))
+        fields = FieldWriter(out, keep_until=keep) if field_every else None
         if resume is None:
             history.append(first)
             if fields is not None:
@@ -149,6 +162,11 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             scale = max(1.0, abs(first.get("energy.external", 0.0)))
         else:
             scale = resume.energy_scale
+        if sim.steps < total_steps:
+            sim.advance(1, dt)  # a row's state does not depend on how its steps were split
+        progress.stage("")
+        probe = None  # (wall time, steps) after the first chunk, which also starts the thread pool
+        estimated = False
         try:
             while sim.steps < total_steps:
                 stop_at = min(total_steps, _next_multiple(sim.steps, chunk))
@@ -168,6 +186,13 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
                 progress.update(sim.time, sim.steps, sim.broken)
+                if probe is None:
+                    probe = (wallclock.perf_counter(), sim.steps)
+                elif not estimated and wallclock.perf_counter() - probe[0] > PROBE_SECONDS:
+                    estimated = True
+                    estimate = _cost_estimate(probe, sim.steps, total_steps, started, fields, field_every)
+                    if estimate:
+                        say(estimate)
 
                 energy_terms = [v for k, v in row.items() if k.startswith("energy.")]
                 if not all(math.isfinite(v) for v in row.values()):
@@ -228,12 +253,13 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         **sim.summary(),
     }
     if abs(summary["energy_error"]) > ENERGY_WARNING:
-        summary["warnings"] = [
-            *summary.get("warnings", []),
+        warning = (
             f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
             f"{ENERGY_WARNING:.0%}): results may not be trustworthy; reduce run.safety or check the contact "
-            "penalties (energies.png shows when the imbalance grew)",
-        ]
+            "penalties (energies.png shows when the imbalance grew)"
+        )
+        summary["warnings"] = [*summary.get("warnings", []), warning]
+        (control.report or _silent)(f"  warning: {warning}")
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
@@ -241,6 +267,39 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     if status == "unstable":
         raise UnstableRunError(message + f" (outputs so far are in {out})")
     return RunResult(out, summary, hist)
+
+
+# Wall time (s) of the first steps after compilation that the cost estimate is measured over, and
+# the estimated run time above which it is printed.
+PROBE_SECONDS = 0.5
+ESTIMATE_ABOVE = 60.0
+
+
+def _cost_estimate(probe, steps: int, total_steps: int, started: float, fields, field_every: int) -> str:
+    """'estimated wall time ...' from the steps timed since `probe` (wall time, steps), when the
+    whole run would take longer than ESTIMATE_ABOVE; else ""."""
+    now = wallclock.perf_counter()
+    per_step = (now - probe[0]) / max(1, steps - probe[1])
+    total = now - started + per_step * (total_steps - steps)
+    if total < ESTIMATE_ABOVE:
+        return ""
+    text = f"  estimated wall time {_duration(total)} ({per_step * 1e3:.3g} ms per step)"
+    if fields is not None and fields.steps:
+        frames = len(fields.steps) + (total_steps - steps) // field_every + 1
+        text += f"; fields ~{frames * fields.last_frame_bytes / 1e6:,.0f} MB ({frames} frames)"
+    return text
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def _silent(text: str) -> None:
+    pass
 
 
 def _next_multiple(step: int, every: int) -> int:

@@ -27,6 +27,10 @@ class Simulation(Protocol):
     steps: int  # steps taken
     broken: int  # bonds, links or interfaces failed so far
     load_cell: LoadCell  # over the method's Tools arrays; its kernel calls load_cell_step every step
+    warnings: list[str]  # set-up advice (e.g. an under-resolved process zone), shown before the first step
+
+    def describe(self) -> str:
+        """The discretisation's size in a few words, e.g. '960 tets, 2,016 interfaces'."""
 
     def advance(self, n_steps: int, dt: float) -> None:
         """n_steps compiled steps; state updated in place; time = steps x dt."""
