@@ -235,3 +235,15 @@ def test_setup_lines_and_coarse_mesh_advice_before_the_run(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "warning" not in out
     assert json.loads((tmp_path / "b" / "summary.json").read_text())["warnings"] == []
+
+
+def test_threads_sleep_unless_the_user_chose():
+    """import crackle sets OMP_WAIT_POLICY=PASSIVE (benchmarks/shared_machine.py: no 3x slowdown
+    beside a busy process), but never over the user's OMP_WAIT_POLICY or GOMP_SPINCOUNT."""
+    import os
+
+    code = "import os, crackle; print(os.environ.get('OMP_WAIT_POLICY'))"
+    clean = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
+    for extra, expected in (({}, "PASSIVE"), ({"OMP_WAIT_POLICY": "ACTIVE"}, "ACTIVE"), ({"GOMP_SPINCOUNT": "1000"}, "None")):
+        out = subprocess.run([sys.executable, "-c", code], env={**clean, **extra}, capture_output=True, text=True, check=True)
+        assert out.stdout.strip() == expected, extra
