@@ -73,6 +73,20 @@ def test_inverted_tets_in_mesh_file(tmp_path, capsys):
     text = BASE.replace('shape = "beam"', 'shape = "mesh"\nfile = "bad.vtu"')
     code, err = _run(capsys, _write(tmp_path, text), "--out", str(tmp_path / "out"))
     assert code == 2 and "bad.vtu" in err and "inverted" in err
+    assert "first is tet 1 (counting the file's tetrahedra from 1), centroid (0.0025, 0.0025, 0.0025) m" in err
+
+
+def test_bad_element_named_by_its_abaqus_label(tmp_path, capsys):
+    """An Abaqus file's inverted element is named by the file's own label (here 1002, the second
+    tet of a block whose labels start at 1001)."""
+    inp = tmp_path / "bad.inp"
+    inp.write_text(
+        "*NODE\n1, 0, 0, 0\n2, 0.01, 0, 0\n3, 0, 0.01, 0\n4, 0, 0, 0.01\n5, 0.01, 0.01, 0.01\n"
+        "*ELEMENT, TYPE=C3D4, ELSET=rock\n1001, 1, 2, 3, 4\n1002, 2, 3, 5, 4\n"
+    )
+    text = BASE.replace('shape = "beam"', 'shape = "mesh"\nfile = "bad.inp"')
+    code, err = _run(capsys, _write(tmp_path, text), "--out", str(tmp_path / "out"))
+    assert code == 2 and "1 inverted (negative-volume) tets, first is element 1002" in err, err
 
 
 def test_unknown_example_and_bad_override(tmp_path, capsys):

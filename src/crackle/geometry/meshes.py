@@ -583,16 +583,57 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
     points, tets = _compact(points, tets)
     mesh = TetMesh(points, tets)
-    check_tets(mesh, source=f"mesh file {path}")
+    check_tets(mesh, source=f"mesh file {path}", label=lambda i: _element_label(path, i))
     return mesh
 
 
-def check_tets(mesh: TetMesh, source: str = "mesh") -> None:
+def _element_label(path: Path, index: int) -> str:
+    """How the user finds the tet of `index` (in the order meshio reads the file's tetra cells)
+    in their file: an Abaqus .inp's own element label, else its number among the file's
+    tetrahedra counted from 1."""
+    if path.suffix.lower() == ".inp":
+        labels = _abaqus_tet_labels(path)
+        if index < len(labels):
+            return f"element {labels[index]}"
+    return f"tet {index + 1} (counting the file's tetrahedra from 1)"
+
+
+def _abaqus_tet_labels(path: Path) -> list[int]:
+    """The element labels of an Abaqus input file's 4-node tets, in file order (meshio keeps the
+    connectivity but not the labels)."""
+    from meshio.abaqus._abaqus import abaqus_to_meshio_type
+
+    labels: list[int] = []
+    block: list[int] | None = None  # the integers of the current tet *ELEMENT block
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for line in [*f, "*END"]:
+            if line.startswith("*"):
+                if block is not None:
+                    labels += block[0::5]
+                block = None
+                if not line.startswith("**") and line[1:].split(",")[0].strip().upper() == "ELEMENT":
+                    params = {k.strip().upper(): v.strip().upper() for k, _, v in
+                              (part.partition("=") for part in line.split(",")[1:])}
+                    if abaqus_to_meshio_type.get(params.get("TYPE", "")) == "tetra":
+                        block = []
+            elif block is not None and line.strip():
+                block += [int(k) for k in line.replace(",", " ").split()]
+    return labels
+
+
+def check_tets(mesh: TetMesh, source: str = "mesh", label=None) -> None:
     """Raise :class:`MeshError` if any tet is degenerate (flat) or inverted.
 
     Degenerate: ``|V| <= 1e-9 * l_max^3`` with ``l_max`` the tet's longest edge.
-    Inverted: ``V < 0``.  ``source`` (e.g. the file name) is put in the message.
+    Inverted: ``V < 0``.  ``source`` (e.g. the file name) is put in the message; ``label(i)``
+    names tet i for the user (default: its number counted from 1).
     """
+    label = label or (lambda i: f"tet {i + 1}")
+
+    def first(mask) -> str:
+        i = int(np.argmax(mask))
+        return f"first is {label(i)}, centroid ({', '.join(f'{c:.4g}' for c in mesh.points[mesh.tets[i]].mean(axis=0))}) m"
+
     if mesh.n_tets == 0:
         raise MeshError(f"{source} contains no tetrahedra")
     if mesh.tets.min() < 0 or mesh.tets.max() >= mesh.n_points:
@@ -610,12 +651,12 @@ def check_tets(mesh: TetMesh, source: str = "mesh") -> None:
     problems = []
     if degenerate.any():
         problems.append(
-            f"{int(degenerate.sum())} degenerate (zero-volume) tets, first is tet {int(np.argmax(degenerate))}; "
+            f"{int(degenerate.sum())} degenerate (zero-volume) tets, {first(degenerate)}; "
             "remove duplicate/coplanar nodes and remesh"
         )
     if inverted.any():
         problems.append(
-            f"{int(inverted.sum())} inverted (negative-volume) tets, first is tet {int(np.argmax(inverted))}; "
+            f"{int(inverted.sum())} inverted (negative-volume) tets, {first(inverted)}; "
             "re-export the mesh with consistent positive orientation "
             "(det([p1-p0, p2-p0, p3-p0]) > 0 for every tet)"
         )
