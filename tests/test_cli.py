@@ -261,3 +261,18 @@ def test_threads_sleep_unless_the_user_chose():
     for extra, expected in (({}, "PASSIVE"), ({"OMP_WAIT_POLICY": "ACTIVE"}, "ACTIVE"), ({"GOMP_SPINCOUNT": "1000"}, "None")):
         out = subprocess.run([sys.executable, "-c", code], env={**clean, **extra}, capture_output=True, text=True, check=True)
         assert out.stdout.strip() == expected, extra
+
+
+def test_gmsh_clamped_size_is_said():
+    """A disc (40 x 15 mm) asked at 30 mm is meshed by gmsh at ~6.6 mm mean edge: the set-up says
+    so (the mean edge is within 0.95-1.25 of a size gmsh honours: 4 mm gives no such warning)."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+
+    def warnings_for(size):
+        scenario, base = load_scenario("brazilian-disc", [f"specimen.element_size={size}", "run.end_time=1e-6"])
+        return build_simulation(scenario, base)[0].warnings
+
+    clamped = warnings_for(0.03)
+    assert clamped and "gmsh meshed it at 6.6" in clamped[0] and "element_size <= 6.6 mm" in clamped[0]
+    assert not any("gmsh meshed" in w for w in warnings_for(0.004))
