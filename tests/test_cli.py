@@ -276,3 +276,19 @@ def test_gmsh_clamped_size_is_said():
     clamped = warnings_for(0.03)
     assert clamped and "gmsh meshed it at 6.6" in clamped[0] and "element_size <= 6.6 mm" in clamped[0]
     assert not any("gmsh meshed" in w for w in warnings_for(0.004))
+
+
+def test_key_reference_is_current_and_complete():
+    """docs/keys.md is `crackle keys` (regenerate it with `crackle keys > docs/keys.md`), and every
+    key of every schema has its unit or meaning."""
+    from pathlib import Path
+
+    from crackle.keys import reference_document
+
+    text = reference_document()
+    assert (Path(__file__).parents[1] / "docs" / "keys.md").read_text() == text
+    rows = [line for line in text.splitlines() if line.startswith("| `")]
+    assert len(rows) > 100
+    undocumented = [row.split("|")[1] for row in rows if not row.rstrip(" |").split("|")[-1].strip()]
+    assert not undocumented, undocumented
+    assert "| `run.end_time` | number | required | > 0 | s, simulated time |" in text

@@ -44,6 +44,20 @@ def _cmd_examples(args) -> int:
     return 0
 
 
+def _cmd_keys(args) -> int:
+    from .keys import key_reference, reference_document
+    from .methods import METHODS
+
+    if args.method is None:
+        print(reference_document(), end="")
+    elif args.method not in METHODS:
+        print(f"crackle: error: unknown method {args.method!r}; choose one of {', '.join(METHODS)}", file=sys.stderr)
+        return 2
+    else:
+        print(key_reference(args.method), end="")
+    return 0
+
+
 def _cmd_fpz(args) -> int:
     from .materials import process_zone
 
@@ -77,6 +91,9 @@ def main(argv=None) -> int:
     p.set_defaults(func=_cmd_run)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)
+    p = sub.add_parser("keys", help="every scenario key: unit, default, range (docs/keys.md)")
+    p.add_argument("method", nargs="?", help="only this method's keys (default: all)")
+    p.set_defaults(func=_cmd_keys)
     p = sub.add_parser("fpz", help="process-zone lengths and the advised element size")
     p.add_argument("--E", type=float, required=True, help="Young's modulus (Pa)")
     p.add_argument("--Gf", type=float, required=True, help="fracture energy (J/m^2)")

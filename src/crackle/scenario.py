@@ -23,32 +23,50 @@ class ScenarioError(ValueError):
 
 
 class Specimen(Strict):
+    """[specimen]: the solid's shape and its mesh (FDEM)."""
+
     shape: Literal["box", "beam", "disc", "cylinder", "sphere", "walnut", "shell", "mesh"]
+    """box and beam: structured or gmsh tets; disc, cylinder, sphere: gmsh; walnut: a suture-banded ellipsoidal
+    shell (paper 004); shell: walled inwards from a closed surface file; mesh: a tet mesh file"""
     element_size: Positive | None = None
-    size: tuple[Positive, Positive, Positive] | None = None  # box, beam: (Lx, Ly, Lz) in m
-    origin: Vec3 = (0.0, 0.0, 0.0)  # box, beam: lower corner
-    mesh: Literal["structured", "unstructured"] = "structured"  # box, beam
-    diameter: Positive | None = None  # disc, cylinder, sphere
-    thickness: Positive | None = None  # disc, cylinder: extent along the axis; walnut: its T (along y)
-    center: Vec3 = (0.0, 0.0, 0.0)  # disc, cylinder, sphere, walnut; shell: added to the scaled file points
-    # walnut (paper 004): an ellipsoidal shell, length L along z, width W along x, thickness T
-    # along y; a suture band |x - center_x| <= suture_band / 2 (region of the [suture] material)
+    """m, the target tet edge (box, beam, disc, cylinder, sphere, walnut; shell: remeshes the surface when given)"""
+    size: tuple[Positive, Positive, Positive] | None = None
+    """m, box and beam: (Lx, Ly, Lz)"""
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    """m, box and beam: the lower corner"""
+    mesh: Literal["structured", "unstructured"] = "structured"
+    """box and beam: 24 tets per cubic cell, or gmsh"""
+    diameter: Positive | None = None
+    """m, disc, cylinder, sphere"""
+    thickness: Positive | None = None
+    """m, disc and cylinder: extent along the axis; walnut: its thickness T (along y)"""
+    center: Vec3 = (0.0, 0.0, 0.0)
+    """m, disc, cylinder, sphere, walnut; shell: added to the scaled file points"""
     length: Positive | None = None
+    """m, walnut: its length L (along z)"""
     width: Positive | None = None
-    wall: Positive = 1.11e-3  # m, face wall thickness
-    suture_wall: Positive = 1.34e-3  # m, suture wall thickness (thicker inwards)
-    suture_band: Positive = 4e-3  # m, width of the suture band about the plane x = 0
-    layers: Annotated[int, Field(ge=1)] = 1  # tets through the wall
-    # shell: a walnut-like shell walled inwards from a closed outer surface `file` (a scanned
-    # nut: STL or any meshio format; points x scale, e.g. 1e-3 for mm, remeshed at element_size
-    # when given), with wall, suture_wall, suture_band, layers as for walnut; the suture plane
-    # passes through the surface's centroid with normal suture_normal
+    """m, walnut: its width W (along x)"""
+    wall: Positive = 1.11e-3
+    """m, walnut and shell: the face wall thickness"""
+    suture_wall: Positive = 1.34e-3
+    """m, walnut and shell: the suture's wall thickness (thicker inwards)"""
+    suture_band: Positive = 4e-3
+    """m, walnut and shell: width of the suture band about its plane (the region of the [suture] material)"""
+    layers: Annotated[int, Field(ge=1)] = 1
+    """walnut and shell: tets through the wall"""
     scale: Positive = 1.0
+    """shell: factor on the surface file's points (1e-3 for a file in mm)"""
     suture_normal: Vec3 = (1.0, 0.0, 0.0)
-    axis: Vec3 = (0.0, 0.0, 1.0)  # disc, cylinder
-    file: str | None = None  # mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...); shell: its outer surface
-    initial_velocity: Vec3 = (0.0, 0.0, 0.0)  # m/s, the whole specimen at t = 0
-    angular_velocity: Vec3 = (0.0, 0.0, 0.0)  # rad/s at t = 0, a rigid spin about the centre of mass
+    """shell: normal of the suture plane, which passes through the surface's centroid"""
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    """disc and cylinder: the axis"""
+    file: str | None = None
+    """mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...); shell: its closed outer surface (STL or any
+    meshio format); relative to the scenario file's folder"""
+    initial_velocity: Vec3 = (0.0, 0.0, 0.0)
+    """m/s, of the whole specimen at t = 0"""
+    angular_velocity: Vec3 = (0.0, 0.0, 0.0)
+    """rad/s at t = 0, a rigid spin about the centre of mass"""
 
     @model_validator(mode="after")
     def _needs(self):
@@ -95,9 +113,13 @@ class ElasticSpec(Strict):
     """[material]: what every method's material has; a method adds its fracture law's section."""
 
     name: str = "material"
-    density: Positive  # kg/m^3
-    youngs_modulus: Positive  # Pa
+    """a label for messages and summary.json"""
+    density: Positive
+    """kg/m^3 (10-30,000)"""
+    youngs_modulus: Positive
+    """Pa (1e5-2e12)"""
     poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
+    """dimensionless"""
 
     @field_validator("density")
     @classmethod
@@ -121,34 +143,58 @@ class ElasticSpec(Strict):
 
 
 class VelocityTable(Strict):
+    """A piecewise-linear history: a value at each time, held after the last."""
+
     time: list[NonNegative]
+    """s, increasing"""
     speed: list[float]
+    """m/s for a tool (Pa for a pressure table), one per time"""
 
 
 class ToolSpec(Strict):
+    """[[tools]]: a rigid tool moving by translation along `direction` (plane, box, cylinder, sphere
+    or a triangle surface from a file)."""
+
     name: str
+    """for history.csv columns (tool.NAME.fx ...) and --set tools.NAME.key"""
     shape: Literal["plane", "box", "cylinder", "sphere", "surface"]
+    """plane: a half-space; box, cylinder, sphere: solids; surface: triangles from `file`"""
     direction: Vec3
-    speed: float = 0.0  # m/s along direction
-    ramp_time: NonNegative = 0.0  # linear ramp from 0 to speed
-    speed_table: VelocityTable | None = None  # instead of speed/ramp_time
+    """of motion (normalised; need not be a unit vector)"""
+    speed: float = 0.0
+    """m/s along direction (0: fixed)"""
+    ramp_time: NonNegative = 0.0
+    """s, linear ramp from 0 to speed"""
+    speed_table: VelocityTable | None = None
+    """instead of speed and ramp_time: m/s against s"""
     friction: NonNegative = 0.0
+    """Coulomb coefficient against the specimen"""
     center: Vec3 = (0.0, 0.0, 0.0)
+    """m, plane: a point on it; box, sphere: centre; cylinder: a point on the axis"""
     normal: Vec3 = (0.0, 0.0, 1.0)
+    """plane: pointing out of the tool, towards the specimen"""
     size: tuple[Positive, Positive, Positive] = (1.0, 1.0, 1.0)
+    """m, box: full edge lengths along axes[0], axes[1] and their cross product"""
     axes: tuple[Vec3, Vec3] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    """box: two orthonormal in-plane axes"""
     axis: Vec3 = (0.0, 0.0, 1.0)
+    """cylinder: its axis"""
     radius: NonNegative = 0.0
-    length: PositiveOrInf = math.inf  # cylinder: inf for an endless roller
+    """m, cylinder and sphere"""
+    length: PositiveOrInf = math.inf
+    """m, cylinder: inf for an endless roller"""
     penalty: Positive | None = None
-    # box, sphere: shift the tool along `direction` (either way) at set-up until its leading
-    # extreme just reaches the specimen's extreme node along `direction` (no initial gap)
+    """N/m^3 per unit contact area; default 10 E / h of the specimen"""
     touch: bool = False
-    # surface: triangles from a file meshio reads (STL, .obj, .ply, .vtu, .msh ...), relative to
-    # the scenario file's folder; its points are multiplied by scale, then shifted by offset (m)
+    """box and sphere: shift the tool along `direction` (either way) at set-up until it just reaches the
+    specimen (no initial gap)"""
     file: str | None = None
-    scale: Positive = 1.0  # e.g. 1e-3 for a file in mm
+    """surface: a triangle file meshio reads (STL, .obj, .ply, .vtu, .msh ...), relative to the scenario
+    file's folder"""
+    scale: Positive = 1.0
+    """surface: factor on the file's points (1e-3 for a file in mm)"""
     offset: Vec3 = (0.0, 0.0, 0.0)
+    """m, surface: added to the scaled points"""
 
     @model_validator(mode="after")
     def _shape_needs(self):
@@ -171,14 +217,22 @@ class PlatesSpec(Strict):
     (from +x toward +y) angles, each moving toward `center` at `speed` (paper 004's multi-point
     loading). Each becomes a box tool named plate1..plateN, tangent to the specimen at the start."""
 
-    polar: list[float]  # degrees
-    azimuth: list[float]  # degrees
-    speed: float = 0.0  # m/s, each plate toward the centre
+    polar: list[float]
+    """degrees from +z, one per plate"""
+    azimuth: list[float]
+    """degrees from +x toward +y, one per plate"""
+    speed: float = 0.0
+    """m/s, each plate toward the centre"""
     ramp_time: NonNegative = 0.0
+    """s, linear ramp from 0 to speed"""
     friction: NonNegative = 0.0
-    side: Positive = 0.02  # m, edge of the square plate
-    thickness: Positive = 0.005  # m
+    """Coulomb coefficient against the specimen"""
+    side: Positive = 0.02
+    """m, edge of the square plate"""
+    thickness: Positive = 0.005
+    """m"""
     center: Vec3 = (0.0, 0.0, 0.0)
+    """m, the point the plates move toward"""
 
     @model_validator(mode="after")
     def _pairs(self):
@@ -213,9 +267,12 @@ class PlatesSpec(Strict):
 class LoadingSpec(Strict):
     """A rigid rotation of every tool about `axis` through `center` (the mesh stays put)."""
 
-    angle: float = 0.0  # degrees, right-handed about axis
+    angle: float = 0.0
+    """degrees, right-handed about axis"""
     axis: Vec3 = (0.0, 0.0, 1.0)
+    """of the rotation"""
     center: Vec3 = (0.0, 0.0, 0.0)
+    """m, a point on the axis"""
 
     @field_validator("axis")
     @classmethod
@@ -226,11 +283,18 @@ class LoadingSpec(Strict):
 
 
 class Where(Strict):
+    """Nodes or faces chosen by geometry: on a plane and/or inside an axis-aligned box."""
+
     plane_point: Vec3 | None = None
+    """m, a point on the plane"""
     plane_normal: Vec3 | None = None
+    """the plane's normal"""
     box_min: Vec3 | None = None
+    """m, lower corner of the box"""
     box_max: Vec3 | None = None
+    """m, upper corner of the box"""
     tol: Positive | None = None
+    """m, distance to the plane that counts as on it; default 1e-6 of the specimen size"""
 
     @model_validator(mode="after")
     def _some(self):
@@ -242,26 +306,47 @@ class Where(Strict):
 
 
 class SupportSpec(Strict):
+    """[[supports]]: nodes held fixed, or on rollers (blocked along `normal`)."""
+
     kind: Literal["fixed", "roller"]
+    """fixed: no motion; roller: no motion along normal"""
     where: Where
-    normal: Vec3 = (0.0, 0.0, 1.0)  # roller: blocked direction
+    """which nodes"""
+    normal: Vec3 = (0.0, 0.0, 1.0)
+    """roller: the blocked direction"""
 
 
 class PrecrackSpec(Strict):
+    """[[precracks]]: internal faces on a plane (within tol) whose centroids lie in the box start
+    separated (no cohesion)."""
+
     point: Vec3
+    """m, on the crack plane"""
     normal: Vec3
+    """of the crack plane"""
     box_min: Vec3 = (-math.inf, -math.inf, -math.inf)
+    """m, lower corner of the crack's extent"""
     box_max: Vec3 = (math.inf, math.inf, math.inf)
+    """m, upper corner of the crack's extent"""
     tol: Positive | None = None
+    """m, distance to the plane that counts as on it; default 1e-6 of the specimen size"""
 
 
 class PressureSpec(Strict):
+    """[[pressures]]: a pressure history (positive pushes into the solid) on faces."""
+
     faces: Literal["precrack", "where"] = "precrack"
+    """precrack: both faces of every pre-crack; where: the boundary faces `where` selects"""
     where: Where | None = None
-    rate: float | None = None  # Pa/s from t = 0
-    value: float | None = None  # constant, or the plateau after ramp_time
+    """faces = "where": a face is selected when its three corners are"""
+    rate: float | None = None
+    """Pa/s from t = 0 (one of rate, value, table)"""
+    value: float | None = None
+    """Pa, constant, or the plateau after ramp_time"""
     ramp_time: NonNegative = 0.0
-    table: VelocityTable | None = None  # time / speed columns read as time / pressure
+    """s, with value: linear ramp from 0"""
+    table: VelocityTable | None = None
+    """its time and speed columns read as s and Pa"""
 
     @model_validator(mode="after")
     def _one_history(self):
@@ -274,47 +359,77 @@ class PressureSpec(Strict):
 
 
 class Stop(Strict):
+    """[run.stop]: end the run before end_time."""
+
     tool_displacement: Positive | None = None
+    """m, once a tool (`tool`, or any) has moved this far"""
     tool: str | None = None
+    """the tool whose displacement counts; default any"""
     force_drop: Annotated[float, Field(gt=0, lt=1)] | None = None
+    """after a failure, once the largest tool force has stayed below this fraction of its peak for force_drop_hold"""
     force_drop_hold: NonNegative | None = None
+    """s; default 5 % of end_time"""
 
 
 class RunSpec(Strict):
+    """[run]: time integration and what the run writes."""
+
     end_time: Positive
+    """s, simulated time"""
     dt: Positive | None = None
+    """s, the step; default safety x the stable step (a larger one is refused)"""
     safety: Annotated[float, Field(gt=0, le=1)] = 0.7
-    damping: NonNegative = 0.0  # mass-proportional, 1/s
-    contact: bool = False  # contact between free surfaces (fragments, fracture faces): experimental
+    """fraction of the stable step"""
+    damping: NonNegative = 0.0
+    """1/s, mass-proportional: a force -damping m v on every node"""
+    contact: bool = False
+    """contact between free surfaces (fragments, fracture faces); experimental"""
     gravity: Vec3 = (0.0, 0.0, 0.0)
+    """m/s^2"""
     history_samples: Annotated[int, Field(ge=1)] = 400
+    """rows of history.csv over end_time"""
     field_frames: Annotated[int, Field(ge=0)] = 10
-    load_cell_window: Positive | None = None  # s, the tool force's averaging window; default 4 element wave transits
-    checkpoint: bool = True  # leave checkpoint.pkl in the output folder, for crackle run --resume
+    """ParaView snapshots over end_time (0: none)"""
+    load_cell_window: Positive | None = None
+    """s, the tool force's averaging window; default 4 element wave transits"""
+    checkpoint: bool = True
+    """leave checkpoint.pkl in the output folder, for crackle run --resume"""
     stop: Stop = Stop()
+    """stop conditions"""
 
 
 class FracturePlaneSpec(Strict):
     """A planar fracture to follow: its tip and plastic-zone length go to history.csv."""
 
-    point: Vec3  # on the plane, where the growth is measured from
+    point: Vec3
+    """m, on the plane, where the growth is measured from"""
     normal: Vec3
-    direction: Vec3  # of growth, in the plane
-    tol: Positive | None = None  # m; default: 1e-6 of the specimen size
+    """of the plane"""
+    direction: Vec3
+    """of growth, in the plane"""
+    tol: Positive | None = None
+    """m, distance to the plane that counts as on it; default 1e-6 of the specimen size"""
 
 
 class CracksSpec(Strict):
     """Crack count and main-crack speed of a shell (crackle.analysis.cracks), in summary.json with
     the loading index of the tools' directions."""
 
-    wall: Positive | None = None  # m; default: the walnut specimen's face wall
-    scale: Positive | None = None  # m, linking length; default: twice the element size
-    top: Vec3 = (0.0, 0.0, 1.0)  # the main crack is the first to reach the extreme along it
+    wall: Positive | None = None
+    """m; default: the walnut specimen's face wall"""
+    scale: Positive | None = None
+    """m, linking length; default: twice the element size"""
+    top: Vec3 = (0.0, 0.0, 1.0)
+    """the main crack is the first to reach the extreme along it"""
 
 
 class AnalysisSpec(Strict):
+    """[analysis]: measurements added to the history and summary."""
+
     fracture_plane: FracturePlaneSpec | None = None
+    """follow a planar fracture's tip and plastic zone"""
     cracks: CracksSpec | None = None
+    """count a shell's cracks and the main crack's speed"""
 
 
 class ScenarioBase(Strict):
@@ -322,16 +437,27 @@ class ScenarioBase(Strict):
     for FDEM the tet specimen, its material with an interface law, pre-cracks."""
 
     name: str = "scenario"
+    """names the default output folder crackle-out/NAME"""
     description: str = ""
+    """free text; its first line is what crackle examples lists"""
     method: str = "fdem"
+    """the discretisation: fdem, or lattice (a toy that holds the driver to a second method)"""
     tools: list[ToolSpec] = []
-    plates: PlatesSpec | None = None  # adds plate1..plateN to the tools
-    loading: LoadingSpec = LoadingSpec()  # rotates all tools, e.g. a loading angle
+    """rigid tools"""
+    plates: PlatesSpec | None = None
+    """adds plate1..plateN to the tools"""
+    loading: LoadingSpec = LoadingSpec()
+    """rotates all tools, e.g. a loading angle"""
     supports: list[SupportSpec] = []
+    """fixed and roller supports"""
     pressures: list[PressureSpec] = []
+    """pressure histories on faces"""
     analysis: AnalysisSpec = AnalysisSpec()
+    """measurements"""
     run: RunSpec
-    quick: dict[str, Any] = {}  # dotted-key overrides applied by --quick
+    """time integration and outputs"""
+    quick: dict[str, Any] = {}
+    """dotted-key overrides applied by --quick"""
 
     @model_validator(mode="after")
     def _tool_names(self):

@@ -14,9 +14,9 @@ Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 PositiveOrInf = Annotated[float, Field(gt=0)]
 # Scenario sections: unknown keys are errors, values are immutable.
-STRICT = ConfigDict(extra="forbid", frozen=True)
+STRICT = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
 # The same for parameter dataclasses (which are frozen by their decorator).
-STRICT_DATACLASS = ConfigDict(extra="forbid")
+STRICT_DATACLASS = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
 
 class Strict(BaseModel):

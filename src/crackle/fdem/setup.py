@@ -40,18 +40,23 @@ InterfaceSpec = Annotated[
 
 class FdemMaterialSpec(ElasticSpec):
     interface: InterfaceSpec
+    """[material.interface]: the interface law between tets, by `law`"""
 
 
 class Scenario(ScenarioBase):
     """An FDEM scenario: a tet specimen, its material with an interface law, pre-cracks."""
 
     method: Literal["fdem"] = "fdem"
+    """picks this method (the default)"""
     specimen: Specimen
+    """the solid and its mesh"""
     material: FdemMaterialSpec
-    # walnut: the suture band's own material (same keys as [material]); without it the suture
-    # is [material] too and differs only by its wall thickness
+    """the bulk's elasticity and the interface law"""
     suture: FdemMaterialSpec | None = None
+    """walnut and shell: the suture band's own material (same keys as [material]); without it the suture is
+    [material] too and differs only by its wall thickness"""
     precracks: list[PrecrackSpec] = []
+    """cracks present at t = 0"""
 
     @model_validator(mode="after")
     def _fdem_checks(self):

@@ -27,17 +27,27 @@ from .simulation import LatticeSimulation
 
 
 class LatticeSpec(Strict):
+    """[lattice]: a box of nodes on a cubic grid joined by springs."""
+
     size: tuple[Positive, Positive, Positive]
+    """m, the box (Lx, Ly, Lz)"""
     spacing: Positive
+    """m, between neighbouring nodes"""
     origin: Vec3 = (0.0, 0.0, 0.0)
+    """m, the lower corner"""
     break_strain: PositiveOrInf = math.inf
-    contact_radius: NonNegative | None = None  # m; default spacing / 2
+    """a spring breaks beyond this stretch"""
+    contact_radius: NonNegative | None = None
+    """m, of a node against the tools; default spacing / 2"""
 
 
 class Scenario(ScenarioBase):
     method: Literal["lattice"]
+    """picks this method"""
     lattice: LatticeSpec
+    """the nodes and springs"""
     material: ElasticSpec
+    """density and Young's modulus (the lattice's Poisson's ratio is 1/4)"""
 
 
 def lattice_arrays(spec: LatticeSpec, material: ElasticSpec):

@@ -58,16 +58,27 @@ class BilinearLaw:
     """
 
     tensile_strength: Positive
+    """Pa, tn0: initiation when max(<tn>/tn0, ts/ts0) = 1 (normal traction counted in tension only)"""
     shear_strength: Positive
+    """Pa, ts0"""
     fracture_energy: Positive
+    """J/m^2, GIc: dissipated by a unit area from intact to failed in pure mode I"""
     normal_stiffness: Positive
+    """N/m^3, kn per unit area (a value in N/mm^3 times 1e9); also the contact penalty once failed"""
     shear_stiffness: Positive
+    """N/m^3, ks per unit area"""
     fracture_energy_shear: Positive | None = None
+    """J/m^2, GIIc in pure mode II; default GIc"""
     mixed_mode: Literal["bk", "power"] = "bk"
+    """Gc at a mode mix: Benzeggagh-Kenane or power law"""
     bk_exponent: Positive | None = None
+    """eta of "bk"; default 1.45"""
     power_exponent: Positive | None = None
+    """alpha of "power"; default 2"""
     friction: NonNegative = 0.6
+    """Coulomb coefficient between the faces once failed"""
     law: Literal["bilinear"] = "bilinear"
+    """picks this law"""
 
     kind: ClassVar[int] = 1
 

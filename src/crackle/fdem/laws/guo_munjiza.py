@@ -69,14 +69,23 @@ class GuoMunjizaLaw:
     """
 
     tensile_strength: Positive
+    """Pa, ft: the peak in tension"""
     cohesion: Positive
+    """Pa, c: the shear peak f_s = c - sigma_n tan(phi)"""
     friction_angle: Annotated[float, Field(ge=0, lt=90)]
+    """degrees, phi"""
     fracture_energy: Positive
+    """J/m^2, Gf (mode I): dissipated by a unit area from intact to failed"""
     fracture_energy_shear: Positive | None = None
+    """J/m^2, mode II; default Gf"""
     softening: tuple[Positive, Positive, Positive] = DEFAULT_SOFTENING
+    """the constants (a, b, c) of the softening curve z(D) (paper 001, eq. 7)"""
     friction: NonNegative = 0.6
+    """Coulomb coefficient between the faces once failed"""
     penalty_factor: Positive = DEFAULT_PENALTY_FACTOR
+    """interface penalty p_n = factor E / h (h: the smaller tet altitude onto the face)"""
     law: Literal["guo-munjiza"] = "guo-munjiza"
+    """picks this law (the default)"""
 
     kind: ClassVar[int] = 0
 

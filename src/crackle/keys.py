@@ -1,0 +1,122 @@
+"""The scenario key reference (every key, its unit, default and range), generated from the
+schemas: each method's pydantic Scenario, whose field docstrings give the unit and meaning.
+
+`crackle keys [METHOD]` prints it; docs/keys.md is its output for every method (a test keeps it
+current).
+"""
+
+from __future__ import annotations
+
+import math
+
+HEADER = "| key | type | default | range | unit and meaning |\n|---|---|---|---|---|"
+DOC_INTRO = """# Scenario keys
+
+Generated from the scenario schemas by `crackle keys` (do not edit: a test compares this file with
+its output). Sections in bold; `tools[].speed` is a key of each `[[tools]]` entry; a blank
+default is a key left unset (its meaning says what then applies). Units are SI.
+"""
+
+
+def reference_document() -> str:
+    """docs/keys.md: the introduction and every method's table."""
+    from .methods import METHODS
+
+    return DOC_INTRO + "".join("\n" + key_reference(name) for name in METHODS)
+
+
+def key_reference(method: str) -> str:
+    """Markdown: one table row per scenario key of `method`, sections as dotted prefixes
+    (`tools[].speed` for a key of each [[tools]] entry)."""
+    from .methods import get_method
+
+    schema = get_method(method).Scenario.model_json_schema(mode="validation")
+    defs = schema.get("$defs", {})
+    lines = [f"## method = \"{method}\"", "", HEADER]
+    lines += _rows(schema, defs, "")
+    return "\n".join(lines) + "\n"
+
+
+def _resolve(prop: dict, defs: dict) -> dict:
+    """The schema a property stands for: through $ref, and `X | None` (anyOf with null)."""
+    if "$ref" in prop:
+        return {**defs[prop["$ref"].split("/")[-1]], **{k: v for k, v in prop.items() if k != "$ref"}}
+    options = [p for p in prop.get("anyOf", []) if p.get("type") != "null"]
+    if len(options) == 1:
+        return {**_resolve(options[0], defs), **{k: v for k, v in prop.items() if k != "anyOf"}}
+    return prop
+
+
+def _rows(schema: dict, defs: dict, prefix: str) -> list[str]:
+    rows = []
+    required = set(schema.get("required", []))
+    for name, raw in schema.get("properties", {}).items():
+        prop = _resolve(raw, defs)
+        key = prefix + name
+        meaning = " ".join((raw.get("description") or prop.get("description") or "").split())
+        if "properties" in prop:  # a section
+            rows.append(f"| **{key}** | section | | | {meaning} |")
+            rows += _rows(prop, defs, key + ".")
+        elif prop.get("type") == "array" and "properties" in _resolve(prop.get("items", {}), defs):
+            rows.append(f"| **{key}** | list of sections | | | {meaning} |")
+            rows += _rows(_resolve(prop["items"], defs), defs, key + "[].")
+        elif "oneOf" in prop or ("anyOf" in prop and all("$ref" in p for p in prop["anyOf"] if p.get("type") != "null")):
+            rows.append(f"| **{key}** | section, by its kind | | | {meaning} |")
+            for option in prop.get("oneOf") or [p for p in prop["anyOf"] if p.get("type") != "null"]:
+                variant = _resolve(option, defs)
+                rows.append(f"| *{key}: {variant.get('title', '')}* | | | | {_first_line(variant.get('description', ''))} |")
+                rows += _rows(variant, defs, key + ".")
+        else:
+            default = "required" if name in required else _value(prop.get("default"))
+            rows.append(f"| `{key}` | {_type(prop, defs)} | {default} | {_range(prop)} | {meaning} |")
+    return rows
+
+
+def _first_line(text: str) -> str:
+    return " ".join(text.strip().split("\n\n")[0].split())
+
+
+def _type(prop: dict, defs: dict) -> str:
+    if "enum" in prop:
+        return " \\| ".join(f'"{v}"' for v in prop["enum"])
+    if "const" in prop:
+        return f'"{prop["const"]}"'
+    kind = prop.get("type")
+    if kind == "array":
+        items = prop.get("prefixItems")
+        if items:
+            return f"[{', '.join(_type(_resolve(i, defs), defs) for i in items)}]"
+        return f"list of {_type(_resolve(prop.get('items', {}), defs), defs)}"
+    if kind == "object":
+        return "table"
+    if "anyOf" in prop:
+        return " or ".join(_type(_resolve(p, defs), defs) for p in prop["anyOf"] if p.get("type") != "null")
+    return {"number": "number", "integer": "integer", "string": "text", "boolean": "true/false"}.get(kind, kind or "any")
+
+
+def _range(prop: dict) -> str:
+    if prop.get("type") == "array" and prop.get("prefixItems"):
+        prop = prop["prefixItems"][0]
+    if "anyOf" in prop:
+        prop = next((p for p in prop["anyOf"] if p.get("type") != "null"), prop)
+    parts = []
+    for key, symbol in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"), ("maximum", "<=")):
+        if key in prop:
+            parts.append(f"{symbol} {_value(prop[key])}")
+    return ", ".join(parts)
+
+
+def _value(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return f'"{value}"' if value else '""'
+    if isinstance(value, dict):
+        return "{}" if not value else str(value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
