@@ -1,4 +1,4 @@
-"""crackle: dynamic fracture of brittle solids and thin-walled shells."""
+"""crackle: dynamic fracture of brittle solids (FDEM today; DEM and shell methods planned)."""
 
 import os
 
