@@ -57,6 +57,7 @@ class FdemModel:
     pressure_specs: list[Pressure]
     x0: np.ndarray  # reference positions of the exploded nodes
     stable_dt: float  # largest stable step (no safety factor)
+    time_step: "TimeStepReport"  # what sets it
     element_size: float
     wave_transit: float  # s: element size over the fastest P-wave speed of the bulk
     contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
@@ -150,7 +151,7 @@ def build_fdem_model(
         e_friction=np.zeros(n_if),
     )
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
-    stable_dt = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
+    time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     reachable = end_time is None or _fracture_reachable(
@@ -173,7 +174,8 @@ def build_fdem_model(
         tool_specs=list(tools),
         pressure_specs=list(pressures),
         x0=bulk.x0,
-        stable_dt=stable_dt,
+        stable_dt=time_step.dt,
+        time_step=time_step,
         element_size=element_size,
         wave_transit=wave_transit,
         contact_penalty=default_penalty,
@@ -371,28 +373,67 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
     )
 
 
-def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tool_penalty: float) -> float:
+@dataclass
+class TimeStepReport:
+    """What sets the stable step: per node, the bulk tet and the springs on its faces each add to
+    the squared frequency bound; the node with the highest bound sets the step."""
+
+    dt: float  # s, the largest stable step (no safety factor)
+    kind: str  # the largest share at the critical node: "bulk tet", "interface penalty", "contact penalty", "tool penalty"
+    element: int  # the critical node's tet (counted from 1)
+    position: np.ndarray  # m, the critical node at set-up
+    element_dt: np.ndarray  # s, per tet: the step its own nodes allow
+    bulk_dt: np.ndarray  # s, per tet: the step its bulk stiffness alone allows
+
+    def as_summary(self) -> dict:
+        """summary.json's dt_limit."""
+        return {
+            "kind": self.kind,
+            "element": self.element,
+            "position": [float(c) for c in self.position],
+            "dt": self.dt,
+            "median_dt": float(np.median(self.element_dt)),
+            "median_bulk_dt": float(np.median(self.bulk_dt)),
+        }
+
+
+TIME_STEP_KINDS = ("bulk tet", "interface penalty", "contact penalty", "tool penalty")
+
+
+def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tool_penalty: float) -> TimeStepReport:
     """Largest stable step: per node, bulk tet + interface + contact springs (eigenvalue bounds)."""
     m = len(bulk.vol)
     grads = np.concatenate([-bulk.dm_inv.sum(axis=1, keepdims=True), bulk.dm_inv], axis=1)  # (m, 4, 3) grad N_k
     gtg = np.einsum("mki,mkj->mij", grads, grads)
     lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
     omega2_tet = 4.0 * (3.0 * bulk.lam + 2.0 * bulk.mu) * lam_max_g / bulk.rho  # lambda_max(M^-1 K_e) bound
-    # Springs on each face (Gershgorin row sums per node): an interface face carries its pair
-    # spring (twice, for the two sides' relative motion) and, once failed, the contact spring
-    # instead; an outer face carries surface contact and tool springs.
-    face_spring = np.zeros((m, 4))
-    pair = 2.0 * np.maximum(np.maximum(pairs.pn, pairs.ps), surface_penalty) * pairs.area / 3.0
-    face_spring[pairs.ta, pairs.fa] = pair
-    face_spring[pairs.tb, pairs.fb] = pair
+    # Springs on each face (Gershgorin row sums per node), by kind: an interface face carries its
+    # pair spring (twice, for the two sides' relative motion) or, when stiffer, the surface
+    # contact spring; an outer face carries surface contact and tool springs.
+    face_spring = np.zeros((4, m, 4))  # kind (as TIME_STEP_KINDS, bulk unused), tet, face
+    interface = 2.0 * np.maximum(pairs.pn, pairs.ps)
+    contact = 2.0 * surface_penalty
+    for tet, face in ((pairs.ta, pairs.fa), (pairs.tb, pairs.fb)):
+        face_spring[1, tet, face] = np.where(interface >= contact, interface, 0.0) * pairs.area / 3.0
+        face_spring[2, tet, face] = np.where(interface < contact, contact, 0.0) * pairs.area / 3.0
     outer = face_iface < 0
-    outer_spring = 2.0 * surface_penalty + tool_penalty
-    face_spring[outer] = outer_spring * bulk.face_area[outer] / 3.0
-    k_node = np.zeros((m, 4))
+    face_spring[2][outer] = contact * bulk.face_area[outer] / 3.0
+    face_spring[3][outer] = tool_penalty * bulk.face_area[outer] / 3.0
+    omega2 = np.zeros((4, m, 4))  # kind, tet, corner
+    omega2[0] = omega2_tet[:, None]
     for f in range(4):
-        k_node[:, FACE_CORNERS[f]] += face_spring[:, f, None]
-    omega2 = np.repeat(omega2_tet, 4) + k_node.ravel() / bulk.mass
-    return float(2.0 / np.sqrt(omega2.max()))
+        omega2[1:, :, FACE_CORNERS[f]] += face_spring[1:, :, f, None] / bulk.mass.reshape(m, 4)[None, :, FACE_CORNERS[f]]
+    total = omega2.sum(axis=0)
+    critical = int(np.argmax(total))
+    tet, corner = divmod(critical, 4)
+    return TimeStepReport(
+        dt=float(2.0 / np.sqrt(total.max())),
+        kind=TIME_STEP_KINDS[int(np.argmax(omega2[:, tet, corner]))],
+        element=tet + 1,
+        position=bulk.x0[critical].copy(),
+        element_dt=2.0 / np.sqrt(total.max(axis=1)),
+        bulk_dt=2.0 / np.sqrt(omega2_tet),
+    )
 
 
 # A hole's stress concentration: the factor on a pressure's stress in the bound below.

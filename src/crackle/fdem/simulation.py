@@ -15,7 +15,7 @@ from ..analysis import (
     propagating_plastic_zone,
     tip_and_plastic_zone,
 )
-from ..io import plot_crack_growth, plot_fragment_sizes
+from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
 from ..solver.failures import FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from ..loading.loadcell import LoadCell, tool_columns
@@ -241,6 +241,8 @@ class FdemSimulation:
 
     def extra_plots(self, out_dir) -> None:
         plot_fragment_sizes(self.fragments().masses, out_dir / "plots" / "fragment_sizes.png")
+        step = self.model.time_step
+        plot_time_steps(step.element_dt, step.bulk_dt, step.as_summary(), out_dir / "plots" / "time_step.png")
         cracks = self.cracks()
         if cracks is not None and len(cracks.length_history):
             plot_crack_growth(cracks.length_history, cracks.speed_history, out_dir / "plots" / "crack_growth.png")
@@ -314,5 +316,6 @@ class FdemSimulation:
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
+            "dt_limit": m.time_step.as_summary(),
             "warnings": list(self.warnings),
         }

@@ -18,6 +18,7 @@ from .plots import (
     plot_crack_growth,
     plot_fragment_sizes,
     plot_load_displacement,
+    plot_time_steps,
     tool_names,
     write_standard_plots,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "plot_crack_growth",
     "plot_fragment_sizes",
     "plot_load_displacement",
+    "plot_time_steps",
     "read_events_csv",
     "read_history_csv",
     "read_pvd",

@@ -215,6 +215,29 @@ def plot_fragment_sizes(masses, path) -> Path:
     return _save(fig, path)
 
 
+def plot_time_steps(element_dt, bulk_dt, limit: dict, path) -> Path:
+    """Histogram of the stable step each element allows, beside what its bulk stiffness alone
+    would allow: the gap is what interface and contact penalties cost. `limit` is summary.json's
+    dt_limit (the step, what sets it, where)."""
+    scale, unit = time_unit(float(np.median(bulk_dt)))
+    fig = _new_figure(figsize=(6.5, 4.5))
+    ax = fig.add_subplot(111)
+    values = [np.asarray(element_dt) * scale, np.asarray(bulk_dt) * scale]
+    lo, hi = min(v.min() for v in values), max(v.max() for v in values)
+    bins = np.geomspace(lo, hi * 1.0001, 50) if hi > lo else 10
+    ax.hist(values[0], bins=bins, alpha=0.7, color="tab:red", label="element (bulk + interfaces + contact)")
+    ax.hist(values[1], bins=bins, alpha=0.5, color="tab:blue", label="bulk tet alone")
+    ax.axvline(limit["dt"] * scale, color="k", ls="--", label=f"run's stable step ({limit['kind']}, element {limit['element']})")
+    if hi > lo:
+        ax.set_xscale("log")
+    ax.set_xlabel(f"stable time step ({unit})")
+    ax.set_ylabel("elements")
+    ax.set_title(f"stable step {limit['dt'] * scale:.3g} {unit}, median element {limit['median_dt'] * scale:.3g} {unit}")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, path)
+
+
 def plot_crack_growth(length_history, speed_history, path) -> Path:
     """Main-crack length (area / wall) against time, and its growth speed per interval."""
     lh = np.asarray(length_history, dtype=float).reshape(-1, 2)

@@ -353,7 +353,8 @@ class _InterruptRequest:
 
 # What a run writes into its output folder (and a rerun into the same folder removes first).
 OUTPUT_FILES = ("summary.json", "history.csv", "events.csv", "fields.pvd", CHECKPOINT_FILE) + tuple(
-    f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth")
+    f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth",
+                                     "time_step")
 )
 OUTPUT_GLOBS = ("fields/step_*.vtu",)
 
