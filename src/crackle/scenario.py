@@ -380,6 +380,10 @@ class RunSpec(Strict):
     """s, the step; default safety x the stable step (a larger one is refused)"""
     safety: Annotated[float, Field(gt=0, le=1)] = 0.7
     """fraction of the stable step"""
+    target_dt: Positive | None = None
+    """s, mass scaling: elements whose step is below it get heavier until it is reached (off when unset)"""
+    max_added_mass: NonNegative = 0.01
+    """fraction of the specimen's mass that target_dt may add; above it the run is refused"""
     damping: NonNegative = 0.0
     """1/s, mass-proportional: a force -damping m v on every node"""
     contact: bool = False

@@ -6,6 +6,7 @@ attribute (``nodes.x``, ``ifs.damage``...).
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections import namedtuple
 from dataclasses import dataclass, field
@@ -58,6 +59,7 @@ class FdemModel:
     x0: np.ndarray  # reference positions of the exploded nodes
     stable_dt: float  # largest stable step (no safety factor)
     time_step: "TimeStepReport"  # what sets it
+    mass_scaling: "MassScaling"  # mass added to reach run.target_dt (none by default)
     element_size: float
     wave_transit: float  # s: element size over the fastest P-wave speed of the bulk
     contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
@@ -94,6 +96,9 @@ def build_fdem_model(
     contact: bool = False,
     angular_velocity=None,
     end_time: float | None = None,
+    target_dt: float | None = None,
+    safety: float = 1.0,
+    max_added_mass: float = 0.01,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -105,6 +110,8 @@ def build_fdem_model(
     and the tools touch. Off by default while it is being validated on fracturing runs.
     `end_time` (s), when given, lets the coarse-mesh advice be left out of a run whose loads
     cannot bring any interface to its strength by then (_fracture_reachable).
+    `target_dt` (s): mass scaling so that the run's step, `safety` times the stable one, reaches
+    it (_scale_masses); refused (ValueError) when that adds more than `max_added_mass` of the mass.
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -154,6 +161,10 @@ def build_fdem_model(
     time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
+    mass_scaling = MassScaling(target_dt)
+    if target_dt is not None:
+        mass_scaling = _scale_masses(bulk, time_step, target_dt, safety, max_added_mass)
+        time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     reachable = end_time is None or _fracture_reachable(
         materials, bulk, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
     )
@@ -176,6 +187,7 @@ def build_fdem_model(
         x0=bulk.x0,
         stable_dt=time_step.dt,
         time_step=time_step,
+        mass_scaling=mass_scaling,
         element_size=element_size,
         wave_transit=wave_transit,
         contact_penalty=default_penalty,
@@ -395,6 +407,70 @@ class TimeStepReport:
             "median_dt": float(np.median(self.element_dt)),
             "median_bulk_dt": float(np.median(self.bulk_dt)),
         }
+
+
+@dataclass
+class MassScaling:
+    """Mass added to the elements whose stable step is below a target (summary.json)."""
+
+    target_dt: float | None = None  # s, the stable step asked for; None: no scaling
+    added_mass: float = 0.0  # fraction of the total mass
+    elements: int = 0  # elements made heavier
+    largest_factor: float = 1.0  # the largest density factor
+    largest_factor_element: int | None = None  # its element, counted from 1
+    added_mass_centroid: list[float] | None = None  # m, where the added mass sits on average
+
+    def as_summary(self) -> dict:
+        return {k: v for k, v in self.__dict__.items()}
+
+
+def _scale_masses(bulk: "_Bulk", step: "TimeStepReport", target_dt: float, safety: float,
+                  max_added_mass: float) -> MassScaling:
+    """Fixed mass scaling as explicit codes do it: each element whose step (safety x its stable
+    step) is below `target_dt` gets its density (its nodes' masses) multiplied by (target_dt /
+    its step)^2, which brings its step to the target (every term of a node's frequency bound goes
+    as 1 / mass). Changes bulk.rho and bulk.mass (the nodes' masses) in place."""
+    element_dt = safety * step.element_dt
+    factor = np.maximum(1.0, (target_dt / element_dt) ** 2)
+    tet_mass = bulk.rho * bulk.vol
+
+    def added(f) -> float:
+        return float(np.sum((f - 1.0) * tet_mass) / np.sum(tet_mass))
+
+    fraction = added(factor)
+    if fraction > max_added_mass:
+        lo, hi = safety * step.dt, target_dt  # the largest target within the limit, by bisection
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if added(np.maximum(1.0, (mid / element_dt) ** 2)) <= max_added_mass else (lo, mid)
+        share = np.count_nonzero(factor > 1.0) / len(factor)
+        raise ValueError(
+            f"run.target_dt = {target_dt:.3g} s would add {fraction:.1%} of the specimen's mass (more than "
+            f"run.max_added_mass = {max_added_mass:.1%}): {share:.0%} of the elements take a shorter step (the stable "
+            f"step is set by the {step.kind}); set run.target_dt at most {_round_down(lo):.3g} s or raise run.max_added_mass"
+        )
+    scaled = factor > 1.0
+    bulk.rho *= factor
+    bulk.mass *= np.repeat(factor, 4)
+    if not scaled.any():
+        return MassScaling(target_dt)
+    extra = (factor - 1.0) * tet_mass
+    centroids = bulk.x0.reshape(-1, 4, 3).mean(axis=1)
+    worst = int(np.argmax(factor))
+    return MassScaling(
+        target_dt=target_dt,
+        added_mass=fraction,
+        elements=int(np.count_nonzero(scaled)),
+        largest_factor=float(factor[worst]),
+        largest_factor_element=worst + 1,
+        added_mass_centroid=[float(c) for c in extra @ centroids / extra.sum()],
+    )
+
+
+def _round_down(x: float, digits: int = 3) -> float:
+    """x rounded down to `digits` significant digits (an offered limit that is within it)."""
+    unit = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    return math.floor(x / unit) * unit
 
 
 TIME_STEP_KINDS = ("bulk tet", "interface penalty", "contact penalty", "tool penalty")

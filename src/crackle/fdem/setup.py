@@ -132,6 +132,9 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 angular_velocity=scenario.specimen.angular_velocity,
                 contact=scenario.run.contact,
                 end_time=scenario.run.end_time,
+                target_dt=scenario.run.target_dt,
+                safety=scenario.run.safety,
+                max_added_mass=scenario.run.max_added_mass,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None

@@ -317,5 +317,7 @@ class FdemSimulation:
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
             "dt_limit": m.time_step.as_summary(),
+            "added_mass": m.mass_scaling.added_mass,
+            "mass_scaling": m.mass_scaling.as_summary(),
             "warnings": list(self.warnings),
         }
