@@ -33,6 +33,7 @@ Examples:
 
     python benchmarks/fdem_throughput.py --threads 2
     python benchmarks/fdem_throughput.py --sizes 50000 --repeats 5 --seconds 2 --breakdown
+    python benchmarks/fdem_throughput.py --law bilinear --sizes 13000 50000   # paper-004 walnut law
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[50000, 200000],
                    help="approximate tet counts (default: 50000 200000)")
+    p.add_argument("--law", choices=("guo-munjiza", "bilinear"), default="guo-munjiza",
+                   help="interface law: the paper-001 rock (Guo-Munjiza) or the paper-004 walnut face (bilinear)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per size, median kept (default 3)")
     p.add_argument("--threads", type=int, default=None,
                    help="numba threads (numba.set_num_threads); default: numba's default")
@@ -91,15 +94,25 @@ def beam_cells(target_tets: int) -> tuple[int, int, int]:
     return nx, n, n
 
 
-def build(target_tets: int, cell: float):
-    """Four-point bending of a rock beam: model and time step."""
+def material(law: str):
+    """The paper-001 rock with the Guo-Munjiza law, or the paper-004 walnut face (Table 1) with
+    the bilinear law."""
+    from crackle.fdem.laws import BilinearLaw, GuoMunjizaLaw
+    from crackle.materials import Material
+
+    if law == "bilinear":
+        return Material(1250.0, 11.6e9, 0.29, BilinearLaw(7e6, 7e6, 770.0, 636.36e9, 636.36e9, friction=0.3),
+                        name="walnut face")
+    return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
+
+
+def build(target_tets: int, cell: float, law: str = "guo-munjiza"):
+    """Four-point bending of a beam: model and time step."""
     from crackle.fdem.model import build_fdem_model
     from crackle.geometry import structured_box
     from crackle.loading import History, Selection, Support, Tool
-    from crackle.fdem.laws import GuoMunjizaLaw
-    from crackle.materials import Material
 
-    rock = Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
+    rock = material(law)
     nx, ny, nz = beam_cells(target_tets)
     L, W, H = nx * cell, ny * cell, nz * cell
     mesh = structured_box((L, W, H), cell)
@@ -181,7 +194,7 @@ def run_size(target_tets: int, args) -> dict:
     from crackle.fdem.simulation import FdemSimulation
 
     t_build = time.perf_counter()
-    model, dt, cells = build(target_tets, args.cell)
+    model, dt, cells = build(target_tets, args.cell, args.law)
     sim = FdemSimulation(model)
     build_s = time.perf_counter() - t_build
 
@@ -219,6 +232,7 @@ def run_size(target_tets: int, args) -> dict:
         "bytes_per_tet": model_bytes(model) / n_tets,
         "peak_rss_mb": peak_rss_mb(),
         "threads": numba.get_num_threads(),
+        "law": args.law,
         "contact_bytes_per_tet": contact_bytes(sim) / n_tets,
         "cells": list(cells),
         "dt": dt,
@@ -270,7 +284,8 @@ def busy_warning(r: dict) -> str | None:
 
 def child_argv(size: int, args) -> list[str]:
     argv = [sys.executable, os.path.abspath(__file__), "--_child", "--sizes", str(size),
-            "--repeats", str(args.repeats), "--seconds", str(args.seconds), "--cell", str(args.cell)]
+            "--repeats", str(args.repeats), "--seconds", str(args.seconds), "--cell", str(args.cell),
+            "--law", args.law]
     if args.threads is not None:
         argv += ["--threads", str(args.threads)]
     if args.steps is not None:
