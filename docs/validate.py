@@ -7,7 +7,8 @@ Each such number sits between two markers in the Markdown (invisible when render
 CASE names a run in CASES below (its `crackle run` arguments, exactly what the table's command
 column says), VALUE a number of that run: a summary.json key, dotted into dicts and lists
 (`peak_forces.top`, `largest_fragment_velocity.2`), optionally scaled (`plastic_zone_length*1e3`
-for mm), or one of DERIVED; FORMAT is a Python format spec (`,.0f`, `.2%`).
+for mm), or one of DERIVED; FORMAT is a Python format spec (`,.0f`, `.2%`), optionally followed
+by `|` and a suffix written after the number (` deg`); a missing value (none, nan) reads "none".
 
     python docs/validate.py --quick              # run every case, rewrite the numbers
     python docs/validate.py --quick --check      # run, report what differs, exit 1 if anything does
@@ -126,7 +127,9 @@ def main(argv=None) -> int:
         if m["case"] not in runs:
             return m[0]
         value = value_of(runs[m["case"]], m["value"])
-        new = "n/a" if value is None else format(value, m["format"])
+        spec, _, suffix = m["format"].partition("|")
+        missing = value is None or (isinstance(value, float) and math.isnan(value))
+        new = "none" if missing else format(value, spec) + suffix
         if new != m["text"]:
             changes.append(f"{m['case']}:{m['value']}: {m['text']} -> {new}")
         return f"<!--q:{m['case']}:{m['value']}:{m['format']}-->{new}<!--/q-->"
