@@ -46,12 +46,12 @@ def test_outputs_follow_the_contract(quick_run):
         assert key in summary, key
     assert summary["method"] == "fdem" and summary["elements"] == 960
     # Every tool's peak over every step is reported; the overall one names its tool. In the quick
-    # form the loading platen's peak is the fracture load (686 N, before the break at ~0.5 ms);
+    # form the loading platen's peak is the fracture load (693 N, as the first interfaces fail at ~0.63 ms);
     # the beam halves then rebound on the supports, whose windowed force peaks later (761 N).
     assert set(summary["peak_forces"]) == {"top", "left", "right"}
     assert summary["peak_force"] == max(summary["peak_forces"].values())
     assert summary["peak_forces"][summary["peak_force_tool"]] == summary["peak_force"]
-    assert summary["peak_forces"]["top"] == pytest.approx(686.0, rel=0.05)
+    assert summary["peak_forces"]["top"] == pytest.approx(693.0, rel=0.05)
     assert summary["broken"] == len(read_events_csv(out / "events.csv")["time"])
     hist = read_history_csv(out / "history.csv")
     for col in ["time", "broken"] + [f"tool.top.{c}" for c in ("fx", "fy", "fz", "ux", "uy", "uz")] + [
