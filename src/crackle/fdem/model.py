@@ -77,9 +77,11 @@ class FdemModel:
     def n_interfaces(self) -> int:
         return len(self.ifs.area)
 
-    def iface_centroids(self, x: np.ndarray | None = None) -> np.ndarray:
+    def iface_centroids(self, x: np.ndarray | None = None, ids: np.ndarray | None = None) -> np.ndarray:
+        """Centroids of the interfaces `ids` (default all) at positions x (default the reference)."""
         x = self.x0 if x is None else x
-        return 0.5 * (x[self.ifs.na].mean(axis=1) + x[self.ifs.nb].mean(axis=1))
+        na, nb = (self.ifs.na, self.ifs.nb) if ids is None else (self.ifs.na[ids], self.ifs.nb[ids])
+        return 0.5 * (x[na].mean(axis=1) + x[nb].mean(axis=1))
 
 
 def build_fdem_model(

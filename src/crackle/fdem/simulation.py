@@ -213,7 +213,7 @@ class FdemSimulation:
         """Failures since the last call: times, positions, mode names, interface ids."""
         ifs = self.model.ifs
         failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
-        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids()[ids])
+        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids(ids=ids))
 
     def fields(self) -> dict:
         """Arrays for a ParaView snapshot on the exploded mesh."""
@@ -258,7 +258,7 @@ class FdemSimulation:
             c = self.crack_settings
             top_point = m.x0[np.argmax(m.x0 @ np.asarray(c.top, float))]
             analysis = analyse_cracks(
-                m.iface_centroids(m.x0)[failed], m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
+                m.iface_centroids(ids=failed), m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
             )
             self._cracks = (len(failed), analysis)
         return self._cracks[1]

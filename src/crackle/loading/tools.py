@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+import numpy as np
+from numba import njit, prange
 
 from .friction import coulomb_update
 
@@ -335,8 +336,8 @@ def load_cell_step(time, tools):
 def tool_contact_diagnostics(g, px, py, pz, radius, area, tools, node_tool, node_offset, friction, forces, energy):
     """Add point g's contact force on each tool (forces[j], N) and the energy stored in its
     springs (energy[j], J) at its current position and contact state: the springs of
-    `contact_with_tools` after its last step. Call serially, in a fixed order (histories then do
-    not depend on the thread count)."""
+    `contact_with_tools` after its last step. Sum points in a fixed order (histories then do not
+    depend on the thread count)."""
     if node_tool[g] == HIDDEN:
         return
     for j in range(tools.kind.shape[0]):
@@ -358,19 +359,35 @@ def tool_contact_diagnostics(g, px, py, pz, radius, area, tools, node_tool, node
             energy[j] += 0.5 * t2 / kn
 
 
-@njit(cache=True)
+# Points per block of tool_contact_totals: the blocks are fixed, whatever the thread count, and
+# their partial sums are added in block order, so the totals do not depend on the threads.
+TOTALS_BLOCK = 2048
+
+
+@njit(parallel=True, cache=True)
 def tool_contact_totals(x, radius, area, node_tool, node_offset, friction, tools, forces, energy):
     """Per-tool contact force on the specimen (forces, N) and stored contact energy (energy, J)
-    at the current state, over all points (radius: one per point, or one for all).
-
-    Serial on purpose: a fixed summation order keeps the history bit-identical for any thread
-    count, and it runs only at output times."""
+    at the current state, over all points (radius: one per point, or one for all). Runs at
+    output times only."""
     forces[:] = 0.0
     energy[:] = 0.0
-    if tools.kind.shape[0] == 0:
+    n_tools = tools.kind.shape[0]
+    if n_tools == 0:
         return
     one_radius = radius.shape[0] == 1
-    for g in range(x.shape[0]):
-        r = radius[0] if one_radius else radius[g]
-        tool_contact_diagnostics(g, x[g, 0], x[g, 1], x[g, 2], r, area[g], tools, node_tool, node_offset, friction,
-                                 forces, energy)
+    n = x.shape[0]
+    n_blocks = (n + TOTALS_BLOCK - 1) // TOTALS_BLOCK
+    part_forces = np.zeros((n_blocks, n_tools, 3))
+    part_energy = np.zeros((n_blocks, n_tools))
+    for blk in prange(n_blocks):
+        block_forces = part_forces[blk]
+        block_energy = part_energy[blk]
+        for g in range(blk * TOTALS_BLOCK, min(n, (blk + 1) * TOTALS_BLOCK)):
+            r = radius[0] if one_radius else radius[g]
+            tool_contact_diagnostics(g, x[g, 0], x[g, 1], x[g, 2], r, area[g], tools, node_tool, node_offset, friction,
+                                     block_forces, block_energy)
+    for blk in range(n_blocks):
+        for j in range(n_tools):
+            energy[j] += part_energy[blk, j]
+            for d in range(3):
+                forces[j, d] += part_forces[blk, j, d]
