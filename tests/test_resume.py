@@ -12,10 +12,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from crackle.cli import main
-from crackle.io import read_events_csv, read_history_csv, read_pvd
+from crackle.io import read_history_csv, read_pvd
 
 LATTICE = str(Path(__file__).parent / "data" / "lattice-platen.toml")
 # Results that must match; wall time, status and message describe the session, not the physics.
