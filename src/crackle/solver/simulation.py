@@ -33,7 +33,9 @@ class Simulation(Protocol):
         """The discretisation's size in a few words, e.g. '960 tets, 2,016 interfaces'."""
 
     def advance(self, n_steps: int, dt: float) -> None:
-        """n_steps compiled steps; state updated in place; time = steps x dt."""
+        """n_steps compiled steps; state updated in place; time = steps x dt. The state after a
+        step may not depend on how the steps were split into calls (advance(3) = advance(1) +
+        advance(2), bit for bit): outputs and restarts rely on it."""
 
     def state_is_finite(self) -> bool:
         """False once positions or velocities hold inf or nan."""
