@@ -240,7 +240,8 @@ def test_read_mesh_round_trip(tmp_path, suffix):
 
 
 def test_read_mesh_inverted(tmp_path):
-    """Two inverted tets in a file -> MeshError mentioning 'inverted', the count 2 and first index 5."""
+    """Two inverted tets in a file -> MeshError mentioning 'inverted', the count 2 and the first, index 5,
+    as tet 6 (counted from 1)."""
     mesh = structured_box((0.06, 0.12, 0.02), 0.02)
     tets = mesh.tets.copy()
     tets[[5, 7]] = tets[[5, 7]][:, [0, 2, 1, 3]]
@@ -249,7 +250,7 @@ def test_read_mesh_inverted(tmp_path):
     with pytest.raises(MeshError, match="inverted") as err:
         read_mesh(path)
     msg = str(err.value)
-    assert "inverted.vtu" in msg and "2 inverted" in msg and "tet 5" in msg
+    assert "inverted.vtu" in msg and "2 inverted" in msg and "first is tet 6 " in msg
 
 
 def test_check_tets_degenerate():

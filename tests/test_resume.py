@@ -103,3 +103,21 @@ def test_checkpoint_can_be_switched_off(tmp_path):
     out = tmp_path / "run"
     assert main(["run", LATTICE, "--out", str(out), "--set", "run.checkpoint=false"]) == 0
     assert not (out / "checkpoint.pkl").exists()
+
+
+def test_killed_run_resumes_from_its_last_periodic_checkpoint(tmp_path):
+    """SIGKILL (no chance to clean up) after checkpoints every row: the resume drops the rows
+    written after the last checkpoint and continues bit-identically to the uninterrupted run."""
+    args = ["run", LATTICE, "--set", "run.history_samples=1200", "--set", "run.end_time=6e-4"]
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    assert main([*args, "--out", str(whole)]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "crackle.cli", *args, "--out", str(killed),
+                             "--set", "run.checkpoint_every=1e-9"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((killed / "history.csv").exists() and len((killed / "history.csv").read_text().splitlines()) > 60):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    assert not (killed / "summary.json").exists() and (killed / "checkpoint.pkl").exists()
+    assert main([*args, "--resume", str(killed)]) == 0
+    _same_files(whole, killed)

@@ -31,6 +31,7 @@ def run_control(run: RunSpec) -> RunControl:
         field_frames=run.field_frames,
         load_cell_window=run.load_cell_window,
         checkpoint=run.checkpoint,
+        checkpoint_every=run.checkpoint_every,
         stop=StopConditions(run.stop.tool_displacement, run.stop.tool, run.stop.force_drop, run.stop.force_drop_hold),
     )
 

@@ -398,6 +398,8 @@ class RunSpec(Strict):
     """s, the tool force's averaging window; default 4 element wave transits"""
     checkpoint: bool = True
     """leave checkpoint.pkl in the output folder, for crackle run --resume"""
+    checkpoint_every: Positive = 600.0
+    """s of wall time between checkpoints while the run goes (a killed run resumes from the last)"""
     stop: Stop = Stop()
     """stop conditions"""
 

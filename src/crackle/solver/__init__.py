@@ -60,6 +60,7 @@ class RunControl:
     stop: StopConditions = field(default_factory=StopConditions)
     plots: bool = True
     checkpoint: bool = True  # leave checkpoint.pkl for --resume
+    checkpoint_every: float = 600.0  # s of wall time between checkpoints during the run (besides the last)
     report: Callable[[str], None] | None = None  # where set-up lines, warnings and the cost estimate go
     progress: bool | None = None  # None: only on a terminal
 
@@ -166,6 +167,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             sim.advance(1, dt)  # a row's state does not depend on how its steps were split
         progress.stage("")
         probe = None  # (wall time, steps) after the first chunk, which also starts the thread pool
+        last_checkpoint = wallclock.perf_counter()
         estimated = False
         try:
             while sim.steps < total_steps:
@@ -185,6 +187,10 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                     events.append_many(t, xyz, modes, ids)
                 if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
+                if control.checkpoint and wallclock.perf_counter() - last_checkpoint >= control.checkpoint_every:
+                    # A run killed later resumes from here (its later rows are dropped then).
+                    save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
+                    last_checkpoint = wallclock.perf_counter()
                 progress.update(sim.time, sim.steps, sim.broken)
                 if probe is None:
                     probe = (wallclock.perf_counter(), sim.steps)

@@ -1,5 +1,6 @@
-"""Checkpoints: the complete state of a run at its last step, so that `crackle run --resume DIR`
-continues an interrupted or finished run to a later end time.
+"""Checkpoints: the complete state of a run at a history row (every run.checkpoint_every seconds
+of wall time, and at its end), so that `crackle run --resume DIR` continues an interrupted,
+killed or finished run to a later end time.
 
 The checkpoint holds the method's Simulation object as it is (every array of its model, tools,
 load cell, contact lists and failure records: nothing to forget when a method adds state), the
@@ -22,7 +23,7 @@ CHECKPOINT_FORMAT = 1
 
 # Scenario keys a resumed run may change: how far it goes and what it writes, never the model.
 RESUMABLE_KEYS = ("run.end_time", "run.history_samples", "run.field_frames", "run.stop", "run.checkpoint",
-                  "description", "quick")
+                  "run.checkpoint_every", "description", "quick")
 
 
 class CheckpointError(ValueError):
