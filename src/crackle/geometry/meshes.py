@@ -125,6 +125,34 @@ class TetMesh:
         return float(np.linalg.norm(self.points[e[:, 1]] - self.points[e[:, 0]], axis=1).mean())
 
 
+# Bits per axis of the Morton key (3 x 21 = 63 bits of a uint64).
+_MORTON_BITS = 21
+
+
+def locality_order(mesh: TetMesh) -> tuple[TetMesh, np.ndarray]:
+    """The same mesh with its tets sorted along a Morton (Z-order) curve of their centroids and its
+    points numbered by first use, and `order` (new tet i is old tet order[i]).
+
+    Neighbouring tets then sit near each other in memory, so the gathers of every step (a tet's
+    nodes, an interface's two tets) hit the cache: gmsh's own numbering made a 26,000-tet disc
+    step 1.7x slower (2.7 against 4.7 M tet-steps/s, 2 threads)."""
+    c = mesh.points[mesh.tets].mean(axis=1)
+    lo = c.min(axis=0)
+    span = float(np.max(c.max(axis=0) - lo)) or 1.0
+    q = ((c - lo) / span * (2**_MORTON_BITS - 1)).astype(np.uint64)
+    key = np.zeros(len(c), dtype=np.uint64)
+    for bit in range(_MORTON_BITS):
+        for axis in range(3):
+            key |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    order = np.argsort(key, kind="stable")
+    tets = mesh.tets[order]
+    used, first_use = np.unique(tets.ravel(), return_index=True)
+    by_first_use = used[np.argsort(first_use, kind="stable")]
+    new_id = np.empty(mesh.n_points, dtype=np.int64)
+    new_id[by_first_use] = np.arange(len(by_first_use))
+    return TetMesh(mesh.points[by_first_use], new_id[tets]), order
+
+
 def _fix_orientation(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
     """Swap two vertices of negatively oriented tets (for generated meshes only)."""
     tets = tets.copy()
