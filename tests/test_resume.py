@@ -121,3 +121,32 @@ def test_killed_run_resumes_from_its_last_periodic_checkpoint(tmp_path):
     assert not (killed / "summary.json").exists() and (killed / "checkpoint.pkl").exists()
     assert main([*args, "--resume", str(killed)]) == 0
     _same_files(whole, killed)
+
+
+def test_periodic_checkpoint_carries_the_stop_clock(tmp_path, monkeypatch):
+    """A copy of the run folder taken at the periodic checkpoint of the row where the force-drop
+    clock starts (what a kill right after it leaves), resumed, stops at the same step with the
+    same rows: the checkpoint holds the driver state of the row it follows."""
+    import shutil
+
+    import crackle.solver as solver
+
+    args = ["run", LATTICE, "--set", "run.end_time=6e-4", "--set", "run.history_samples=1200",
+            "--set", "run.stop.force_drop=0.5", "--set", "run.stop.force_drop_hold=2e-5"]
+    whole, snapshot = tmp_path / "whole", tmp_path / "snapshot"
+    assert main([*args, "--out", str(whole)]) == 0
+    assert _summary(whole)["status"] == "stopped"
+    save = solver.save_checkpoint
+
+    def save_and_copy(out, checkpoint):
+        path = save(out, checkpoint)
+        if checkpoint.low_since is not None and checkpoint.low_since == checkpoint.sim.time and not snapshot.exists():
+            shutil.copytree(out, snapshot)
+        return path
+
+    monkeypatch.setattr(solver, "save_checkpoint", save_and_copy)
+    assert main([*args, "--out", str(tmp_path / "run"), "--set", "run.checkpoint_every=1e-9"]) == 0
+    monkeypatch.undo()
+    assert not (snapshot / "summary.json").exists()
+    assert main([*args, "--resume", str(snapshot)]) == 0
+    _same_files(whole, snapshot)

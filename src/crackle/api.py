@@ -18,7 +18,7 @@ from .solver import (
     load_checkpoint,
     run,
 )
-from .solver.checkpoint import scenario_changes
+from .solver.checkpoint import RESUMABLE_KEYS, scenario_changes
 
 
 def run_control(run: RunSpec) -> RunControl:
@@ -71,8 +71,7 @@ def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick
         if changes:
             raise ScenarioError(
                 f"--resume {resume}: the scenario differs from the run being resumed: {'; '.join(changes)}. Give the "
-                "same file, --quick and --set as that run (only run.end_time, run.history_samples, run.field_frames "
-                "and run.stop may change)"
+                f"same file, --quick and --set as that run (only {', '.join(RESUMABLE_KEYS)} may change)"
             )
         sim, control = checkpoint.sim, run_control(scenario.run)
         if steps_to(scenario.run.end_time, checkpoint.dt) <= sim.steps:
@@ -86,7 +85,8 @@ def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick
         sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress
-    control.report = report
+    if report is not None:
+        control.report = report
     return run(sim, control, out, scenario_name=scenario.name, scenario=record, resume=checkpoint)
 
 

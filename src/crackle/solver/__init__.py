@@ -49,6 +49,10 @@ class StopConditions:
     force_drop_hold: float | None = None
 
 
+def _silent(text: str) -> None:
+    pass
+
+
 @dataclass
 class RunControl:
     end_time: float
@@ -61,7 +65,7 @@ class RunControl:
     plots: bool = True
     checkpoint: bool = True  # leave checkpoint.pkl for --resume
     checkpoint_every: float = 600.0  # s of wall time between checkpoints during the run (besides the last)
-    report: Callable[[str], None] | None = None  # where set-up lines, warnings and the cost estimate go
+    report: Callable[[str], None] = _silent  # where set-up lines, warnings and the cost estimate go
     progress: bool | None = None  # None: only on a terminal
 
 
@@ -145,7 +149,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         interrupt = stack.enter_context(_InterruptRequest())
 
         def say(text: str) -> None:
-            progress.note(text, control.report or _silent)
+            progress.note(text, control.report)
 
         say(f"{scenario_name or sim.method}: {sim.describe()}; {total_steps - sim.steps:,} steps of {dt:.3g} s to "
             f"t = {control.end_time:.4g} s" + (f" from {sim.time:.4g} s" if resume is not None else ""))
@@ -187,10 +191,6 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                     events.append_many(t, xyz, modes, ids)
                 if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
-                if control.checkpoint and wallclock.perf_counter() - last_checkpoint >= control.checkpoint_every:
-                    # A run killed later resumes from here (its later rows are dropped then).
-                    save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
-                    last_checkpoint = wallclock.perf_counter()
                 progress.update(sim.time, sim.steps, sim.broken)
                 if probe is None:
                     probe = (wallclock.perf_counter(), sim.steps)
@@ -227,6 +227,11 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 if interrupt.requested:
                     status, message = "interrupted", f"interrupted by the user at t = {sim.time:.4e} s"
                     break
+                if control.checkpoint and wallclock.perf_counter() - last_checkpoint >= control.checkpoint_every:
+                    # After this row's driver state (energy scale, force-drop clock) is updated: a
+                    # run killed later resumes from here (its later rows are dropped then).
+                    save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
+                    last_checkpoint = wallclock.perf_counter()
         except UnstableRunError as err:
             status, message = "unstable", str(err)
         if fields is not None and status != "unstable" and sim.steps % field_every:
@@ -265,7 +270,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             "penalties (energies.png shows when the imbalance grew)"
         )
         summary["warnings"] = [*summary.get("warnings", []), warning]
-        (control.report or _silent)(f"  warning: {warning}")
+        control.report(f"  warning: {warning}")
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
@@ -302,10 +307,6 @@ def _duration(seconds: float) -> str:
     if seconds < 7200:
         return f"{seconds / 60:.0f} min"
     return f"{seconds / 3600:.1f} h"
-
-
-def _silent(text: str) -> None:
-    pass
 
 
 def _next_multiple(step: int, every: int) -> int:
