@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections import namedtuple
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -57,8 +57,7 @@ class FdemModel:
     tool_specs: list[Tool]
     pressure_specs: list[Pressure]
     x0: np.ndarray  # reference positions of the exploded nodes
-    stable_dt: float  # largest stable step (no safety factor)
-    time_step: "TimeStepReport"  # what sets it
+    time_step: "TimeStepReport"  # the stable step and what sets it
     mass_scaling: "MassScaling"  # mass added to reach run.target_dt (none by default)
     element_size: float
     wave_transit: float  # s: element size over the fastest P-wave speed of the bulk
@@ -72,6 +71,11 @@ class FdemModel:
     @property
     def n_tets(self) -> int:
         return self.mesh.n_tets
+
+    @property
+    def stable_dt(self) -> float:
+        """Largest stable step (s, no safety factor)."""
+        return self.time_step.dt
 
     @property
     def n_interfaces(self) -> int:
@@ -168,7 +172,7 @@ def build_fdem_model(
         mass_scaling = _scale_masses(bulk, time_step, target_dt, safety, max_added_mass)
         time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     reachable = end_time is None or _fracture_reachable(
-        materials, bulk, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
+        materials, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
     )
     model_warnings = _resolution_warnings(materials, element_size) if reachable else []
     for msg in model_warnings:
@@ -187,7 +191,6 @@ def build_fdem_model(
         tool_specs=list(tools),
         pressure_specs=list(pressures),
         x0=bulk.x0,
-        stable_dt=time_step.dt,
         time_step=time_step,
         mass_scaling=mass_scaling,
         element_size=element_size,
@@ -415,7 +418,7 @@ class TimeStepReport:
 class MassScaling:
     """Mass added to the elements whose stable step is below a target (summary.json)."""
 
-    target_dt: float | None = None  # s, the stable step asked for; None: no scaling
+    target_dt: float | None = None  # s, the step asked for (run.target_dt); None: no scaling
     added_mass: float = 0.0  # fraction of the total mass
     elements: int = 0  # elements made heavier
     largest_factor: float = 1.0  # the largest density factor
@@ -423,7 +426,7 @@ class MassScaling:
     added_mass_centroid: list[float] | None = None  # m, where the added mass sits on average
 
     def as_summary(self) -> dict:
-        return {k: v for k, v in self.__dict__.items()}
+        return asdict(self)
 
 
 def _scale_masses(bulk: "_Bulk", step: "TimeStepReport", target_dt: float, safety: float,
@@ -518,7 +521,7 @@ def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, t
 _CONCENTRATION = 3.0
 
 
-def _fracture_reachable(materials, bulk, nodes, tools, pressures, precracks, gravity, scale, element_size,
+def _fracture_reachable(materials, nodes, tools, pressures, precracks, gravity, scale, element_size,
                         end_time) -> bool:
     """Whether the loads could bring an interface to the weakest tensile strength by end_time,
     by a generous upper bound of the stress they can cause: an impact rho c_p v at the fastest
@@ -526,7 +529,7 @@ def _fracture_reachable(materials, bulk, nodes, tools, pressures, precracks, gra
     E u / h, a pressure times a hole's concentration, the weight rho |g| L. A pre-crack under any
     load concentrates stress without bound."""
     ft = min(mat.interface.tensile_strength for mat in materials)
-    rho, E = float(np.max(bulk.rho)), max(mat.youngs_modulus for mat in materials)
+    rho, E = max(mat.density for mat in materials), max(mat.youngs_modulus for mat in materials)
     c_p = max(mat.p_wave_speed for mat in materials)
     tool_speed = max((max(abs(v) for v in t.speed.values) for t in tools), default=0.0)
     node_speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", nodes.v, nodes.v)))) if len(nodes.v) else 0.0
