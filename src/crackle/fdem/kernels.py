@@ -319,44 +319,44 @@ def interface_forces(t, dt, x, v, ifs):
 @njit(parallel=True, cache=True)
 def tet_energy_and_stress(x, tets, energy, stress):
     """Per-tet St Venant-Kirchhoff energy V0 W(E) and Cauchy stress (xx, yy, zz, xy, yz, xz).
-    Scalar arithmetic only: a small array per tet would be a heap allocation in the loop."""
-    for e in prange(tets.vol.shape[0]):
-        n0 = 4 * e
-        m = tets.dm_inv[e]
-        # F = [x1 - x0, x2 - x0, x3 - x0] Dm^-1, row r, column c.
-        f = [0.0] * 9
-        for r in range(3):
-            a1 = x[n0 + 1, r] - x[n0, r]
-            a2 = x[n0 + 2, r] - x[n0, r]
-            a3 = x[n0 + 3, r] - x[n0, r]
-            for c in range(3):
-                f[3 * r + c] = a1 * m[0, c] + a2 * m[1, c] + a3 * m[2, c]
-        lam = tets.lam[e]
-        mu = tets.mu[e]
-        # Green-Lagrange E = (F^T F - I) / 2 and S = lam tr(E) I + 2 mu E, both symmetric.
-        g = [0.0] * 9
-        for i in range(3):
-            for j in range(3):
-                g[3 * i + j] = 0.5 * (f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j])
-            g[4 * i] -= 0.5
-        tr = g[0] + g[4] + g[8]
-        ee = 0.0
-        for k in range(9):
-            ee += g[k] * g[k]
-        energy[e] = tets.vol[e] * (0.5 * lam * tr * tr + mu * ee)
-        for k in range(9):
-            g[k] *= 2.0 * mu
-        for i in range(3):
-            g[4 * i] += lam * tr
-        # sigma = F S F^T / J.
-        J = (f[0] * (f[4] * f[8] - f[5] * f[7]) - f[1] * (f[3] * f[8] - f[5] * f[6])
-             + f[2] * (f[3] * f[7] - f[4] * f[6]))
-        fs = [0.0] * 9
-        for i in range(3):
-            for j in range(3):
-                fs[3 * i + j] = f[3 * i] * g[j] + f[3 * i + 1] * g[3 + j] + f[3 * i + 2] * g[6 + j]
-        for k, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))):
-            stress[e, k] = (fs[3 * i] * f[3 * j] + fs[3 * i + 1] * f[3 * j + 1] + fs[3 * i + 2] * f[3 * j + 2]) / J
+    The 3 x 3 work arrays are allocated once per block of TET_BLOCK tets, not once per tet."""
+    n_tet = tets.vol.shape[0]
+    for blk in prange((n_tet + TET_BLOCK - 1) // TET_BLOCK):
+        f = np.empty(9)  # F = [x1 - x0, x2 - x0, x3 - x0] Dm^-1, row-major
+        g = np.empty(9)  # Green-Lagrange E = (F^T F - I) / 2, then S = lam tr(E) I + 2 mu E
+        fs = np.empty(9)  # F S
+        for e in range(blk * TET_BLOCK, min(n_tet, (blk + 1) * TET_BLOCK)):
+            n0 = 4 * e
+            m = tets.dm_inv[e]
+            for r in range(3):
+                a1 = x[n0 + 1, r] - x[n0, r]
+                a2 = x[n0 + 2, r] - x[n0, r]
+                a3 = x[n0 + 3, r] - x[n0, r]
+                for c in range(3):
+                    f[3 * r + c] = a1 * m[0, c] + a2 * m[1, c] + a3 * m[2, c]
+            lam = tets.lam[e]
+            mu = tets.mu[e]
+            for i in range(3):
+                for j in range(3):
+                    g[3 * i + j] = 0.5 * (f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j])
+                g[4 * i] -= 0.5
+            tr = g[0] + g[4] + g[8]
+            ee = 0.0
+            for k in range(9):
+                ee += g[k] * g[k]
+            energy[e] = tets.vol[e] * (0.5 * lam * tr * tr + mu * ee)
+            for k in range(9):
+                g[k] *= 2.0 * mu
+            for i in range(3):
+                g[4 * i] += lam * tr
+            # sigma = F S F^T / J.
+            J = (f[0] * (f[4] * f[8] - f[5] * f[7]) - f[1] * (f[3] * f[8] - f[5] * f[6])
+                 + f[2] * (f[3] * f[7] - f[4] * f[6]))
+            for i in range(3):
+                for j in range(3):
+                    fs[3 * i + j] = f[3 * i] * g[j] + f[3 * i + 1] * g[3 + j] + f[3 * i + 2] * g[6 + j]
+            for k, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))):
+                stress[e, k] = (fs[3 * i] * f[3 * j] + fs[3 * i + 1] * f[3 * j + 1] + fs[3 * i + 2] * f[3 * j + 2]) / J
 
 
 @njit(parallel=True, cache=True)
