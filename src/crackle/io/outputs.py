@@ -59,12 +59,8 @@ class HistoryWriter:
         if not self.columns or self.columns[0] != "time":
             raise ValueError("history columns must start with 'time'")
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._index = {name: i for i, name in enumerate(self.columns)}
-        kept = _rows_until(self.path, self.columns, keep_until) if keep_until is not None else []
-        self._file = open(self.path, "w", encoding="utf-8", newline="")
-        self._file.write("".join(line + "\n" for line in [",".join(self.columns), *kept]))
-        self._file.flush()
+        self._file = _open_csv(self.path, self.columns, keep_until)
 
     def _write_line(self, fields: Sequence[str]) -> None:
         self._file.write(",".join(fields) + "\n")
@@ -103,11 +99,7 @@ class EventWriter:
 
     def __init__(self, path: str | os.PathLike, keep_until: float | None = None):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        kept = _rows_until(self.path, EVENT_COLUMNS, keep_until) if keep_until is not None else []
-        self._file = open(self.path, "w", encoding="utf-8", newline="")
-        self._file.write("".join(line + "\n" for line in [",".join(EVENT_COLUMNS), *kept]))
-        self._file.flush()
+        self._file = _open_csv(self.path, EVENT_COLUMNS, keep_until)
 
     def append_many(self, times, xyz, modes, ids) -> None:
         """Append k events. ``modes`` may also be one string for all of them."""
@@ -161,6 +153,17 @@ def _complete_lines(path: Path) -> tuple[list[str], list[str]]:
         header = f.readline().rstrip("\r\n").split(",")
         lines = f.read().split("\n")[:-1]
     return header, [ln.rstrip("\r") for ln in lines if ln.strip()]
+
+
+def _open_csv(path: Path, columns: Sequence[str], keep_until: float | None):
+    """A CSV open for appending rows, its header written; with `keep_until`, an existing file's
+    rows up to that time (a resumed run) are kept after the header."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    kept = _rows_until(path, columns, keep_until) if keep_until is not None else []
+    file = open(path, "w", encoding="utf-8", newline="")
+    file.write("".join(line + "\n" for line in [",".join(columns), *kept]))
+    file.flush()
+    return file
 
 
 def _rows_until(path: Path, columns: Sequence[str], until: float) -> list[str]:
