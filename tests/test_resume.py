@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from crackle.cli import main
 from crackle.io import read_history_csv, read_pvd
@@ -150,3 +151,45 @@ def test_periodic_checkpoint_carries_the_stop_clock(tmp_path, monkeypatch):
     assert not (snapshot / "summary.json").exists()
     assert main([*args, "--resume", str(snapshot)]) == 0
     _same_files(whole, snapshot)
+
+
+@pytest.mark.parametrize("which", ["row before a field frame", "row before a failure"])
+def test_killed_after_a_checkpoint_resumes_exactly(tmp_path, monkeypatch, which):
+    """The checkpoint of one row kept while the run goes on to its end (what a kill long after
+    that checkpoint leaves): the resume drops the later history rows and events and writes every
+    row again. The rows chosen are the hard ones: one step before a field-frame row (the resume
+    must not step over it), and one whose next step breaks a spring (that failure carries the
+    row's own time, so only the count of events written tells it apart)."""
+    import shutil
+
+    import crackle.solver as solver
+    from crackle.io import read_events_csv
+    from crackle.solver import steps_to
+
+    end = 6e-4
+    args = ["run", LATTICE, "--set", f"run.end_time={end!r}", "--set", "run.history_samples=1296",
+            "--set", "run.field_frames=4"]
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    assert main([*args, "--out", str(whole)]) == 0
+    failure_times = set(read_events_csv(whole / "events.csv")["time"].tolist())
+    kept = tmp_path / "kept.pkl"
+    save = solver.save_checkpoint
+
+    def chosen(checkpoint) -> bool:
+        if which == "row before a field frame":
+            return (checkpoint.sim.steps + 1) % (steps_to(end, checkpoint.dt) // 4) == 0
+        return checkpoint.sim.time in failure_times
+
+    def save_and_keep(out, checkpoint):
+        path = save(out, checkpoint)
+        if chosen(checkpoint) and not kept.exists():
+            shutil.copy(path, kept)
+        return path
+
+    monkeypatch.setattr(solver, "save_checkpoint", save_and_keep)
+    assert main([*args, "--out", str(killed), "--set", "run.checkpoint_every=1e-9"]) == 0
+    monkeypatch.undo()
+    shutil.copy(kept, killed / "checkpoint.pkl")
+    (killed / "summary.json").unlink()
+    assert main([*args, "--resume", str(killed)]) == 0
+    _same_files(whole, killed)

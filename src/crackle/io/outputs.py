@@ -60,7 +60,10 @@ class HistoryWriter:
             raise ValueError("history columns must start with 'time'")
         self.path = Path(path)
         self._index = {name: i for i, name in enumerate(self.columns)}
-        self._file = _open_csv(self.path, self.columns, keep_until)
+        kept = [] if keep_until is None else [
+            line for line in _existing_rows(self.path, self.columns) if float(line.split(",", 1)[0]) <= keep_until
+        ]
+        self._file = _open_csv(self.path, self.columns, kept)
 
     def _write_line(self, fields: Sequence[str]) -> None:
         self._file.write(",".join(fields) + "\n")
@@ -97,9 +100,13 @@ class HistoryWriter:
 class EventWriter:
     """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id``."""
 
-    def __init__(self, path: str | os.PathLike, keep_until: float | None = None):
+    def __init__(self, path: str | os.PathLike, keep_rows: int | None = None):
+        """`keep_rows`: continue an existing file (a resumed run) after its first keep_rows rows
+        (the failures reported before the checkpoint; a failure in the step after it has that
+        step's start time, so a time cannot tell it apart)."""
         self.path = Path(path)
-        self._file = _open_csv(self.path, EVENT_COLUMNS, keep_until)
+        kept = [] if keep_rows is None else _existing_rows(self.path, EVENT_COLUMNS)[:keep_rows]
+        self._file = _open_csv(self.path, EVENT_COLUMNS, kept)
 
     def append_many(self, times, xyz, modes, ids) -> None:
         """Append k events. ``modes`` may also be one string for all of them."""
@@ -155,26 +162,24 @@ def _complete_lines(path: Path) -> tuple[list[str], list[str]]:
     return header, [ln.rstrip("\r") for ln in lines if ln.strip()]
 
 
-def _open_csv(path: Path, columns: Sequence[str], keep_until: float | None):
-    """A CSV open for appending rows, its header written; with `keep_until`, an existing file's
-    rows up to that time (a resumed run) are kept after the header."""
+def _open_csv(path: Path, columns: Sequence[str], kept: list[str]):
+    """A CSV open for appending rows, its header and the `kept` lines (a resumed run's) written."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    kept = _rows_until(path, columns, keep_until) if keep_until is not None else []
     file = open(path, "w", encoding="utf-8", newline="")
     file.write("".join(line + "\n" for line in [",".join(columns), *kept]))
     file.flush()
     return file
 
 
-def _rows_until(path: Path, columns: Sequence[str], until: float) -> list[str]:
-    """The complete data lines of an existing CSV whose first field (a time) is at most `until`;
-    refuses a file with other columns (it belongs to another kind of run)."""
+def _existing_rows(path: Path, columns: Sequence[str]) -> list[str]:
+    """The complete data lines of an existing CSV; refuses a file with other columns (it belongs
+    to another kind of run)."""
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist: nothing to continue")
     header, lines = _complete_lines(path)
     if header != list(columns):
         raise ValueError(f"{path} has other columns than this run writes; it belongs to another run")
-    return [ln for ln in lines if float(ln.split(",", 1)[0]) <= until]
+    return lines
 
 
 def read_history_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:

@@ -141,7 +141,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     status = "completed"
     message = ""
     started = wallclock.perf_counter()
-    keep = resumed_from  # a resumed run continues the files of the run it resumes
+    keep = resumed_from  # a resumed run continues the files of the run it resumes (rows up to its time)
     low_since = resume.low_since if resume is not None else None  # since when the tool force stayed low after a failure
 
     with contextlib.ExitStack() as stack:
@@ -158,7 +158,8 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         progress.stage("compiling kernels")  # the first sample and step compile them (or load them from the cache)
         first = {"time": sim.time, **sim.sample(dt)}
         history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=keep))
-        events = stack.enter_context(EventWriter(out / "events.csv", keep_until=keep))
+        n_events = resume.events if resume is not None else 0
+        events = stack.enter_context(EventWriter(out / "events.csv", keep_rows=None if resume is None else n_events))
         fields = FieldWriter(out, keep_until=keep) if field_every else None
         if resume is None:
             history.append(first)
@@ -167,18 +168,23 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             scale = max(1.0, abs(first.get("energy.external", 0.0)))
         else:
             scale = resume.energy_scale
-        if sim.steps < total_steps:
-            sim.advance(1, dt)  # a row's state does not depend on how its steps were split
+
+        def next_stop(step: int) -> int:
+            """The next step with a row (the grid of rows, the field frames, the end)."""
+            stop = min(total_steps, _next_multiple(step, chunk))
+            return min(stop, _next_multiple(step, field_every)) if fields is not None else stop
+
+        if next_stop(sim.steps) > sim.steps + 1:
+            # One step alone compiles the kernels before the timed probe; it never skips a row (a
+            # row's state does not depend on how its steps were split).
+            sim.advance(1, dt)
         progress.stage("")
         probe = None  # (wall time, steps) after the first chunk, which also starts the thread pool
         last_checkpoint = wallclock.perf_counter()
         estimated = False
         try:
             while sim.steps < total_steps:
-                stop_at = min(total_steps, _next_multiple(sim.steps, chunk))
-                if fields is not None:
-                    stop_at = min(stop_at, _next_multiple(sim.steps, field_every))
-                sim.advance(stop_at - sim.steps, dt)
+                sim.advance(next_stop(sim.steps) - sim.steps, dt)
                 if not sim.state_is_finite():
                     raise UnstableRunError(
                         f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
@@ -189,6 +195,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 t, xyz, modes, ids = sim.new_events()
                 if len(ids):
                     events.append_many(t, xyz, modes, ids)
+                    n_events += len(ids)
                 if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
                 progress.update(sim.time, sim.steps, sim.broken)
@@ -230,14 +237,14 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 if control.checkpoint and wallclock.perf_counter() - last_checkpoint >= control.checkpoint_every:
                     # After this row's driver state (energy scale, force-drop clock) is updated: a
                     # run killed later resumes from here (its later rows are dropped then).
-                    save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
+                    save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, n_events, scenario or {}))
                     last_checkpoint = wallclock.perf_counter()
         except UnstableRunError as err:
             status, message = "unstable", str(err)
         if fields is not None and status != "unstable" and sim.steps % field_every:
             _write_fields(fields, sim)
         if status != "unstable" and control.checkpoint:
-            save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, scenario or {}))
+            save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, n_events, scenario or {}))
 
     hist = read_history_csv(out / "history.csv")
     peaks, peak_times = sim.load_cell.peaks()

@@ -19,7 +19,7 @@ from .. import __version__
 
 CHECKPOINT_FILE = "checkpoint.pkl"
 # Bumped when what a checkpoint holds changes; an older one is refused with a message.
-CHECKPOINT_FORMAT = 1
+CHECKPOINT_FORMAT = 2
 
 # Scenario keys a resumed run may change: how far it goes and what it writes, never the model.
 RESUMABLE_KEYS = ("run.end_time", "run.history_samples", "run.field_frames", "run.stop", "run.checkpoint",
@@ -36,6 +36,7 @@ class Checkpoint:
     dt: float  # the step the run used (a resumed run keeps it)
     energy_scale: float  # the driver's largest external work seen (for the instability check)
     low_since: float | None  # the driver's force-drop clock
+    events: int  # rows of events.csv written (the failures reported so far)
     scenario: dict  # the validated scenario (model_dump), for the resume check
     crackle_version: str = __version__
     format: int = CHECKPOINT_FORMAT
