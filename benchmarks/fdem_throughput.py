@@ -247,12 +247,12 @@ def run_size(target_tets: int, args) -> dict:
 
     if args.breakdown:
         ifs, x, v = model.ifs, model.nodes.x, model.nodes.v
-        interface_forces(sim.time, dt, x, v, ifs)  # compile / load
+        interface_forces(sim.time, dt, x, v, ifs, model.ties)  # compile / load
         itimings = []
         for _ in range(args.repeats):
             t0 = time.perf_counter()
             for _ in range(steps):
-                interface_forces(sim.time, dt, x, v, ifs)
+                interface_forces(sim.time, dt, x, v, ifs, model.ties)
             itimings.append(time.perf_counter() - t0)
         if_per_step = statistics.median(itimings) / steps
         row["interface_seconds_per_step"] = if_per_step

@@ -10,6 +10,8 @@ import sys
 BENDING = ["three-point-bending", "--set", "run.end_time=7.5e-4", "--set", "run.stop.force_drop=0.5"]
 # Fragmentation with surface contact on: failures, rebuilds of the surface and candidate lists.
 IMPACT = ["sphere-impact-fast", "--set", "run.end_time=4e-5"]
+# Extrinsic interfaces: insertions, the serial regrouping of clusters, the node pass over points.
+EXTRINSIC = ["three-point-bending", "--set", "run.end_time=1e-3", "--set", "material.interface.insertion=extrinsic"]
 
 
 def _run(tmp_path, threads, case=BENDING):
@@ -43,3 +45,13 @@ def test_identical_for_1_and_2_threads_with_surface_contact(tmp_path):
     e1 = (one / "events.csv").read_text()
     assert e1 == (two / "events.csv").read_text()
     assert len(e1.strip().splitlines()) > 50, "the compared run must fragment"
+
+
+def test_identical_for_1_and_2_threads_with_extrinsic_interfaces(tmp_path):
+    """The quick three-point bending with extrinsic interfaces to 1 ms (insertions and failures
+    under the platen and at the notch): byte-identical history and events with 1 and 2 threads."""
+    one, two = _run(tmp_path, 1, EXTRINSIC), _run(tmp_path, 2, EXTRINSIC)
+    assert (one / "history.csv").read_bytes() == (two / "history.csv").read_bytes()
+    e1 = (one / "events.csv").read_text()
+    assert e1 == (two / "events.csv").read_text()
+    assert len(e1.strip().splitlines()) > 1, "the compared run must include failures"

@@ -96,7 +96,7 @@ class Cell:
         rate = (ds - ds_prev) / dt if slip_rate is None else slip_rate
         self.v[:] = 0.0
         self.v[self.nb] = self.R @ ((dn - dn_prev) / dt * self.n + rate * self.t)
-        interface_forces(0.0, dt, x, self.v, self.ifs)
+        interface_forces(0.0, dt, x, self.v, self.ifs, self.model.ties)
         traction = -self.ifs.force[0].sum(axis=0) / self.A
         return float(traction @ (self.R @ self.n)), float(traction @ (self.R @ self.t))
 

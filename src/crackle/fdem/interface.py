@@ -40,20 +40,3 @@ def opening(x, na, nb, i, p, nx, ny, nz):
     dz = x[b, 2] - x[a, 2]
     dn = dx * nx + dy * ny + dz * nz
     return dn, dx - dn * nx, dy - dn * ny, dz - dn * nz
-
-
-@njit(cache=True, inline="always")
-def centroid_opening(x, na, nb, i, nx, ny, nz):
-    """Normal opening and slip magnitude of interface i at its centroid (the mean of its 3 pairs):
-    what its damage is computed from."""
-    dn_c = 0.0
-    sx_c = 0.0
-    sy_c = 0.0
-    sz_c = 0.0
-    for p in range(3):
-        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
-        dn_c += dn / 3.0
-        sx_c += sx / 3.0
-        sy_c += sy / 3.0
-        sz_c += sz / 3.0
-    return dn_c, math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)

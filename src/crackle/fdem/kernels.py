@@ -24,6 +24,7 @@ from ..loading.friction import coulomb_update
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
+from .extrinsic import TIED, VERTEX_BLOCK, cluster_block, regroup_released, try_insert
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
@@ -65,14 +66,17 @@ def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction
 
 
 @block_kernel
-def _interface_block(lo, hi, t, dt, x, v, ifs):
-    """Interfaces lo..hi-1: kinematics, Guo-Munjiza or bilinear law or (once failed) paired penalty
-    contact with Coulomb friction; the force on each B-side node into ifs.force (A gets its
-    negative)."""
+def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
+    """Interfaces lo..hi-1 (block blk): kinematics, the insertion check of tied (extrinsic) faces,
+    Guo-Munjiza or bilinear law or (once failed) paired penalty contact with Coulomb friction; the
+    force on each B-side node into ifs.force (A gets its negative). A block that inserted a face
+    flags itself in released_blocks."""
     # Unpacked once per block: attribute access per element costs reference counting.
     na, nb, area, pn_all, ps_all = ifs.na, ifs.nb, ifs.area, ifs.pn, ifs.ps
     state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
-    slip_plastic = ifs.slip_plastic
+    slip_plastic, dn_shift = ifs.slip_plastic, ifs.dn_shift
+    tied, tet_stress = ties.tied, ties.tet_stress
+    released = False
     law_table, law_of = ifs.law_table, ifs.law
     e_damage, e_friction, reach = ifs.e_damage, ifs.e_friction, ifs.reach
     fail_time, fail_mode = ifs.fail_time, ifs.fail_mode
@@ -83,9 +87,16 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
         a3 = area[i] / 3.0
         nx, ny, nz = mid_normal(x, na, nb, i)
 
+        if tied[i] == TIED:
+            # A tied face carries no force; once its tets' traction reaches the strength it is
+            # inserted and carries its law from this step on.
+            if not try_insert(i, x, na, nb, area[i], damage, slip_plastic, dn_shift, ifs.e_inserted, tied, tet_stress,
+                              law, pn, ps, nx, ny, nz):
+                continue
+            released = True
         if state[i] == INTACT and intact_step(
             i, t, dt, x, v, na, nb, area[i], damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-            law, pn, ps, nx, ny, nz,
+            law, pn, ps, nx, ny, nz, dn_shift[i],
         ):
             continue
 
@@ -105,11 +116,14 @@ def _interface_block(lo, hi, t, dt, x, v, ifs):
                 continue
             sigma = pn * dn
             e_friction[i] += _pair_traction(i, p, sigma, -mu * sigma, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
+    if released:
+        released_blocks[blk] = 1
 
 
 @njit(cache=True, inline="always")
-def _tet_forces(e, x, dm_inv, vol, lam, mu, f):
-    """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes)."""
+def _tet_forces(e, x, dm_inv, vol, lam, mu, f, tet_stress, keep_stress):
+    """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes); with keep_stress its
+    Kirchhoff stress P F^T (xx, yy, zz, xy, yz, xz) into tet_stress[e], for the insertion check."""
     n0 = 4 * e
     x0, y0, z0 = x[n0, 0], x[n0, 1], x[n0, 2]
     a11 = x[n0 + 1, 0] - x0
@@ -160,6 +174,13 @@ def _tet_forces(e, x, dm_inv, vol, lam, mu, f):
     p31 = f31 * s11 + f32 * s12 + f33 * s13
     p32 = f31 * s12 + f32 * s22 + f33 * s23
     p33 = f31 * s13 + f32 * s23 + f33 * s33
+    if keep_stress:
+        tet_stress[e, 0] = p11 * f11 + p12 * f12 + p13 * f13
+        tet_stress[e, 1] = p21 * f21 + p22 * f22 + p23 * f23
+        tet_stress[e, 2] = p31 * f31 + p32 * f32 + p33 * f33
+        tet_stress[e, 3] = p11 * f21 + p12 * f22 + p13 * f23
+        tet_stress[e, 4] = p21 * f31 + p22 * f32 + p23 * f33
+        tet_stress[e, 5] = p11 * f31 + p12 * f32 + p13 * f33
     # H = -V P Dm^-T: column k is the force on corner k+1
     scale = -vol[e]
     for k, mk0, mk1, mk2 in ((1, m00, m01, m02), (2, m10, m11, m12), (3, m20, m21, m22)):
@@ -181,10 +202,12 @@ TET_BLOCK = 512
 
 
 @block_kernel
-def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl):
+def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl,
+               ties):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact (forces
     on the tools into their `slot`), damping, gravity and the central-difference update of each
-    tet's own 4 nodes."""
+    tet's own 4 nodes. With tied faces (clusters, ties.ext not empty) the update is the node
+    pass's (extrinsic.cluster_block): the forces are stored for it instead."""
     x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
@@ -198,8 +221,10 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
     n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
+    clustered = ties.ext.shape[0] > 0
+    tet_stress, ext, tool_force, tool_work = ties.tet_stress, ties.ext, ties.tool_force, ties.tool_work
     for e in range(lo, hi):
-        _tet_forces(e, x, dm_inv, vol, lam, mu, f)
+        _tet_forces(e, x, dm_inv, vol, lam, mu, f, tet_stress, clustered)
         n0 = 4 * e
         # Faces without an intact interface, as bits: where pressures act and tools can touch.
         free_faces = 0
@@ -248,10 +273,10 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
             cx = 0.0
             cy = 0.0
             cz = 0.0
-            tool_work = 0.0
+            work = 0.0
             # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
             if free_faces & ~(1 << k):
-                cx, cy, cz, tool_work = contact_with_tools(
+                cx, cy, cz, work = contact_with_tools(
                     g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, slot, tools, n_tool, force_slots,
                     tool_v_prev, tool_v_next, tool_of, tool_offset, friction, d_friction,
                 )
@@ -261,18 +286,31 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                 f[g, 0] += sx
                 f[g, 1] += sy
                 f[g, 2] += sz
-            update_velocity(g, v, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt,
+            if clustered:
+                ext[g, 0] = ex
+                ext[g, 1] = ey
+                ext[g, 2] = ez
+                tool_force[g, 0] = cx
+                tool_force[g, 1] = cy
+                tool_force[g, 2] = cz
+                tool_work[g] = work
+                continue
+            update_velocity(g, v, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, work, m, alpha, dt,
                             constraint, constraint_projection, w_external, w_damping)
+        if clustered:
+            continue
         # Positions last: the pressure on a face above used the corners' positions at time t.
         for g in range(n0, n0 + 4):
             move(g, x, v, dt)
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures, ctrl):
+def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures, ctrl, ties):
     """Run n_steps central-difference steps from step number first_step (time first_step x dt:
     the same times however a run is split into calls); arrays are updated in place."""
     n_if = ifs.na.shape[0]
+    clustered = ties.ext.shape[0] > 0
+    n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
     n_tet = tets.vol.shape[0]
     n_tool = tools.kind.shape[0]
     n_press = pressures.n.shape[0]
@@ -282,6 +320,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     pressure_now = np.zeros(max(n_press, 1))
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
+    released_blocks = np.zeros(n_if_blocks, dtype=np.uint8)
     for step in range(n_steps):
         t = (first_step + step) * dt
         for q in range(n_press):
@@ -289,7 +328,10 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         for blk in prange(n_if_blocks):
             lo = blk * INTERFACE_BLOCK
-            _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), t, dt, nodes.x, nodes.v, ifs)
+            _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), blk, t, dt, nodes.x, nodes.v, ifs, ties,
+                             released_blocks)
+        if clustered:
+            regroup_released(ties, ifs.na, released_blocks, INTERFACE_BLOCK)
         if n_slot > 0:
             for s in prange(n_slot):
                 node_contact(s, dt, nodes.x, nodes.v, tets, ifs, contact)
@@ -297,19 +339,26 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
         for blk in prange(n_tet_blocks):
             lo = blk * TET_BLOCK
             _tet_block(lo, min(lo + TET_BLOCK, n_tet), blk, dt, nodes, tets, ifs, contact, tools, pressure_now,
-                       tool_v_prev, tool_v_next, ctrl)
+                       tool_v_prev, tool_v_next, ctrl, ties)
+        if clustered:
+            n_vertex = ties.vertex_ptr.shape[0] - 1
+            for blk in prange(n_vertex_blocks):
+                lo = blk * VERTEX_BLOCK
+                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), dt, nodes, ties, ctrl)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 
 
 @njit(parallel=True, cache=True)
-def interface_forces(t, dt, x, v, ifs):
+def interface_forces(t, dt, x, v, ifs, ties):
     """The interface pass alone (law and contact forces at positions x): for unit tests of the law
     under prescribed openings, as in a one-element test."""
     n_if = ifs.na.shape[0]
-    for blk in prange((n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK):
+    n_blocks = (n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK
+    released_blocks = np.zeros(n_blocks, dtype=np.uint8)
+    for blk in prange(n_blocks):
         lo = blk * INTERFACE_BLOCK
-        _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), t, dt, x, v, ifs)
+        _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), blk, t, dt, x, v, ifs, ties, released_blocks)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -371,7 +420,7 @@ def interface_energy(x, ifs, cohesive, contact):
         contact[i] = 0.0
         if ifs.state[i] == INTACT:
             cohesive[i] = intact_energy(i, x, ifs.na, ifs.nb, ifs.area[i], ifs.damage, ifs.slip_plastic, law, pn,
-                                        ifs.ps[i], nx, ny, nz)
+                                        ifs.ps[i], nx, ny, nz, ifs.dn_shift[i])
         else:
             reach2 = ifs.reach[i] * ifs.reach[i]
             depth = PASSED_THROUGH * ifs.reach[i]

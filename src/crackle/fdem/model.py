@@ -19,8 +19,9 @@ from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, tool_ar
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
+from .extrinsic import TIED, Ties, build_ties
 from .kernels import TET_BLOCK
-from .laws import LAW_COLUMNS, LAW_FT
+from .laws import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 
 # Contact (tools and free surfaces): penalty per unit contact area TOOL_PENALTY_FACTOR E / h, h
@@ -35,7 +36,8 @@ Nodes = namedtuple(
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
-    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic e_damage e_friction",
+    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic dn_shift "
+    "e_damage e_friction e_inserted",
 )
 Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
@@ -51,6 +53,7 @@ class FdemModel:
     nodes: Nodes
     tets: Tets
     ifs: Interfaces
+    ties: Ties  # extrinsic interfaces: which faces are tied and the clusters of node copies
     tools: Tools
     pressures: Pressures
     controls: Controls
@@ -160,9 +163,14 @@ def build_fdem_model(
         force=np.zeros((n_if, 3, 3)),
         traction_t=np.zeros((n_if, 3, 3)),
         slip_plastic=np.zeros((n_if, 3, 3)),
+        dn_shift=np.zeros(n_if),
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
+        e_inserted=np.zeros(n_if),
     )
+    # Extrinsic laws: their intact faces start tied (no force until inserted).
+    extrinsic = (pairs.law_table[pairs.law, LAW_EXTRINSIC] != 0.0) & (pairs.state == INTACT)
+    ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
     time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
     element_size = mesh.element_size()
@@ -185,6 +193,7 @@ def build_fdem_model(
         nodes=nodes,
         tets=tets,
         ifs=ifs,
+        ties=ties,
         tools=tool_table,
         pressures=Pressures(*history_tables([p.history for p in pressures])),
         controls=Controls(np.asarray(gravity, dtype=float), np.array([float(damping)])),

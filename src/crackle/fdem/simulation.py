@@ -89,7 +89,7 @@ class FdemSimulation:
                     self._refresh_contact()
                     self._next_refresh = self.steps + self._refresh_interval(dt)
                 n = min(n, self._next_refresh - self.steps)
-            advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls)
+            advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls, m.ties)
             self.steps += n
         # Exact time of the step count, not an accumulated sum of dt.
         self.time = self.steps * dt
@@ -166,6 +166,9 @@ class FdemSimulation:
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
         self._tool_contact()
+        # Extrinsic faces: what their preload put into the law's springs at insertion, a source
+        # (negative in the audit's sum); the column exists only where faces can be inserted.
+        insertion = {"energy.insertion": -float(np.sum(m.ifs.e_inserted))} if len(m.ties.ext) else {}
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),
@@ -174,6 +177,7 @@ class FdemSimulation:
             "energy.damage": float(np.sum(m.ifs.e_damage)),
             "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
             "energy.damping": float(np.sum(nodes.w_damping)),
+            **insertion,
             "energy.external": float(np.sum(nodes.w_external)) + self._initial_energy,
         }
 

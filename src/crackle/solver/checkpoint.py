@@ -19,7 +19,7 @@ from .. import __version__
 
 CHECKPOINT_FILE = "checkpoint.pkl"
 # Bumped when what a checkpoint holds changes; an older one is refused with a message.
-CHECKPOINT_FORMAT = 2
+CHECKPOINT_FORMAT = 3
 
 # Scenario keys a resumed run may change: how far it goes and what it writes, never the model.
 RESUMABLE_KEYS = ("run.end_time", "run.history_samples", "run.field_frames", "run.stop", "run.checkpoint",

@@ -15,7 +15,7 @@ from numba import njit
 from . import bilinear, guo_munjiza
 from .bilinear import BilinearLaw
 from .guo_munjiza import GuoMunjizaLaw
-from .row import LAW_COLUMNS, LAW_FT, LAW_KIND, LAW_MU
+from .row import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT, LAW_KIND, LAW_MU
 
 # name -> parameter class; the class's `kind` is its code in the law table.
 LAWS = {"guo-munjiza": GuoMunjizaLaw, "bilinear": BilinearLaw}
@@ -25,22 +25,22 @@ KIND_BILINEAR = BilinearLaw.kind
 
 @njit(cache=True, inline="always")
 def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                law, pn, ps, nx, ny, nz):
+                law, pn, ps, nx, ny, nz, dn_shift):
     """The law of row `law` on intact interface i; False when it failed and acts as a failed pair
     from this step on."""
     if law[LAW_KIND] == KIND_BILINEAR:
         return bilinear.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
-                                    slip_plastic, e_damage, law, pn, ps, nx, ny, nz)
+                                    slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
     return guo_munjiza.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
-                                   slip_plastic, e_damage, law, pn, ps, nx, ny, nz)
+                                   slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
 
 
 @njit(cache=True, inline="always")
-def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz):
+def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, dn_shift):
     """Energy stored in intact interface i under the law of row `law`."""
     if law[LAW_KIND] == KIND_BILINEAR:
-        return bilinear.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz)
-    return guo_munjiza.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz)
+        return bilinear.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, dn_shift)
+    return guo_munjiza.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, dn_shift)
 
 
-__all__ = ["LAWS", "LAW_COLUMNS", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "intact_energy", "intact_step"]
+__all__ = ["KIND_BILINEAR", "LAWS", "LAW_COLUMNS", "LAW_EXTRINSIC", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "intact_energy", "intact_step"]

@@ -14,6 +14,11 @@ and (as contact) once failed.
 * Mixed mode from the energy ratio B = ks |s|^2 / (kn <dn>^2 + ks |s|^2) (G_II / G_T):
   Benzeggagh-Kenane Gc = GIc + (GIIc - GIc) B^eta, or the power law
   ((1 - B) Gc / GIc)^alpha + (B Gc / GIIc)^alpha = 1.
+* Extrinsic insertion (insertion = "extrinsic"): the face carries nothing until the stress of its
+  two tets reaches the initiation criterion; it is then inserted with its opening shifted by
+  dn_shift and its slip by slip_offset (fdem.extrinsic) so that its traction goes on from the
+  continuum's at initiation; the softening then releases that preload with the rest, so a full
+  separation dissipates Gc as an intrinsic one does.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from pydantic.dataclasses import dataclass
 
 from ...schema import STRICT_DATACLASS, NonNegative, Positive
 from ...solver.failures import failure_mode
-from ..interface import centroid_opening, opening
+from ..interface import opening
 from ..topology import FAILED
 from .row import LAW_FT, OWN, new_row
 
@@ -77,6 +82,9 @@ class BilinearLaw:
     """alpha of "power"; default 2"""
     friction: NonNegative = 0.6
     """Coulomb coefficient between the faces once failed"""
+    insertion: Literal["intrinsic", "extrinsic"] = "intrinsic"
+    """"intrinsic": every internal face carries the law from the start; "extrinsic": a face is
+    inserted (at initiation) when the traction of its two tets meets the initiation criterion"""
     law: Literal["bilinear"] = "bilinear"
     """picks this law"""
 
@@ -104,7 +112,7 @@ class BilinearLaw:
         return DEFAULT_POWER_EXPONENT if self.power_exponent is None else self.power_exponent
 
     def table_row(self) -> np.ndarray:
-        row = new_row(self.kind, self.tensile_strength, self.friction)
+        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion)
         row[LAW_TS] = self.shear_strength
         row[LAW_GF1] = self.fracture_energy
         row[LAW_GF2] = self.gf_shear
@@ -183,12 +191,25 @@ def bilinear_damage(dn, ds, kn, ks, law):
 
 
 @njit(cache=True, inline="always")
-def _potential(x, na, nb, i, area, kn, ks, nx, ny, nz):
+def _point(x, na, nb, i, p, nx, ny, nz, slip_offset, dn_shift):
+    """Opening and slip of point p of intact interface i as the law counts them: the gap's, plus
+    dn_shift and less the slip offset (both 0 but on an inserted extrinsic face); the offset is
+    kept in the global frame and projected on the current tangent plane."""
+    dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+    ox = slip_offset[i, p, 0]
+    oy = slip_offset[i, p, 1]
+    oz = slip_offset[i, p, 2]
+    on = ox * nx + oy * ny + oz * nz
+    return dn + dn_shift, sx - ox + on * nx, sy - oy + on * ny, sz - oz + on * nz
+
+
+@njit(cache=True, inline="always")
+def _potential(x, na, nb, i, area, kn, ks, nx, ny, nz, slip_offset, dn_shift):
     """Sum over the 3 points of A/3 * (kn <dn>^2 + ks |s|^2) / 2: the undamaged energy in opening
     and shear; the cohesive energy there is (1 - D) times it."""
     total = 0.0
     for p in range(3):
-        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        dn, sx, sy, sz = _point(x, na, nb, i, p, nx, ny, nz, slip_offset, dn_shift)
         if dn > 0.0:
             total += kn * dn * dn
         total += ks * (sx * sx + sy * sy + sz * sz)
@@ -196,7 +217,7 @@ def _potential(x, na, nb, i, area, kn, ks, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz):
+def _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz, slip_offset, dn_shift):
     """_potential at the half step x - v dt / 2 (v: the velocities of the step that led to x): the
     energy a damage step releases, booked there so that the audit of the explicit scheme closes
     to second order in dt (at x itself it drifts by dD x half a step's work)."""
@@ -205,13 +226,14 @@ def _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz):
     for p in range(3):
         a = na[i, p]
         b = nb[i, p]
-        dx = x[b, 0] - x[a, 0] - h * (v[b, 0] - v[a, 0])
-        dy = x[b, 1] - x[a, 1] - h * (v[b, 1] - v[a, 1])
-        dz = x[b, 2] - x[a, 2] - h * (v[b, 2] - v[a, 2])
+        dx = x[b, 0] - x[a, 0] - h * (v[b, 0] - v[a, 0]) - slip_offset[i, p, 0]
+        dy = x[b, 1] - x[a, 1] - h * (v[b, 1] - v[a, 1]) - slip_offset[i, p, 1]
+        dz = x[b, 2] - x[a, 2] - h * (v[b, 2] - v[a, 2]) - slip_offset[i, p, 2]
         dn = dx * nx + dy * ny + dz * nz
         sx = dx - dn * nx
         sy = dy - dn * ny
         sz = dz - dn * nz
+        dn += dn_shift
         if dn > 0.0:
             total += kn * dn * dn
         total += ks * (sx * sx + sy * sy + sz * sz)
@@ -219,14 +241,23 @@ def _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                law, kn, ks, nx, ny, nz):
+def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_offset, e_damage,
+                law, kn, ks, nx, ny, nz, dn_shift):
     """One step of intact interface i: damage from the centroid's effective opening
     (irreversible), then the point tractions (1 - D) kn dn (kn dn in compression) and
     (1 - D) ks s into force[i]. Returns False once the interface has failed (D = 1): the caller
-    then treats it as a failed pair in the same step."""
+    then treats it as a failed pair in the same step. slip_offset and dn_shift: what the law adds
+    to the gap (non-zero on an inserted extrinsic face only)."""
     a3 = area / 3.0
-    dn_c, ds_c = centroid_opening(x, na, nb, i, nx, ny, nz)
+    dn0, s0x, s0y, s0z = _point(x, na, nb, i, 0, nx, ny, nz, slip_offset, dn_shift)
+    dn1, s1x, s1y, s1z = _point(x, na, nb, i, 1, nx, ny, nz, slip_offset, dn_shift)
+    dn2, s2x, s2y, s2z = _point(x, na, nb, i, 2, nx, ny, nz, slip_offset, dn_shift)
+    # The centroid's opening and slip magnitude (the mean of the 3 points) set the damage.
+    dn_c = dn0 / 3.0 + dn1 / 3.0 + dn2 / 3.0
+    sx_c = s0x / 3.0 + s1x / 3.0 + s2x / 3.0
+    sy_c = s0y / 3.0 + s1y / 3.0 + s2y / 3.0
+    sz_c = s0z / 3.0 + s1z / 3.0 + s2z / 3.0
+    ds_c = math.sqrt(sx_c * sx_c + sy_c * sy_c + sz_c * sz_c)
     d_old = damage[i]
     d_new, mix = bilinear_damage(dn_c, ds_c, kn, ks, law)
     d = d_old
@@ -234,15 +265,14 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
         d = d_new
         damage[i] = d
         # The stored energy the damage step releases (at the half step: see the function).
-        e_damage[i] += (d - d_old) * _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz)
+        e_damage[i] += (d - d_old) * _potential_mid(x, v, dt, na, nb, i, area, kn, ks, nx, ny, nz, slip_offset, dn_shift)
         if d >= 1.0:
             state[i] = FAILED
             fail_time[i] = t
             fail_mode[i] = failure_mode(mix)  # the energy ratio G_II / G_T
             return False  # its friction traction starts at zero: intact pairs never write it
     s = 1.0 - d
-    for p in range(3):
-        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+    for p, dn, sx, sy, sz in ((0, dn0, s0x, s0y, s0z), (1, dn1, s1x, s1y, s1z), (2, dn2, s2x, s2y, s2z)):
         sigma = kn * dn if dn < 0.0 else s * kn * dn
         tx = s * ks * sx
         ty = s * ks * sy
@@ -254,13 +284,13 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
 
 
 @njit(cache=True, inline="always")
-def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, kn, ks, nx, ny, nz):
+def intact_energy(i, x, na, nb, area, damage, slip_offset, law, kn, ks, nx, ny, nz, dn_shift):
     """Energy stored in intact interface i: the compression penalty and (1 - D) times the
     undamaged energy in opening and shear."""
     a3 = area / 3.0
     comp = 0.0
     for p in range(3):
-        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        dn, sx, sy, sz = _point(x, na, nb, i, p, nx, ny, nz, slip_offset, dn_shift)
         if dn < 0.0:
             comp += 0.5 * kn * dn * dn * a3
-    return comp + (1.0 - damage[i]) * _potential(x, na, nb, i, area, kn, ks, nx, ny, nz)
+    return comp + (1.0 - damage[i]) * _potential(x, na, nb, i, area, kn, ks, nx, ny, nz, slip_offset, dn_shift)

@@ -23,6 +23,13 @@ Model (per unit area, for one integration point of an interface):
   (2/3) f_t dnp + f_t (dnc - dnp) Iz = Gf, Iz = integral of z over [0, 1] (0.3863 with the
   default constants; the paper's d_c = 3 Gf / f is the same relation with Iz ~ 1/3 and dnp ~ 0).
   The same holds in shear with Gf_II and f_s.
+* Extrinsic insertion (insertion = "extrinsic"): the face carries nothing until the stress of its
+  two tets reaches the strength; it is then inserted at the peak (fdem.extrinsic shifts its
+  opening by dn_shift and preloads its shear spring, so the traction goes on from the continuum's)
+  and follows the softening branch from there. A full separation still dissipates Gf: the damage
+  releases the preload too. In tension the curve is the intrinsic one from the peak on; in shear
+  the intrinsic curve from the cap on (the preloaded spring starts at its elastic limit, so the
+  slip counts from dsp / 2: the plateau at the cap, then the softening).
 """
 
 from __future__ import annotations
@@ -39,7 +46,7 @@ from ...schema import STRICT_DATACLASS, NonNegative, Positive
 from ...solver.failures import failure_mode
 from ..interface import opening
 from ..topology import FAILED
-from .row import LAW_FT, OWN, new_row
+from .row import LAW_EXTRINSIC, LAW_FT, OWN, new_row
 
 # Softening constants of the Munjiza/Guo curve z(D) (paper 001, eq. 7), fitted to direct-tension
 # tests of concrete.
@@ -52,6 +59,10 @@ DEFAULT_SOFTENING = (0.63, 1.8, 6.0)
 # default). The price is the time step, which shrinks as 1/sqrt(penalty_factor) once the
 # interfaces are the stiffest part (the usual FDEM trade-off).
 DEFAULT_PENALTY_FACTOR = 200.0
+# With extrinsic insertion the intact body has no springs to soften it: the penalty only acts on
+# inserted faces (their unloading and, once failed, their contact), so it is set as soft as the
+# contact penalty and the step stays near the bulk tets' (a closed face penetrates stress x h / E).
+EXTRINSIC_PENALTY_FACTOR = 2.0
 
 # The law's own columns of its table row.
 LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ = range(OWN, OWN + 8)
@@ -66,6 +77,8 @@ class GuoMunjizaLaw:
     J/m^2) and fracture_energy_shear (mode II, defaults to Gf) are the energies one unit area
     dissipates from intact to failed. softening: the constants (a, b, c) of z(D). friction: the
     Coulomb coefficient between the faces once failed. penalty_factor: p_n = factor E / h.
+    insertion: "intrinsic" (every internal face carries the law from the start, the paper's
+    FDEM) or "extrinsic" (a face is inserted when its traction reaches the strength).
     """
 
     tensile_strength: Positive
@@ -82,8 +95,12 @@ class GuoMunjizaLaw:
     """the constants (a, b, c) of the softening curve z(D) (paper 001, eq. 7)"""
     friction: NonNegative = 0.6
     """Coulomb coefficient between the faces once failed"""
-    penalty_factor: Positive = DEFAULT_PENALTY_FACTOR
-    """interface penalty p_n = factor E / h (h: the smaller tet altitude onto the face)"""
+    penalty_factor: Positive | None = None
+    """interface penalty p_n = factor E / h (h: the smaller tet altitude onto the face); default 200
+    intrinsic, 2 extrinsic"""
+    insertion: Literal["intrinsic", "extrinsic"] = "intrinsic"
+    """"intrinsic": every internal face carries the law from the start; "extrinsic": a face is
+    inserted (at the peak of the law) when the traction of its two tets reaches the strength"""
     law: Literal["guo-munjiza"] = "guo-munjiza"
     """picks this law (the default)"""
 
@@ -94,11 +111,18 @@ class GuoMunjizaLaw:
         return self.fracture_energy if self.fracture_energy_shear is None else self.fracture_energy_shear
 
     @property
+    def penalty(self) -> float:
+        """The penalty factor in use (the default depends on the insertion)."""
+        if self.penalty_factor is not None:
+            return self.penalty_factor
+        return EXTRINSIC_PENALTY_FACTOR if self.insertion == "extrinsic" else DEFAULT_PENALTY_FACTOR
+
+    @property
     def softening_area(self) -> float:
         return softening_integral(*self.softening)
 
     def table_row(self) -> np.ndarray:
-        row = new_row(self.kind, self.tensile_strength, self.friction)
+        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion)
         row[LAW_C] = self.cohesion
         row[LAW_TANPHI] = np.tan(np.radians(self.friction_angle))
         row[LAW_GF1] = self.fracture_energy
@@ -109,7 +133,7 @@ class GuoMunjizaLaw:
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
         """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude."""
-        return self.penalty_factor * youngs_modulus / altitude, self.penalty_factor * shear_modulus / altitude
+        return self.penalty * youngs_modulus / altitude, self.penalty * shear_modulus / altitude
 
 
 def softening_z(damage: float, a: float, b: float, c: float) -> float:
@@ -211,7 +235,7 @@ def _opening_energy(dn, ft, dnp):
 
 
 @njit(cache=True, inline="always")
-def _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz):
+def _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz, dn_shift):
     """Sum over the 3 points of A/3 * Phi_n(dn), the undamaged normal free energy in opening;
     the cohesive energy in opening is z(D) times it."""
     ft = law[LAW_FT]
@@ -219,7 +243,7 @@ def _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz):
     total = 0.0
     for p in range(3):
         dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
-        total += _opening_energy(dn, ft, dnp)
+        total += _opening_energy(dn + dn_shift, ft, dnp)
     return total * area / 3.0
 
 
@@ -269,17 +293,21 @@ def _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, cap, cap_bef
 
 @njit(cache=True, inline="always")
 def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                law, pn, ps, nx, ny, nz):
+                law, pn, ps, nx, ny, nz, dn_shift):
     """One step of intact interface i: damage from the centroid opening and slip (eq. 8,
     irreversible), the point tractions into force[i] (B side; A gets their negatives), the energy
     the step dissipates into e_damage[i]. Always True: a face that fails this step still carries
-    its compression and releases its shear spring here."""
+    its compression and releases its shear spring here. dn_shift: the normal opening the law sees
+    at zero gap (0, or an extrinsic face's shift at insertion)."""
     a3 = area / 3.0
     # The three point openings, read once (the stores below may alias x for the compiler, so it
     # would reload them).
     dn0, s0x, s0y, s0z = opening(x, na, nb, i, 0, nx, ny, nz)
     dn1, s1x, s1y, s1z = opening(x, na, nb, i, 1, nx, ny, nz)
     dn2, s2x, s2y, s2z = opening(x, na, nb, i, 2, nx, ny, nz)
+    dn0 += dn_shift
+    dn1 += dn_shift
+    dn2 += dn_shift
     dn_c = (dn0 + dn1 + dn2) / 3.0
     sx_c = (s0x + s1x + s2x) / 3.0
     sy_c = (s0y + s1y + s2y) / 3.0
@@ -294,8 +322,10 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
     dsp = 2.0 * fs_c / ps
     dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR)
+    # An extrinsic face's spring starts at its elastic limit (dsp / 2 of an intrinsic one).
+    ds_start = 0.5 * dsp if law[LAW_EXTRINSIC] != 0.0 else dsp
     d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
-    d_s = (ds_c - dsp) / (dsc - dsp) if ds_c > dsp else 0.0
+    d_s = (ds_c - ds_start) / (dsc - dsp) if ds_c > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
     if d_new > 1.0:
         d_new = 1.0
@@ -328,7 +358,7 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
 
 
 @njit(cache=True, inline="always")
-def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz):
+def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, dn_shift):
     """Energy stored in intact interface i: compression penalty, shear springs and z(D) times the
     undamaged normal energy in opening."""
     a3 = area / 3.0
@@ -336,8 +366,9 @@ def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny,
     springs = 0.0
     for p in range(3):
         dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        dn += dn_shift
         if dn < 0.0:
             springs += 0.5 * pn * dn * dn * a3
         tx, ty, tz = _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps)
         springs += 0.5 * (tx * tx + ty * ty + tz * tz) / ps * a3
-    return springs + z * _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz)
+    return springs + z * _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz, dn_shift)

@@ -1,0 +1,252 @@
+"""Extrinsic (adaptive) interfaces: a face joins its two tets rigidly until the traction of their
+stresses reaches the law's strength; it is then inserted at the law's peak.
+
+While a face is tied, the coincident copies of each of its 3 mesh points move as one node: the
+copies of a mesh point that tied faces join form a *cluster*, which sums its members' masses and
+forces and gives them one velocity. Clusters only split (a face is inserted, never re-tied), so
+cracks open where the inserted faces separate a mesh point's tets into groups, as in the node
+splitting of Camacho & Ortiz (1996) and Pandolfi & Ortiz (2002).
+
+Insertion: the interface pass checks each tied face against the Kirchhoff stress of its two
+tets from the previous step (tau = J sigma, J = 1 within the strains of a brittle solid), averaged,
+on the face's current normal: Guo-Munjiza opens at Mohr-Coulomb with tension cut-off, the
+bilinear law at its initiation criterion (maximum nominal stress). The inserted face's law state
+is set so that its traction equals that traction, clamped on the strength envelope: the opening
+is shifted (dn_shift) and the shear spring preloaded (slip_plastic), so the traction is
+continuous in time (Papoulia, Sam & Vavasis 2003) and the face follows the softening branch from
+there; a full separation dissipates the law's fracture energy, preload included. The energy
+the preload puts into the law's springs (4 ft^2 / (3 pn) per unit area for a Guo-Munjiza face
+inserted in tension: the price of a finite penalty after insertion) is created by the insertion:
+it is kept per face in e_inserted and enters the audit as a source, energy.insertion.
+
+Every step stays deterministic for any thread count: insertions are decided per face from the
+previous step's stresses, the clusters of the touched mesh points are regrouped serially, and
+the node pass runs over mesh points (each owns its copies).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ..solver.integrator import block_kernel, move, update_velocity
+from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, intact_energy
+from .laws.bilinear import LAW_TS
+from .laws.guo_munjiza import shear_strength
+
+# tied[i]: a face joining its tets rigidly, one released in this step (its clusters still to be
+# regrouped), or one carrying its law (intrinsic, inserted, failed, pre-cracked).
+FREE, TIED, RELEASED = 0, 1, 2
+
+Ties = namedtuple(
+    "Ties",
+    "tied vertex_ptr vertex_nodes node_vertex partner partner_iface leader tet_stress ext tool_force tool_work",
+)
+
+# Mesh points per block of the node pass.
+VERTEX_BLOCK = 1024
+
+
+def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.ndarray, tied: np.ndarray,
+               n_tets: int) -> Ties:
+    """The cluster tables of an exploded mesh whose faces `tied` start tied (uint8 per interface);
+    with none tied, empty tables (the step then takes the intrinsic path)."""
+    n_nodes = len(corner_point)
+    if not tied.any():
+        empty_i = np.zeros(0, dtype=np.int64)
+        return Ties(tied, np.zeros(1, dtype=np.int64), empty_i, empty_i, np.zeros((0, 3), np.int64),
+                    np.zeros((0, 3), np.int64), empty_i, np.zeros((0, 6)), np.zeros((0, 3)), np.zeros((0, 3)),
+                    np.zeros(0))
+    order = np.lexsort((np.arange(n_nodes), corner_point))
+    vertex_ptr = np.zeros(n_points + 1, dtype=np.int64)
+    np.add.at(vertex_ptr, corner_point + 1, 1)
+    vertex_ptr = np.cumsum(vertex_ptr)
+    # The other copy across each of a node's (up to 3) faces, and that face's interface.
+    partner = np.full((n_nodes, 3), -1, dtype=np.int64)
+    partner_iface = np.full((n_nodes, 3), -1, dtype=np.int64)
+    filled = np.zeros(n_nodes, dtype=np.int64)
+    ids = np.repeat(np.arange(len(na)), 3)
+    for own, other in ((na.reshape(-1), nb.reshape(-1)), (nb.reshape(-1), na.reshape(-1))):
+        for node, mate, iface in zip(own, other, ids):
+            partner[node, filled[node]] = mate
+            partner_iface[node, filled[node]] = iface
+            filled[node] += 1
+    ties = Ties(
+        tied=tied,
+        vertex_ptr=vertex_ptr,
+        vertex_nodes=order.astype(np.int64),
+        node_vertex=corner_point.astype(np.int64),
+        partner=partner,
+        partner_iface=partner_iface,
+        leader=np.arange(n_nodes, dtype=np.int64),
+        tet_stress=np.zeros((n_tets, 6)),
+        ext=np.zeros((n_nodes, 3)),
+        tool_force=np.zeros((n_nodes, 3)),
+        tool_work=np.zeros(n_nodes),
+    )
+    regroup_all(ties)
+    return ties
+
+
+@njit(cache=True)
+def regroup_all(ties):
+    for vertex in range(ties.vertex_ptr.shape[0] - 1):
+        regroup(vertex, ties)
+
+
+@njit(cache=True)
+def regroup(vertex, ties):
+    """Clusters of the copies of one mesh point: connected through tied faces; each copy's leader
+    is the lowest node of its cluster, and the copies are kept sorted by (leader, node) so that a
+    cluster is a contiguous run of vertex_nodes."""
+    lo, hi = ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]
+    nodes, leader, tied = ties.vertex_nodes, ties.leader, ties.tied
+    for j in range(lo, hi):
+        leader[nodes[j]] = nodes[j]
+    changed = True
+    while changed:
+        changed = False
+        for j in range(lo, hi):
+            g = nodes[j]
+            for k in range(3):
+                q = ties.partner[g, k]
+                if q < 0 or tied[ties.partner_iface[g, k]] != TIED:
+                    continue
+                low = min(leader[g], leader[q])
+                if leader[g] != low or leader[q] != low:
+                    leader[g] = low
+                    leader[q] = low
+                    changed = True
+    # Insertion sort by (leader, node): a handful of copies per mesh point.
+    for j in range(lo + 1, hi):
+        g = nodes[j]
+        k = j - 1
+        while k >= lo and (leader[nodes[k]] > leader[g] or (leader[nodes[k]] == leader[g] and nodes[k] > g)):
+            nodes[k + 1] = nodes[k]
+            k -= 1
+        nodes[k + 1] = g
+
+
+@njit(cache=True, inline="always")
+def face_traction(i, na, nb, tet_stress, nx, ny, nz):
+    """Normal traction (tension positive) and shear traction vector on interface i from the mean
+    Kirchhoff stress of its two tets, on the normal n (pointing from side A to side B)."""
+    ta = na[i, 0] // 4
+    tb = nb[i, 0] // 4
+    sxx = 0.5 * (tet_stress[ta, 0] + tet_stress[tb, 0])
+    syy = 0.5 * (tet_stress[ta, 1] + tet_stress[tb, 1])
+    szz = 0.5 * (tet_stress[ta, 2] + tet_stress[tb, 2])
+    sxy = 0.5 * (tet_stress[ta, 3] + tet_stress[tb, 3])
+    syz = 0.5 * (tet_stress[ta, 4] + tet_stress[tb, 4])
+    sxz = 0.5 * (tet_stress[ta, 5] + tet_stress[tb, 5])
+    tx = sxx * nx + sxy * ny + sxz * nz
+    ty = sxy * nx + syy * ny + syz * nz
+    tz = sxz * nx + syz * ny + szz * nz
+    tn = tx * nx + ty * ny + tz * nz
+    return tn, tx - tn * nx, ty - tn * ny, tz - tn * nz
+
+
+@njit(cache=True, inline="always")
+def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_inserted, tied, tet_stress, law, pn, ps,
+               nx, ny, nz):
+    """Insert tied interface i if the traction of its tets reaches the law's strength: its law
+    state then carries that traction (clamped on the strength envelope) at zero gap, and the
+    energy that state holds goes to e_inserted[i]. True when inserted."""
+    tn, sx, sy, sz = face_traction(i, na, nb, tet_stress, nx, ny, nz)
+    ts = math.sqrt(sx * sx + sy * sy + sz * sz)
+    ft = law[LAW_FT]
+    if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza: Mohr-Coulomb with tension cut-off
+        cap = shear_strength(tn, law)
+        if tn < ft and ts < cap:
+            return False
+        tn_c = min(tn, ft)
+        dnp = 2.0 * ft / pn
+        if tn_c >= 0.0:
+            # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
+            shift = dnp * (1.0 - math.sqrt(max(0.0, 1.0 - tn_c / ft)))
+        else:
+            shift = tn_c / pn
+        cap = shear_strength(tn_c, law)
+    else:  # bilinear: maximum nominal stress
+        cap = law[LAW_TS]
+        if max(tn, 0.0) < ft and ts < cap:
+            return False
+        tn_c = min(tn, ft)
+        shift = tn_c / pn
+    scale = 1.0 if ts <= cap else cap / ts
+    for p in range(3):
+        # The shear spring ps (s - s_p) at zero slip carries the clamped shear traction.
+        slip_plastic[i, p, 0] = -scale * sx / ps
+        slip_plastic[i, p, 1] = -scale * sy / ps
+        slip_plastic[i, p, 2] = -scale * sz / ps
+    dn_shift[i] = shift
+    tied[i] = RELEASED
+    e_inserted[i] = intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, shift)
+    return True
+
+
+@njit(cache=True)
+def regroup_released(ties, na, released_blocks, block):
+    """After an interface pass that inserted faces: regroup the clusters of their mesh points, in
+    interface order (serial, so the result does not depend on the threads)."""
+    tied = ties.tied
+    n_if = tied.shape[0]
+    for blk in range(released_blocks.shape[0]):
+        if not released_blocks[blk]:
+            continue
+        released_blocks[blk] = 0
+        for i in range(blk * block, min(n_if, (blk + 1) * block)):
+            if tied[i] == RELEASED:
+                tied[i] = FREE
+                for p in range(3):
+                    regroup(ties.node_vertex[na[i, p]], ties)
+
+
+@block_kernel
+def cluster_block(lo, hi, dt, nodes, ties, ctrl):
+    """Mesh points lo..hi-1: each cluster of copies gets the summed mass and forces of its
+    members, one central-difference update on its leader, and the members take its velocity and
+    move with it."""
+    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
+    constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
+    w_external, w_damping = nodes.w_external, nodes.w_damping
+    ptr, members, leader = ties.vertex_ptr, ties.vertex_nodes, ties.leader
+    ext, tool_force, tool_work = ties.ext, ties.tool_force, ties.tool_work
+    alpha = ctrl.damping[0]
+    for vertex in range(lo, hi):
+        j = ptr[vertex]
+        end = ptr[vertex + 1]
+        while j < end:
+            lead = leader[members[j]]
+            fx = fy = fz = ex = ey = ez = cx = cy = cz = work = m = 0.0
+            k = j
+            while k < end and leader[members[k]] == lead:
+                g = members[k]
+                fx += f[g, 0]
+                fy += f[g, 1]
+                fz += f[g, 2]
+                ex += ext[g, 0]
+                ey += ext[g, 1]
+                ez += ext[g, 2]
+                cx += tool_force[g, 0]
+                cy += tool_force[g, 1]
+                cz += tool_force[g, 2]
+                work += tool_work[g]
+                m += mass[g]
+                k += 1
+            update_velocity(lead, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, work, m, alpha, dt, constraint,
+                            constraint_projection, w_external, w_damping)
+            move(lead, x, v, dt)
+            for r in range(j, k):
+                g = members[r]
+                if g != lead:
+                    v[g, 0] = v[lead, 0]
+                    v[g, 1] = v[lead, 1]
+                    v[g, 2] = v[lead, 2]
+                    x[g, 0] = x[lead, 0]
+                    x[g, 1] = x[lead, 1]
+                    x[g, 2] = x[lead, 2]
+            j = k
