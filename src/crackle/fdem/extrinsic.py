@@ -14,10 +14,16 @@ bilinear law at its initiation criterion (maximum nominal stress). The inserted 
 is set so that its traction equals that traction, clamped on the strength envelope: the opening
 is shifted (dn_shift) and the shear spring preloaded (slip_plastic), so the traction is
 continuous in time (Papoulia, Sam & Vavasis 2003) and the face follows the softening branch from
-there; a full separation dissipates the law's fracture energy, preload included. The energy
-the preload puts into the law's springs (4 ft^2 / (3 pn) per unit area for a Guo-Munjiza face
-inserted in tension: the price of a finite penalty after insertion) is created by the insertion:
-it is kept per face in e_inserted and enters the audit as a source, energy.insertion.
+there: the work done on it from insertion to complete separation is the law's fracture energy.
+A face inserted under compression gets no normal shift (compression is the penalty's, never
+softened: the pair then carries it from zero gap, as it will once failed).
+
+Energy: insertion moves nothing, so it creates nothing; the law's springs, counted from their
+unloaded state, then hold the preload's t^2 / 2p per unit area (4 ft^2 / (3 pn) for a
+Guo-Munjiza face inserted in tension), which is booked at once as negative dissipation, so that
+energy.damage is the work done on the faces since their insertion. A face that unloads from its
+preload returns that energy to the body (an artefact of the finite penalty after insertion):
+it shows as negative dissipation, bounded by e_inserted (summary.json: insertion_energy).
 
 Every step stays deterministic for any thread count: insertions are decided per face from the
 previous step's stresses, the clusters of the touched mesh points are regrouped serially, and
@@ -150,11 +156,12 @@ def face_traction(i, na, nb, tet_stress, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_inserted, tied, tet_stress, law, pn, ps,
-               nx, ny, nz):
+def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_inserted, tied, tet_stress, law,
+               pn, ps, nx, ny, nz):
     """Insert tied interface i if the traction of its tets reaches the law's strength: its law
-    state then carries that traction (clamped on the strength envelope) at zero gap, and the
-    energy that state holds goes to e_inserted[i]. True when inserted."""
+    state then carries that traction (clamped on the strength envelope; no normal compression) at
+    zero gap, and the energy that state holds is booked against e_damage[i] and kept in
+    e_inserted[i]. True when inserted."""
     tn, sx, sy, sz = face_traction(i, na, nb, tet_stress, nx, ny, nz)
     ts = math.sqrt(sx * sx + sy * sy + sz * sz)
     ft = law[LAW_FT]
@@ -163,19 +170,14 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_inserted, t
         if tn < ft and ts < cap:
             return False
         tn_c = min(tn, ft)
-        dnp = 2.0 * ft / pn
-        if tn_c >= 0.0:
-            # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
-            shift = dnp * (1.0 - math.sqrt(max(0.0, 1.0 - tn_c / ft)))
-        else:
-            shift = tn_c / pn
+        # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
+        shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
         cap = shear_strength(tn_c, law)
     else:  # bilinear: maximum nominal stress
         cap = law[LAW_TS]
         if max(tn, 0.0) < ft and ts < cap:
             return False
-        tn_c = min(tn, ft)
-        shift = tn_c / pn
+        shift = min(tn, ft) / pn if tn > 0.0 else 0.0
     scale = 1.0 if ts <= cap else cap / ts
     for p in range(3):
         # The shear spring ps (s - s_p) at zero slip carries the clamped shear traction.
@@ -185,6 +187,7 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_inserted, t
     dn_shift[i] = shift
     tied[i] = RELEASED
     e_inserted[i] = intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, shift)
+    e_damage[i] -= e_inserted[i]
     return True
 
 

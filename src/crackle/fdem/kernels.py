@@ -90,8 +90,8 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         if tied[i] == TIED:
             # A tied face carries no force; once its tets' traction reaches the strength it is
             # inserted and carries its law from this step on.
-            if not try_insert(i, x, na, nb, area[i], damage, slip_plastic, dn_shift, ifs.e_inserted, tied, tet_stress,
-                              law, pn, ps, nx, ny, nz):
+            if not try_insert(i, x, na, nb, area[i], damage, slip_plastic, dn_shift, e_damage, ifs.e_inserted, tied,
+                              tet_stress, law, pn, ps, nx, ny, nz):
                 continue
             released = True
         if state[i] == INTACT and intact_step(

@@ -166,9 +166,6 @@ class FdemSimulation:
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
         self._tool_contact()
-        # Extrinsic faces: what their preload put into the law's springs at insertion, a source
-        # (negative in the audit's sum); the column exists only where faces can be inserted.
-        insertion = {"energy.insertion": -float(np.sum(m.ifs.e_inserted))} if len(m.ties.ext) else {}
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),
@@ -177,7 +174,6 @@ class FdemSimulation:
             "energy.damage": float(np.sum(m.ifs.e_damage)),
             "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
             "energy.damping": float(np.sum(nodes.w_damping)),
-            **insertion,
             "energy.external": float(np.sum(nodes.w_external)) + self._initial_energy,
         }
 
@@ -321,6 +317,9 @@ class FdemSimulation:
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
             "dt_limit": m.time_step.as_summary(),
+            # Extrinsic faces: the energy their preload put into the law's springs at insertion,
+            # booked as negative dissipation (fdem.extrinsic); none without extrinsic laws.
+            "insertion_energy": float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None,
             "added_mass": m.mass_scaling.added_mass,
             "mass_scaling": m.mass_scaling.as_summary(),
             "warnings": list(self.warnings),

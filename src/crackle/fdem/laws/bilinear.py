@@ -17,8 +17,8 @@ and (as contact) once failed.
 * Extrinsic insertion (insertion = "extrinsic"): the face carries nothing until the stress of its
   two tets reaches the initiation criterion; it is then inserted with its opening shifted by
   dn_shift and its slip by slip_offset (fdem.extrinsic) so that its traction goes on from the
-  continuum's at initiation; the softening then releases that preload with the rest, so a full
-  separation dissipates Gc as an intrinsic one does.
+  continuum's at initiation; df is set so that the work done on the face from there to its
+  complete separation is Gc: K d0 (df - d0) / 2 = Gc.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from ...schema import STRICT_DATACLASS, NonNegative, Positive
 from ...solver.failures import failure_mode
 from ..interface import opening
 from ..topology import FAILED
-from .row import LAW_FT, OWN, new_row
+from .row import LAW_EXTRINSIC, LAW_FT, OWN, new_row
 
 # Benzeggagh-Kenane exponent of Camanho & Davila (2002), and the power-law exponent of the
 # quadratic (Ye) criterion.
@@ -96,7 +96,8 @@ class BilinearLaw:
             raise ValueError('power_exponent is for mixed_mode = "power" (this law uses "bk": set bk_exponent)')
         if self.mixed_mode == "power" and self.bk_exponent is not None:
             raise ValueError('bk_exponent is for mixed_mode = "bk" (this law uses "power": set power_exponent)')
-        problem = snap_back(self)
+        # An extrinsic face starts softening at initiation: it cannot snap back.
+        problem = snap_back(self) if self.insertion == "intrinsic" else None
         if problem:
             raise ValueError(problem)
         return self
@@ -182,6 +183,8 @@ def bilinear_damage(dn, ds, kn, ks, law):
     k = e / (dm * dm)
     d0 = dm / f
     df = 2.0 * mixed_mode_energy(b, law) / (k * d0)
+    if law[LAW_EXTRINSIC] != 0.0:
+        df += d0  # inserted at initiation: the softening alone holds Gc
     # Set-up refuses pure-mode snap-back (Gc <= t0^2 / 2k); keep a mixed mode finite anyway.
     if df < d0 * (1.0 + 1e-9):
         df = d0 * (1.0 + 1e-9)

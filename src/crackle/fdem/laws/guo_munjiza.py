@@ -26,10 +26,10 @@ Model (per unit area, for one integration point of an interface):
 * Extrinsic insertion (insertion = "extrinsic"): the face carries nothing until the stress of its
   two tets reaches the strength; it is then inserted at the peak (fdem.extrinsic shifts its
   opening by dn_shift and preloads its shear spring, so the traction goes on from the continuum's)
-  and follows the softening branch from there. A full separation still dissipates Gf: the damage
-  releases the preload too. In tension the curve is the intrinsic one from the peak on; in shear
-  the intrinsic curve from the cap on (the preloaded spring starts at its elastic limit, so the
-  slip counts from dsp / 2: the plateau at the cap, then the softening).
+  and follows the softening branch from there. The work done on the face from its insertion to
+  its complete separation is Gf: in tension the softening from the peak holds all of it
+  (f_t (dnc - dnp) Iz = Gf); in shear the spring starts at its elastic limit (the slip counts
+  from dsp / 2), and the plateau at the cap up to dsp plus the softening hold Gf_II.
 """
 
 from __future__ import annotations
@@ -193,6 +193,10 @@ def peak_curve_energy(delta, peak, delta_p):
 # then the cap) 1/4 + 1/2.
 PRE_PEAK_NORMAL = 2.0 / 3.0
 PRE_PEAK_SHEAR = 3.0 / 4.0
+# An extrinsic face is inserted at the peak: nothing of Gf before the softening in tension, the
+# plateau at the cap (dsp / 2 long) in shear.
+PRE_PEAK_NORMAL_EXTRINSIC = 0.0
+PRE_PEAK_SHEAR_EXTRINSIC = 1.0 / 2.0
 
 
 @njit(cache=True, inline="always")
@@ -318,12 +322,13 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     z_old = softening(d_old, a, b, c)
     ft = law[LAW_FT]
     dnp = 2.0 * ft / pn
-    dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ], PRE_PEAK_NORMAL)
+    extrinsic = law[LAW_EXTRINSIC] != 0.0
+    dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ], PRE_PEAK_NORMAL_EXTRINSIC if extrinsic else PRE_PEAK_NORMAL)
     fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
     dsp = 2.0 * fs_c / ps
-    dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR)
+    dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
     # An extrinsic face's spring starts at its elastic limit (dsp / 2 of an intrinsic one).
-    ds_start = 0.5 * dsp if law[LAW_EXTRINSIC] != 0.0 else dsp
+    ds_start = 0.5 * dsp if extrinsic else dsp
     d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
     d_s = (ds_c - ds_start) / (dsc - dsp) if ds_c > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
