@@ -172,7 +172,10 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
         tn_c = min(tn, ft)
         # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
         shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
-        cap = shear_strength(tn_c, law)
+        # The cap the law applies at zero gap: without a normal preload in compression, its
+        # normal stress there is zero. A preload above it would be returned onto it in the first
+        # step as if it had slid, booking less than the spring loses.
+        cap = shear_strength(max(tn_c, 0.0), law)
     else:  # bilinear: maximum nominal stress
         cap = law[LAW_TS]
         if max(tn, 0.0) < ft and ts < cap:
