@@ -17,7 +17,7 @@ Output: one human-readable line per size, then LAST one JSON object on one line:
                 "tet_steps_per_s": ..., "bytes_per_tet": ..., "peak_rss_mb": ...,
                 "threads": ..., <extra keys>}, ...], "threads": N}
 
-bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/pressures/controls
+bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/pressures/controls/ties
 tuples plus model.x0, over the tet count. Extra keys per size: contact_bytes_per_tet (arrays of
 the simulation's node-to-surface contact state, not counted in bytes_per_tet), cells, dt,
 tool_contact_nodes (nodes touching a platen at the end: contact is exercised), build_s,
@@ -34,6 +34,7 @@ Examples:
     python benchmarks/fdem_throughput.py --threads 2
     python benchmarks/fdem_throughput.py --sizes 50000 --repeats 5 --seconds 2 --breakdown
     python benchmarks/fdem_throughput.py --law bilinear --sizes 13000 50000   # paper-004 walnut law
+    python benchmarks/fdem_throughput.py --insertion extrinsic --sizes 50000   # tied faces, node pass
 """
 
 from __future__ import annotations
@@ -63,6 +64,8 @@ def parse_args(argv=None):
                    help="approximate tet counts (default: 50000 200000)")
     p.add_argument("--law", choices=("guo-munjiza", "bilinear"), default="guo-munjiza",
                    help="interface law: the paper-001 rock (Guo-Munjiza) or the paper-004 walnut face (bilinear)")
+    p.add_argument("--insertion", choices=("intrinsic", "extrinsic"), default="intrinsic",
+                   help="interfaces carrying the law from the start, or tied until inserted (fdem.extrinsic)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per size, median kept (default 3)")
     p.add_argument("--threads", type=int, default=None,
                    help="numba threads (numba.set_num_threads); default: numba's default")
@@ -94,25 +97,26 @@ def beam_cells(target_tets: int) -> tuple[int, int, int]:
     return nx, n, n
 
 
-def material(law: str):
+def material(law: str, insertion: str = "intrinsic"):
     """The paper-001 rock with the Guo-Munjiza law, or the paper-004 walnut face (Table 1) with
-    the bilinear law."""
+    the bilinear law; `insertion` of the interfaces."""
     from crackle.fdem.laws import BilinearLaw, GuoMunjizaLaw
     from crackle.materials import Material
 
     if law == "bilinear":
-        return Material(1250.0, 11.6e9, 0.29, BilinearLaw(7e6, 7e6, 770.0, 636.36e9, 636.36e9, friction=0.3),
+        return Material(1250.0, 11.6e9, 0.29, BilinearLaw(7e6, 7e6, 770.0, 636.36e9, 636.36e9, friction=0.3,
+                                                                  insertion=insertion),
                         name="walnut face")
-    return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0), name="rock")
+    return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0, insertion=insertion), name="rock")
 
 
-def build(target_tets: int, cell: float, law: str = "guo-munjiza"):
+def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: str = "intrinsic"):
     """Four-point bending of a beam: model and time step."""
     from crackle.fdem.model import build_fdem_model
     from crackle.geometry import structured_box
     from crackle.loading import History, Selection, Support, Tool
 
-    rock = material(law)
+    rock = material(law, insertion)
     nx, ny, nz = beam_cells(target_tets)
     L, W, H = nx * cell, ny * cell, nz * cell
     mesh = structured_box((L, W, H), cell)
@@ -165,7 +169,7 @@ def model_bytes(model) -> int:
     import numpy as np
 
     total = model.x0.nbytes
-    for group in (model.nodes, model.tets, model.ifs, model.tools, model.pressures, model.controls):
+    for group in (model.nodes, model.tets, model.ifs, model.tools, model.pressures, model.controls, model.ties):
         total += sum(a.nbytes for a in group if isinstance(a, np.ndarray))
     return total
 
@@ -194,7 +198,7 @@ def run_size(target_tets: int, args) -> dict:
     from crackle.fdem.simulation import FdemSimulation
 
     t_build = time.perf_counter()
-    model, dt, cells = build(target_tets, args.cell, args.law)
+    model, dt, cells = build(target_tets, args.cell, args.law, args.insertion)
     sim = FdemSimulation(model)
     build_s = time.perf_counter() - t_build
 
@@ -233,6 +237,7 @@ def run_size(target_tets: int, args) -> dict:
         "peak_rss_mb": peak_rss_mb(),
         "threads": numba.get_num_threads(),
         "law": args.law,
+        "insertion": args.insertion,
         "contact_bytes_per_tet": contact_bytes(sim) / n_tets,
         "cells": list(cells),
         "dt": dt,
@@ -285,7 +290,7 @@ def busy_warning(r: dict) -> str | None:
 def child_argv(size: int, args) -> list[str]:
     argv = [sys.executable, os.path.abspath(__file__), "--_child", "--sizes", str(size),
             "--repeats", str(args.repeats), "--seconds", str(args.seconds), "--cell", str(args.cell),
-            "--law", args.law]
+            "--law", args.law, "--insertion", args.insertion]
     if args.threads is not None:
         argv += ["--threads", str(args.threads)]
     if args.steps is not None:
