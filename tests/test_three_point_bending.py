@@ -85,3 +85,23 @@ def test_unstable_run_stops_with_message_and_keeps_outputs(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "unstable"
     assert len((tmp_path / "history.csv").read_text().splitlines()) >= 2
+
+
+def test_energy_created_stops_the_run_before_it_overflows(tmp_path):
+    """A step 1.5x above the stable one grows slowly: the run is stopped as unstable once the
+    model holds more than UNSTABLE_CREATED (25 %) more energy than the work put in, long before
+    the overflow guard (1e6 x the work); a sound run stays below 1 % (docs/validation.md)."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+    from crackle.solver import UnstableRunError, run
+
+    scenario, _ = load_scenario("three-point-bending", quick=True)
+    sim, control = build_simulation(scenario)
+    control.dt = 1.5 * sim.model.stable_dt
+    sim.model.time_step.dt *= 3  # bypass the up-front refusal of a step above the stable one
+    control.plots = False
+    with pytest.raises(UnstableRunError, match=r"holds \d+% more energy"):
+        run(sim, control, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "unstable"
+    assert summary["energy_error"] < -0.25

@@ -497,15 +497,20 @@ def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, t
     gtg = np.einsum("mki,mkj->mij", grads, grads)
     lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
     omega2_tet = 4.0 * (3.0 * bulk.lam + 2.0 * bulk.mu) * lam_max_g / bulk.rho  # lambda_max(M^-1 K_e) bound
-    # Springs on each face (Gershgorin row sums per node), by kind: an interface face carries its
-    # pair spring (twice, for the two sides' relative motion) or, when stiffer, the surface
-    # contact spring; an outer face carries surface contact and tool springs.
+    # Springs on each face (Gershgorin row sums per node), by kind. An interface face carries its
+    # pair spring (twice, for the two sides' relative motion) or, once failed and when stiffer,
+    # what a free face carries: surface contact and a tool. Surface contact is node-to-triangle
+    # tested both ways, so a face pressed on another both pushes (its nodes) and is pushed (its
+    # corners carry the other side's reactions): 2 x 2 x the penalty. Counting it once let the
+    # crushed zone under a platen blow up at safety 0.7 (mass-scaled extrinsic Brazilian disc).
     face_spring = np.zeros((4, m, 4))  # kind (as TIME_STEP_KINDS, bulk unused), tet, face
     interface = 2.0 * np.maximum(pairs.pn, pairs.ps)
-    contact = 2.0 * surface_penalty
+    contact = 4.0 * surface_penalty
+    exposed = contact + tool_penalty
     for tet, face in ((pairs.ta, pairs.fa), (pairs.tb, pairs.fb)):
-        face_spring[1, tet, face] = np.where(interface >= contact, interface, 0.0) * pairs.area / 3.0
-        face_spring[2, tet, face] = np.where(interface < contact, contact, 0.0) * pairs.area / 3.0
+        face_spring[1, tet, face] = np.where(interface >= exposed, interface, 0.0) * pairs.area / 3.0
+        face_spring[2, tet, face] = np.where(interface < exposed, contact, 0.0) * pairs.area / 3.0
+        face_spring[3, tet, face] = np.where(interface < exposed, tool_penalty, 0.0) * pairs.area / 3.0
     outer = face_iface < 0
     face_spring[2][outer] = contact * bulk.face_area[outer] / 3.0
     face_spring[3][outer] = tool_penalty * bulk.face_area[outer] / 3.0

@@ -12,6 +12,9 @@ EXTERNAL = "energy.external"
 # at ~1e-27 J; a cube of rock 1 um on a side strained by 1e-4 already stores ~1e-16 J.
 ENERGY_NOISE = 1e-18
 PREFIX = "energy."
+# A model holding more energy than was put in by this fraction of the largest energy has gone
+# unstable, not drifted: sound runs stay within a few per cent (docs/validation.md).
+UNSTABLE_CREATED = 0.25
 
 
 def _accounted(terms):
@@ -42,3 +45,12 @@ def energy_error(history: dict[str, np.ndarray]) -> float:
     if scale < ENERGY_NOISE:
         return 0.0
     return float((ext[-1] - rest[-1]) / scale)
+
+
+def created_fraction(row) -> float:
+    """Energy the model holds beyond the work put in, as a fraction of the larger of the two,
+    from one history row (0 at rounding-noise level). A run that goes unstable creates energy
+    long before its values overflow."""
+    external, accounted = row[EXTERNAL], _accounted(row)
+    scale = max(abs(external), abs(accounted))
+    return 0.0 if scale < ENERGY_NOISE else (accounted - external) / scale
