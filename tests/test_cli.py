@@ -292,3 +292,16 @@ def test_key_reference_is_current_and_complete():
     undocumented = [row.split("|")[1] for row in rows if not row.rstrip(" |").split("|")[-1].strip()]
     assert not undocumented, undocumented
     assert "| `run.end_time` | number | required | > 0 | s, simulated time |" in text
+
+
+def test_ctrl_c_during_set_up_exits_130_without_a_traceback(capsys, monkeypatch):
+    """Ctrl-C while the scenario is read or meshed (before the driver's own handler is in place):
+    exit 130 and one line, as an interrupted run."""
+    import crackle.api
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(crackle.api, "run_scenario", interrupted)
+    code, err = _run(capsys, "three-point-bending", "--quick")
+    assert code == 130 and err.strip() == "crackle: interrupted during set-up, before the first step: no results written"

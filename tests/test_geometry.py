@@ -323,3 +323,23 @@ def test_locality_order_keeps_the_mesh_and_groups_neighbours():
         return float(np.mean(np.abs(pairs[:, 0] - pairs[:, 1])))
 
     assert spread(ordered) < 0.5 * spread(mesh)
+
+
+def test_abaqus_labels_reach_the_summary(tmp_path):
+    """Tets read from an Abaqus file keep the file's element labels (1001, 1002 here) for the
+    user: the time-step report in summary.json names the critical tet by its label, not by
+    crackle's count (1 or 2)."""
+    from crackle.fdem.model import build_fdem_model
+    from fdem_helpers import rock
+
+    inp = tmp_path / "two.inp"
+    inp.write_text(
+        "*NODE\n1, 0, 0, 0\n2, 0.01, 0, 0\n3, 0, 0.01, 0\n4, 0, 0, 0.01\n5, 0.01, 0.01, 0.01\n"
+        "*ELEMENT, TYPE=C3D4, ELSET=rock\n1001, 1, 2, 3, 4\n1002, 2, 5, 3, 4\n"
+    )
+    mesh = read_mesh(inp)
+    assert [mesh.label(i) for i in range(mesh.n_tets)] == [1001, 1002]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the coarse-mesh advice: two 10 mm tets
+        model = build_fdem_model(mesh, rock())
+    assert model.time_step.as_summary(mesh.label)["element"] == 1000 + model.time_step.element

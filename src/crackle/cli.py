@@ -21,6 +21,11 @@ def _cmd_run(args) -> int:
     except UnstableRunError as err:
         print(f"crackle: {err}", file=sys.stderr)
         return 3
+    except KeyboardInterrupt:
+        # During the run the driver handles Ctrl-C itself (status "interrupted", outputs kept);
+        # this is one during reading, meshing or set-up.
+        print("crackle: interrupted during set-up, before the first step: no results written", file=sys.stderr)
+        return 130
     s = result.summary
     # No tools: no force.
     force = f"peak force {s['peak_force']:.4g} N ({s['peak_force_tool']}), " if s["peak_force"] > 0 else ""

@@ -324,10 +324,10 @@ class PrecrackSpec(Strict):
     """m, on the crack plane"""
     normal: Vec3
     """of the crack plane"""
-    box_min: Vec3 = (-math.inf, -math.inf, -math.inf)
-    """m, lower corner of the crack's extent"""
-    box_max: Vec3 = (math.inf, math.inf, math.inf)
-    """m, upper corner of the crack's extent"""
+    box_min: Vec3 | None = None
+    """m, lower corner of the crack's extent; unset: unbounded"""
+    box_max: Vec3 | None = None
+    """m, upper corner of the crack's extent; unset: unbounded"""
     tol: Positive | None = None
     """m, distance to the plane that counts as on it; default 1e-6 of the specimen size"""
 

@@ -411,11 +411,11 @@ class TimeStepReport:
     element_dt: np.ndarray  # s, per tet: the step its own nodes allow
     bulk_dt: np.ndarray  # s, per tet: the step its bulk stiffness alone allows
 
-    def as_summary(self) -> dict:
-        """summary.json's dt_limit."""
+    def as_summary(self, label=lambda index: index + 1) -> dict:
+        """summary.json's dt_limit; `label` numbers a tet as the user knows it (TetMesh.label)."""
         return {
             "kind": self.kind,
-            "element": self.element,
+            "element": label(self.element - 1),
             "position": [float(c) for c in self.position],
             "dt": self.dt,
             "median_dt": float(np.median(self.element_dt)),
@@ -434,8 +434,12 @@ class MassScaling:
     largest_factor_element: int | None = None  # its element, counted from 1
     added_mass_centroid: list[float] | None = None  # m, where the added mass sits on average
 
-    def as_summary(self) -> dict:
-        return asdict(self)
+    def as_summary(self, label=lambda index: index + 1) -> dict:
+        """summary.json's mass_scaling; `label` as TimeStepReport.as_summary's."""
+        out = asdict(self)
+        if self.largest_factor_element is not None:
+            out["largest_factor_element"] = label(self.largest_factor_element - 1)
+        return out
 
 
 def _scale_masses(bulk: "_Bulk", step: "TimeStepReport", target_dt: float, safety: float,

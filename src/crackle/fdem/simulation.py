@@ -316,11 +316,11 @@ class FdemSimulation:
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
-            "dt_limit": m.time_step.as_summary(),
+            "dt_limit": m.time_step.as_summary(m.mesh.label),
             # Extrinsic faces: the energy their preload put into the law's springs at insertion,
             # booked as negative dissipation (fdem.extrinsic); none without extrinsic laws.
             "insertion_energy": float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None,
             "added_mass": m.mass_scaling.added_mass,
-            "mass_scaling": m.mass_scaling.as_summary(),
+            "mass_scaling": m.mass_scaling.as_summary(m.mesh.label),
             "warnings": list(self.warnings),
         }

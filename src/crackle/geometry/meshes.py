@@ -19,7 +19,7 @@ import itertools
 import os
 import tempfile
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
@@ -86,6 +86,13 @@ class TetMesh:
 
     points: np.ndarray  # (n, 3) float64, metres
     tets: np.ndarray  # (m, 4) int64, indices into points
+    # The tets' numbers as the user knows them (an Abaqus file's element labels); None: counted
+    # from 1 in this order.
+    labels: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def label(self, index: int) -> int:
+        """The number the user knows tet `index` by."""
+        return int(self.labels[index]) if self.labels is not None else index + 1
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -610,7 +617,8 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     if tets.size and (tets.min() < 0 or tets.max() >= points.shape[0]):
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
     points, tets = _compact(points, tets)
-    mesh = TetMesh(points, tets)
+    labels = _abaqus_tet_labels(path) if path.suffix.lower() == ".inp" else []
+    mesh = TetMesh(points, tets, labels=np.asarray(labels) if len(labels) == len(tets) else None)
     check_tets(mesh, source=f"mesh file {path}", label=lambda i: _element_label(path, i))
     return mesh
 
