@@ -15,6 +15,7 @@ from types import ModuleType
 METHODS = {
     "fdem": "crackle.fdem",
     "lattice": "crackle.lattice",
+    "dem": "crackle.dem",
 }
 
 

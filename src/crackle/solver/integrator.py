@@ -39,10 +39,40 @@ def update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alph
     The supports project the new velocity (constraint[g], see support_constraints). Work of e and
     of the tools goes to w_external[g], the damping's loss to w_damping[g]; the accumulators are
     only touched where a force works (each touch is a read-write of memory)."""
+    dx = -alpha * m * v[g, 0]
+    dy = -alpha * m * v[g, 1]
+    dz = -alpha * m * v[g, 2]
+    _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
+                   projection, w_external, w_damping)
+
+
+@njit(cache=True, inline="always")
+def local_damping_force(f, v, m, alpha, dt):
+    """One component of the local non-viscous damping force (Cundall's; paper 003 eq. 5): alpha
+    times the unbalanced force f, against the motion v + f dt / (2 m) the force is causing."""
+    power = f * (v + 0.5 * dt * f / m)
+    return -alpha * f if power > 0.0 else (alpha * f if power < 0.0 else 0.0)
+
+
+@njit(cache=True, inline="always")
+def update_velocity_local_damping(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint,
+                                  projection, w_external, w_damping):
+    """update_velocity with local non-viscous damping instead of the mass-proportional one:
+    `alpha` (0 to 1) scales the unbalanced force of each component (local_damping_force)."""
+    dx = local_damping_force(fx + ex + cx, v[g, 0], m, alpha, dt)
+    dy = local_damping_force(fy + ey + cy, v[g, 1], m, alpha, dt)
+    dz = local_damping_force(fz + ez + cz, v[g, 2], m, alpha, dt)
+    _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
+                   projection, w_external, w_damping)
+
+
+@njit(cache=True, inline="always")
+def _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, damped, tool_work, m, dt, constraint,
+                   projection, w_external, w_damping):
+    """v[g] += dt (f + e + c + d) / m, projected by the supports, with the work of e and the tools
+    into w_external[g] and that of the damping force d into w_damping[g] (at the mean of the two
+    half-step velocities)."""
     vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
-    dx = -alpha * m * vx0
-    dy = -alpha * m * vy0
-    dz = -alpha * m * vz0
     inv_m = dt / m
     vx = vx0 + (fx + ex + cx + dx) * inv_m
     vy = vy0 + (fy + ey + cy + dy) * inv_m
@@ -59,7 +89,7 @@ def update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alph
     mz = 0.5 * (vz0 + vz) * dt
     if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0:
         w_external[g] += ex * mx + ey * my + ez * mz + tool_work
-    if alpha != 0.0:
+    if damped:
         w_damping[g] -= dx * mx + dy * my + dz * mz
     v[g, 0] = vx
     v[g, 1] = vy

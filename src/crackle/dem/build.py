@@ -1,0 +1,51 @@
+"""A DemSimulation from particles (centres, radii), a bond law and the shared loads: what the
+scenario set-up and the tests both call."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..loading.arrays import tool_arrays
+from ..solver.integrator import support_constraints
+from .kernels import BLOCK
+from .model import BondLaw, bond_gamma, bonds, make_particles, normal_stiffness, stable_dt
+from .simulation import DemSimulation
+
+# The contact list holds the pairs closer than Ra + Rb + SKIN x the mean radius: rebuilt when a
+# particle could have moved half of it.
+SKIN = 0.3
+NEW_CONTACTS = 6
+
+
+def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per_particle: float | None = None,
+                         gamma: float | None = None, tools=(), supports=(), damping: float = 0.0,
+                         gravity=(0.0, 0.0, 0.0), velocity=None, loaded_area: float | None = None) -> DemSimulation:
+    """Particles at `centers` (m) with `radii` (m) and `density` (kg/m^3), bonded to every
+    neighbour within gamma (Ra + Rb), gamma given or chosen for `bonds_per_particle`.
+    `damping`: the local non-viscous damping alpha (0 to 1, paper 003 eq. 5). `tools`,
+    `supports`: loading.Tool, loading.Support (a support holds the particles it selects).
+    `loaded_area` (m^2): the cross-section the platen stress is taken over."""
+    centers = np.ascontiguousarray(centers, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    if gamma is None:
+        if bonds_per_particle is None:
+            raise ValueError("give gamma or bonds_per_particle")
+        gamma = bond_gamma(centers, radii, bonds_per_particle)
+    scale = float(np.max(np.ptp(centers, axis=0) + 2.0 * radii.max()))
+    constraint, projection = support_constraints(supports, centers, scale)
+    particles = make_particles(centers, radii, density, constraint, projection, velocity)
+    inter = bonds(particles, law, gamma)
+    mean_radius = float(np.mean(radii))
+    # A particle against a tool: the spring of a bond to a particle of infinite radius,
+    # 2 Y R, as the penalty (per area) 2 Y / (pi R_mean) times the particle's area pi R^2.
+    penalty = 2.0 * law.bond_modulus / (np.pi * mean_radius)
+    tool_table = tool_arrays(list(tools), penalty, 2.0 * float(radii.max()), -(-len(radii) // BLOCK))
+    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    # Contacts that form later come on top of the bonds (the touching pairs are bonded at set-up,
+    # so new ones replace broken bonds or close gaps): room for 6 more per particle.
+    contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
+    dt = stable_dt(particles, inter, tool_k + contact_k)
+    sim = DemSimulation(particles, inter, len(inter.a), law, tool_table, [t.name for t in tools], dt, gravity,
+                        damping, SKIN * mean_radius, loaded_area)
+    sim.gamma = gamma
+    return sim

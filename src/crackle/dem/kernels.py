@@ -1,0 +1,243 @@
+"""The compiled step of the bonded-particle DEM (paper 003, the JCFpm model): a pass over the
+interactions (bonds and contacts), then a pass over the particles that gathers their forces and
+torques and calls the shared tool contact (loading.tools) and node update (solver.integrator).
+No races: each interaction writes its own rows, each particle reads the rows of its
+interactions in a fixed order (the `start` / `entry` / `sign` CSR of Interactions).
+
+An interaction joins particles a and b, n the unit vector from a to b, D their distance:
+  normal:  un = d0 - D (positive when closer than d0), Fn = kn un, on b along +n;
+  shear:   an incremental spring, Fs += -kt (relative tangential motion of the contact point);
+  states:  BONDED   cohesive: breaks in tension when Fn < -fn_max, in shear when
+                    |Fs| > cohesion + Fn tan_phi; a shear failure in compression leaves it BROKEN;
+           BROKEN   a former bond, purely frictional (|Fs| <= Fn tan_phi) while un >= 0; GONE once
+                    it opens;
+           CONTACT  a geometric contact (d0 = Ra + Rb): frictional with tan_phi, no force apart;
+           GONE     nothing (a later touch is a new CONTACT).
+The contact point lies on the line of centres at la = D Ra / (Ra + Rb) from a (lb = D - la
+from b), so the pair's moments cancel: torque on a = la (Fs x n), on b = lb (Fs x n).
+
+Energy: elastic = kn un^2 / 2 + |Fs|^2 / (2 kt) of live interactions; a break books what its
+spring held into `e_damage`, a slip the friction force times the slip into `e_friction`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..solver.failures import MODE_SHEAR, MODE_TENSION
+from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
+
+BONDED, BROKEN, CONTACT, GONE = 0, 1, 2, 3
+
+Particles = namedtuple(
+    "Particles",
+    "x v spin mass inertia radius area constraint projection tool tool_offset friction d_friction w_external "
+    "w_damping",
+)
+Interactions = namedtuple(
+    "Interactions",
+    "a b state d0 kn kt fn_max cohesion tan_phi shear force moment lever fail_time fail_mode e_damage e_friction "
+    "start entry sign",
+)
+
+BLOCK = 256  # interactions or particles per parallel task
+
+
+@njit(cache=True, inline="always")
+def _shear_energy(sx, sy, sz, kt):
+    return 0.5 * (sx * sx + sy * sy + sz * sz) / kt
+
+
+@block_kernel
+def _interaction_block(lo, hi, t, dt, particles, inter):
+    x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
+    a_of, b_of, state, d0, kn, kt = inter.a, inter.b, inter.state, inter.d0, inter.kn, inter.kt
+    shear, force, moment, lever = inter.shear, inter.force, inter.moment, inter.lever
+    for i in range(lo, hi):
+        for d in range(3):
+            force[i, d] = 0.0
+            moment[i, d] = 0.0
+        st = state[i]
+        if st == GONE:
+            continue
+        a = a_of[i]
+        b = b_of[i]
+        dx = x[b, 0] - x[a, 0]
+        dy = x[b, 1] - x[a, 1]
+        dz = x[b, 2] - x[a, 2]
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        nx = dx / dist
+        ny = dy / dist
+        nz = dz / dist
+        un = d0[i] - dist
+        fn = kn[i] * un
+        k_t = kt[i]
+        # The old shear force, turned into the new tangent plane (its magnitude kept).
+        sx, sy, sz = shear[i, 0], shear[i, 1], shear[i, 2]
+        old = math.sqrt(sx * sx + sy * sy + sz * sz)
+        sn = sx * nx + sy * ny + sz * nz
+        sx -= sn * nx
+        sy -= sn * ny
+        sz -= sn * nz
+        turned = math.sqrt(sx * sx + sy * sy + sz * sz)
+        if turned > 0.0:
+            sx *= old / turned
+            sy *= old / turned
+            sz *= old / turned
+        # Relative motion of the contact point over the last step, tangential part.
+        la = dist * radius[a] / (radius[a] + radius[b])
+        lb = dist - la
+        ox = lb * w[b, 0] + la * w[a, 0]
+        oy = lb * w[b, 1] + la * w[a, 1]
+        oz = lb * w[b, 2] + la * w[a, 2]
+        rx = v[b, 0] - v[a, 0] - (oy * nz - oz * ny)
+        ry = v[b, 1] - v[a, 1] - (oz * nx - ox * nz)
+        rz = v[b, 2] - v[a, 2] - (ox * ny - oy * nx)
+        rn = rx * nx + ry * ny + rz * nz
+        ux = (rx - rn * nx) * dt
+        uy = (ry - rn * ny) * dt
+        uz = (rz - rn * nz) * dt
+        if st == BONDED and fn < -inter.fn_max[i]:
+            # Tension failure: the bond and what its springs held (at the mid-step) are gone.
+            un_mid = un + 0.5 * rn * dt
+            inter.e_damage[i] += 0.5 * kn[i] * un_mid * un_mid + _shear_energy(
+                sx - 0.5 * k_t * ux, sy - 0.5 * k_t * uy, sz - 0.5 * k_t * uz, k_t)
+            _release(i, t, MODE_TENSION, state, shear, inter)
+            continue
+        if st != BONDED and un < 0.0:
+            # Apart: no force; the shear spring slides empty (friction), a former bond is gone.
+            inter.e_friction[i] += _shear_energy(sx, sy, sz, k_t)
+            shear[i, 0] = 0.0
+            shear[i, 1] = 0.0
+            shear[i, 2] = 0.0
+            if st == BROKEN:
+                state[i] = GONE
+            continue
+        tx = sx - k_t * ux
+        ty = sy - k_t * uy
+        tz = sz - k_t * uz
+        trial = math.sqrt(tx * tx + ty * ty + tz * tz)
+        cap = fn * inter.tan_phi[i]
+        if st == BONDED:
+            strength = inter.cohesion[i] + cap
+            if trial > strength:
+                # Shear failure: in compression the pair goes on rubbing (BROKEN), else it is gone.
+                inter.fail_time[i] = t
+                inter.fail_mode[i] = MODE_SHEAR
+                if fn < 0.0:
+                    inter.e_damage[i] += 0.5 * kn[i] * un * un + _shear_energy(tx, ty, tz, k_t)
+                    _release(i, t, MODE_SHEAR, state, shear, inter)
+                    continue
+                state[i] = BROKEN
+                inter.e_damage[i] += 0.5 * (trial * trial - cap * cap) / k_t
+                tx *= cap / trial
+                ty *= cap / trial
+                tz *= cap / trial
+        elif trial > cap:
+            # Sliding: the cap times the slip (trial - cap) / kt. (The drop of the spring's
+            # energy, (trial^2 - cap^2) / (2 kt), would book an extra kt slip^2 / 2 each step:
+            # an error of first order in dt over a sliding distance.)
+            inter.e_friction[i] += cap * (trial - cap) / k_t
+            tx *= cap / trial
+            ty *= cap / trial
+            tz *= cap / trial
+        shear[i, 0] = tx
+        shear[i, 1] = ty
+        shear[i, 2] = tz
+        force[i, 0] = fn * nx + tx
+        force[i, 1] = fn * ny + ty
+        force[i, 2] = fn * nz + tz
+        moment[i, 0] = ty * nz - tz * ny
+        moment[i, 1] = tz * nx - tx * nz
+        moment[i, 2] = tx * ny - ty * nx
+        lever[i, 0] = la
+        lever[i, 1] = lb
+
+
+@njit(cache=True, inline="always")
+def _release(i, t, mode, state, shear, inter):
+    state[i] = GONE
+    shear[i, 0] = 0.0
+    shear[i, 1] = 0.0
+    shear[i, 2] = 0.0
+    inter.fail_time[i] = t
+    inter.fail_mode[i] = mode
+
+
+@block_kernel
+def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool_v_next, gravity, alpha):
+    x, v, w, mass, inertia, radius, area = (particles.x, particles.v, particles.spin, particles.mass,
+                                            particles.inertia, particles.radius, particles.area)
+    force, moment, lever, start, entry, sign = inter.force, inter.moment, inter.lever, inter.start, inter.entry, inter.sign
+    w_damping = particles.w_damping
+    force_slots = tools.force_slots
+    n_tool = tools.kind.shape[0]
+    for g in range(lo, hi):
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for r in range(start[g], start[g + 1]):
+            i = entry[r]
+            s = sign[r]  # +1: g is the interaction's b, -1: its a
+            fx += s * force[i, 0]
+            fy += s * force[i, 1]
+            fz += s * force[i, 2]
+            arm = lever[i, 1] if s > 0 else lever[i, 0]
+            mx += arm * moment[i, 0]
+            my += arm * moment[i, 1]
+            mz += arm * moment[i, 2]
+        m = mass[g]
+        cx, cy, cz, tool_work = contact_with_tools(
+            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
+            force_slots, tool_v_prev, tool_v_next, particles.tool, particles.tool_offset, particles.friction,
+            particles.d_friction,
+        )
+        update_velocity_local_damping(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz,
+                                      tool_work, m, alpha, dt, particles.constraint, particles.projection,
+                                      particles.w_external, w_damping)
+        move(g, x, v, dt)
+        # Spin: the same central difference and local damping on the torque (no supports on it).
+        j = inertia[g]
+        dx = local_damping_force(mx, w[g, 0], j, alpha, dt)
+        dy = local_damping_force(my, w[g, 1], j, alpha, dt)
+        dz = local_damping_force(mz, w[g, 2], j, alpha, dt)
+        wx = w[g, 0] + (mx + dx) * dt / j
+        wy = w[g, 1] + (my + dy) * dt / j
+        wz = w[g, 2] + (mz + dz) * dt / j
+        if alpha != 0.0:
+            w_damping[g] -= 0.5 * dt * (dx * (w[g, 0] + wx) + dy * (w[g, 1] + wy) + dz * (w[g, 2] + wz))
+        w[g, 0] = wx
+        w[g, 1] = wy
+        w[g, 2] = wz
+
+
+@njit(parallel=True, cache=True)
+def advance(n_steps, first_step, dt, particles, inter, tools, gravity, alpha):
+    """n_steps central-difference steps from step number first_step (time first_step x dt, the
+    same however a run is split into calls); arrays updated in place. `alpha`: the local
+    non-viscous damping (0 to 1)."""
+    n_tool = tools.kind.shape[0]
+    n_inter = inter.a.shape[0]
+    n = particles.x.shape[0]
+    tool_v_prev = np.zeros((max(n_tool, 1), 3))
+    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    for step in range(n_steps):
+        t = (first_step + step) * dt
+        tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
+        for blk in prange((n_inter + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _interaction_block(lo, min(lo + BLOCK, n_inter), t, dt, particles, inter)
+        for blk in prange((n + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _particle_block(lo, min(lo + BLOCK, n), blk, dt, particles, inter, tools, tool_v_prev, tool_v_next,
+                            gravity, alpha)
+        load_cell_step((first_step + step + 1) * dt, tools)
+        move_tools(dt, tools, tool_v_next)

@@ -1,0 +1,181 @@
+"""The bonded-particle model's arrays: particles from a packing, bonds at set-up (paper 003 eq. 1:
+D0 <= gamma_int (Ra + Rb), gamma_int chosen for a mean bond count), their stiffness and
+strength (eqs 2-3), the geometric contacts found between chunks, and the stable step."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .kernels import BONDED, BROKEN, CONTACT, GONE, Interactions, Particles
+
+# Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
+# other particles separate.
+MAX_GAMMA = 2.0
+
+
+@dataclass(frozen=True)
+class BondLaw:
+    """The JCFpm parameters of a material (paper 003 Table 1, SI units)."""
+
+    bond_modulus: float  # Y (Pa): kn = 2 Y Ra Rb / (Ra + Rb)
+    stiffness_ratio: float  # P: kt = P kn
+    tensile_strength: float  # t (Pa): a bond fails in tension at t Aint, Aint = pi min(Ra, Rb)^2
+    cohesion: float  # c (Pa): in shear at c Aint + Fn tan(friction_angle)
+    friction_angle: float  # rad, of bonds and of failed bonds in compression
+    contact_friction_angle: float  # rad, of the contacts that form during the run
+
+
+def bond_gamma(centers: np.ndarray, radii: np.ndarray, bonds_per_particle: float) -> float:
+    """The interaction range gamma_int that gives `bonds_per_particle` bonds per particle on
+    average (each bond counts for both its particles): the ratio D0 / (Ra + Rb) of the
+    (bonds_per_particle n / 2)-th closest pair. ValueError when even MAX_GAMMA is too short."""
+    n = len(radii)
+    wanted = int(round(0.5 * bonds_per_particle * n))
+    pairs = _pairs_within(centers, radii, MAX_GAMMA, 0.0)
+    if wanted < 1 or len(pairs) < wanted:
+        raise ValueError(
+            f"bonds_per_particle = {bonds_per_particle:g} is out of reach: within gamma_int = {MAX_GAMMA} the "
+            f"packing has {2 * len(pairs) / n:.1f} neighbours per particle; ask for fewer or pack denser"
+        )
+    ratio = np.sort(_range_ratio(centers, radii, pairs))
+    return float(ratio[wanted - 1])
+
+
+def _pairs_within(centers, radii, gamma, skin) -> np.ndarray:
+    """Sorted (k, 2) pairs a < b with D <= gamma (Ra + Rb) + skin."""
+    reach = gamma * 2.0 * float(radii.max()) + skin
+    pairs = cKDTree(centers).query_pairs(reach, output_type="ndarray").astype(np.int64)
+    if len(pairs) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    pairs.sort(axis=1)
+    dist = np.linalg.norm(centers[pairs[:, 1]] - centers[pairs[:, 0]], axis=1)
+    pairs = pairs[dist <= gamma * (radii[pairs[:, 0]] + radii[pairs[:, 1]]) + skin]
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
+def _range_ratio(centers, radii, pairs) -> np.ndarray:
+    dist = np.linalg.norm(centers[pairs[:, 1]] - centers[pairs[:, 0]], axis=1)
+    return dist / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
+
+
+def make_particles(centers, radii, density, constraint, projection, velocity=None) -> Particles:
+    n = len(radii)
+    mass = density * 4.0 / 3.0 * math.pi * radii**3
+    return Particles(
+        x=np.ascontiguousarray(centers, dtype=float).copy(),
+        v=np.zeros((n, 3)) if velocity is None else np.array(np.broadcast_to(velocity, (n, 3)), dtype=float),
+        spin=np.zeros((n, 3)),
+        mass=mass,
+        inertia=0.4 * mass * radii**2,
+        radius=np.asarray(radii, float).copy(),
+        area=math.pi * radii**2,
+        constraint=constraint,
+        projection=projection,
+        tool=np.full(n, -1, dtype=np.int8),
+        tool_offset=np.zeros(n),
+        friction=np.zeros((n, 3)),
+        d_friction=np.zeros(n),
+        w_external=np.zeros(n),
+        w_damping=np.zeros(n),
+    )
+
+
+def normal_stiffness(law: BondLaw, ra, rb):
+    """kn = 2 Y Ra Rb / (Ra + Rb) (paper 003 eq. 3): two springs of stiffness 2 Y R in series."""
+    return 2.0 * law.bond_modulus * ra * rb / (ra + rb)
+
+
+def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: np.ndarray,
+                 d0: np.ndarray, shear: np.ndarray | None = None) -> Interactions:
+    """Interaction arrays for `pairs` (sorted a < b) in `state`, with their particle CSR."""
+    k = len(pairs)
+    a, b = pairs[:, 0].copy(), pairs[:, 1].copy()
+    ra, rb = particles.radius[a], particles.radius[b]
+    kn = normal_stiffness(law, ra, rb)
+    area = math.pi * np.minimum(ra, rb) ** 2
+    bonded = state == BONDED
+    tan_phi = np.where(state == CONTACT, math.tan(law.contact_friction_angle), math.tan(law.friction_angle))
+    start, entry, sign = _particle_csr(len(particles.radius), a, b)
+    return Interactions(
+        a=a, b=b, state=state.astype(np.int8), d0=d0.astype(float), kn=kn, kt=law.stiffness_ratio * kn,
+        fn_max=np.where(bonded, law.tensile_strength * area, 0.0),
+        cohesion=np.where(bonded, law.cohesion * area, 0.0),
+        tan_phi=tan_phi,
+        shear=np.zeros((k, 3)) if shear is None else shear,
+        force=np.zeros((k, 3)), moment=np.zeros((k, 3)), lever=np.zeros((k, 2)),
+        fail_time=np.full(k, np.nan), fail_mode=np.zeros(k, dtype=np.int8),
+        e_damage=np.zeros(k), e_friction=np.zeros(k), start=start, entry=entry, sign=sign,
+    )
+
+
+def _particle_csr(n: int, a: np.ndarray, b: np.ndarray):
+    """Per particle, its interactions in interaction order, with sign -1 as a and +1 as b."""
+    k = len(a)
+    ends = np.concatenate([a, b])
+    ids = np.concatenate([np.arange(k), np.arange(k)])
+    signs = np.concatenate([-np.ones(k), np.ones(k)])
+    order = np.lexsort((ids, ends))
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(start, ends + 1, 1)
+    return np.cumsum(start), ids[order].astype(np.int64), signs[order]
+
+
+def bonds(particles: Particles, law: BondLaw, gamma: float) -> Interactions:
+    """Bonds between every pair with D0 <= gamma (Ra + Rb), at rest at their set-up distance."""
+    x, r = particles.x, particles.radius
+    pairs = _pairs_within(x, r, gamma, 0.0)
+    d0 = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+    return interactions(particles, law, pairs, np.full(len(pairs), BONDED), d0)
+
+
+def with_contacts(particles: Particles, law: BondLaw, current: Interactions, n_bonds: int, skin: float) -> Interactions:
+    """The bonds (the first n_bonds entries, kept as they are) plus a CONTACT for every pair
+    closer than Ra + Rb + skin that no live bond joins; contacts that persist keep their shear
+    force. Deterministic: pairs in sorted order."""
+    x, r = particles.x, particles.radius
+    near = _pairs_within(x, r, 1.0, skin)
+    n = len(r)
+    key_near = near[:, 0] * n + near[:, 1]
+    bond_key = current.a[:n_bonds] * n + current.b[:n_bonds]
+    live = current.state[:n_bonds] != GONE
+    near = near[~np.isin(key_near, bond_key[live])]
+    key_near = near[:, 0] * n + near[:, 1]
+    shear = np.zeros((len(near), 3))
+    # A new contact rests at Ra + Rb, or where it is if already closer (a pair whose bond broke
+    # while the spheres overlapped, as packed): its spring starts unloaded, no energy from nowhere.
+    contact_d0 = np.minimum(r[near[:, 0]] + r[near[:, 1]], np.linalg.norm(x[near[:, 1]] - x[near[:, 0]], axis=1))
+    old_key = current.a[n_bonds:] * n + current.b[n_bonds:]
+    if len(old_key):
+        # Old contacts are in sorted key order (they were built here); they keep their state.
+        pos = np.searchsorted(old_key, key_near)
+        pos = np.minimum(pos, len(old_key) - 1)
+        kept = old_key[pos] == key_near
+        shear[kept] = current.shear[n_bonds:][pos[kept]]
+        contact_d0[kept] = current.d0[n_bonds:][pos[kept]]
+    pairs = np.concatenate([np.stack([current.a[:n_bonds], current.b[:n_bonds]], axis=1), near])
+    state = np.concatenate([current.state[:n_bonds], np.full(len(near), CONTACT)])
+    d0 = np.concatenate([current.d0[:n_bonds], contact_d0])
+    merged = interactions(particles, law, pairs, state, d0, np.concatenate([current.shear[:n_bonds], shear]))
+    # The bonds' own state (strengths zeroed at failure, failure records, energies) carries over.
+    for name in ("fn_max", "cohesion", "tan_phi", "fail_time", "fail_mode", "e_damage", "e_friction"):
+        getattr(merged, name)[:n_bonds] = getattr(current, name)[:n_bonds]
+    return merged
+
+
+def stable_dt(particles: Particles, inter: Interactions, tool_stiffness: np.ndarray) -> float:
+    """Largest stable step (no safety factor): per particle, Gershgorin bounds of its
+    translation (2 (kn + kt) per interaction, both particles moving) plus the tools, and of its
+    spin (2 kt l^2 / I with the lever l = its radius); the stiffest particle sets the step.
+    Contacts that form later add little: a bonded particle already counts ~12 neighbours."""
+    n = len(particles.radius)
+    k_sum = np.zeros(n)
+    kt_sum = np.zeros(n)
+    for end in (inter.a, inter.b):
+        np.add.at(k_sum, end, inter.kn + inter.kt)
+        np.add.at(kt_sum, end, inter.kt)
+    omega2 = (2.0 * k_sum + tool_stiffness) / particles.mass + 2.0 * kt_sum * particles.radius**2 / particles.inertia
+    return float(2.0 / math.sqrt(omega2.max())) if omega2.max() > 0 else math.inf

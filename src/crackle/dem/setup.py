@@ -1,0 +1,173 @@
+"""The DEM's scenario sections and the build of a scenario into a DemSimulation.
+
+[specimen] as for FDEM (box, disc, cylinder, sphere: the same keys, so one specimen description
+runs with either method), filled by [packing] (a random dense packing, or one saved to a file);
+[material] the JCFpm parameters of paper 003 Table 1. Tools, supports, run control and outputs
+are the shared ones.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from ..loading.build import build_loading, touch_specimen
+from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
+from ..schema import Positive, Strict
+from .build import build_dem_simulation
+from .model import BondLaw
+from .packing import Box, Cylinder, Packing, Sphere, pack_spheres
+from .simulation import DemSimulation
+
+
+class DemSpecimen(Specimen):
+    """[specimen]: the region the particles fill (the same keys as FDEM's; no element size)."""
+
+    shape: Literal["box", "beam", "disc", "cylinder", "sphere"]
+    """box and beam: size, origin; disc and cylinder: diameter, thickness, center, axis; sphere: diameter, center"""
+
+    @model_validator(mode="after")
+    def _needs(self):
+        need = {"box": ("size",), "beam": ("size",), "disc": ("diameter", "thickness"),
+                "cylinder": ("diameter", "thickness"), "sphere": ("diameter",)}[self.shape]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        if self.element_size is not None:
+            raise ValueError("element_size is not used by the DEM: the particle size is packing.mean_radius")
+        return self
+
+
+class PackingSpec(Strict):
+    """[packing]: the particles filling the specimen."""
+
+    mean_radius: Positive | None = None
+    """m, (Rmin + Rmax) / 2; the number of particles follows from the porosity"""
+    radius_ratio: Annotated[float, Field(ge=1.0)] = 1.86
+    """Rmax / Rmin of the uniform radius distribution (paper 003: 1.86)"""
+    porosity: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.4
+    """void fraction of the specimen the packing aims at: about 0.37 and above for 100k spheres, 0.40 for 2,000,
+    0.44 for 300 (the walls loosen the layer beside them); an unreachable one is refused with the porosity reached"""
+    seed: Annotated[int, Field(ge=0)] = 0
+    """of the random packing: the same seed, the same packing"""
+    file: str | None = None
+    """a packing saved before (.npz, crackle.dem.packing.Packing.save) instead of a new one; relative to the
+    scenario file's folder"""
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.mean_radius is None) == (self.file is None):
+            raise ValueError("give mean_radius (a new packing) or file (a saved one)")
+        return self
+
+
+class DemMaterial(Strict):
+    """[material]: the bonded-particle (JCFpm) parameters of paper 003 Table 1."""
+
+    name: str = "rock"
+    density: Positive
+    """kg/m^3, of the particles"""
+    bond_modulus: Positive
+    """Pa, Y: normal stiffness kn = 2 Y Ra Rb / (Ra + Rb) (paper 003 eq. 3; not the sample's Young's modulus)"""
+    stiffness_ratio: Positive = 1.0 / 3.0
+    """P: shear stiffness kt = P kn"""
+    tensile_strength: Positive
+    """Pa, t: a bond fails in tension at t Aint, Aint = pi min(Ra, Rb)^2"""
+    cohesion: Positive
+    """Pa, c: a bond fails in shear at c Aint + Fn tan(friction_angle)"""
+    friction_angle: Annotated[float, Field(ge=0.0, lt=90.0)] = 18.0
+    """degrees, phi: of bonds, and of failed bonds in compression"""
+    contact_friction_angle: Annotated[float, Field(ge=0.0, lt=90.0)] | None = None
+    """degrees, phi_c: of contacts that form during the run; default friction_angle"""
+    bonds_per_particle: Positive = 12.0
+    """N: the mean bond count the interaction range gamma_int is chosen for (paper 003: 12)"""
+    local_damping: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.2
+    """alpha: local non-viscous damping (paper 003 eq. 5; 0.2 in the paper), a numerical device"""
+
+    @model_validator(mode="after")
+    def _plausible(self):
+        if not 100.0 <= self.density <= 30000.0:
+            raise ValueError(f"density = {self.density:g} kg/m^3 is outside 100-30000 (in g/cm^3? 2.5 g/cm^3 is 2500)")
+        if not 1e6 <= self.bond_modulus <= 1e13:
+            raise ValueError(f"bond_modulus = {self.bond_modulus:g} Pa is outside 1e6-1e13 (in GPa? 50 GPa is 50e9)")
+        return self
+
+    def law(self) -> BondLaw:
+        phi_c = self.friction_angle if self.contact_friction_angle is None else self.contact_friction_angle
+        return BondLaw(self.bond_modulus, self.stiffness_ratio, self.tensile_strength, self.cohesion,
+                       math.radians(self.friction_angle), math.radians(phi_c))
+
+
+class Scenario(ScenarioBase):
+    method: Literal["dem"]
+    """picks this method"""
+    specimen: DemSpecimen
+    """the region the particles fill"""
+    packing: PackingSpec
+    """the particles"""
+    material: DemMaterial
+    """the bonds and contacts"""
+
+
+def domain_of(spec: DemSpecimen):
+    """The packing domain of a specimen section."""
+    if spec.shape in ("box", "beam"):
+        lo = np.asarray(spec.origin, float)
+        return Box(lo, lo + np.asarray(spec.size, float))
+    if spec.shape in ("disc", "cylinder"):
+        return Cylinder(np.asarray(spec.center, float), 0.5 * spec.diameter, spec.thickness, np.asarray(spec.axis, float))
+    return Sphere(np.asarray(spec.center, float), 0.5 * spec.diameter)
+
+
+def build_packing(scenario: Scenario, base: Path | None) -> Packing:
+    spec = scenario.packing
+    if spec.file is not None:
+        path = resolve_path(spec.file, base)
+        if not path.is_file():
+            raise ScenarioError(f"packing.file: {path} does not exist")
+        return Packing.load(path)
+    try:
+        return pack_spheres(domain_of(scenario.specimen), porosity=spec.porosity, radius_ratio=spec.radius_ratio,
+                            mean_radius=spec.mean_radius, seed=spec.seed)
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulation:
+    tools, supports, pressures = build_loading(scenario, base)
+    if pressures:
+        raise ScenarioError("pressures: the DEM has no faces to load; remove [[pressures]]")
+    packing = build_packing(scenario, base)
+    # A touching platen is placed on the particle furthest along its direction (on its surface).
+    tools = [touch_specimen(t, packing.centers - packing.radii[:, None] * _unit(t.direction)) if spec.touch else t
+             for t, spec in zip(tools, scenario.all_tools())]
+    domain = domain_of(scenario.specimen)
+    moving = [t for t in tools if any(v != 0.0 for v in t.speed.values)]
+    loaded_area = None
+    if moving:
+        # The mean cross-section normal to the first moving tool: platen stress = force / it.
+        direction = np.asarray(moving[0].direction, float)
+        direction /= np.linalg.norm(direction)
+        along = packing.centers @ direction
+        extent = float((along + packing.radii).max() - (along - packing.radii).min())
+        loaded_area = domain.volume / extent
+    mat = scenario.material
+    try:
+        sim = build_dem_simulation(
+            packing.centers, packing.radii, mat.density, mat.law(), bonds_per_particle=mat.bonds_per_particle,
+            tools=tools, supports=supports, damping=mat.local_damping, gravity=scenario.run.gravity,
+            velocity=np.asarray(scenario.specimen.initial_velocity, float), loaded_area=loaded_area,
+        )
+    except ValueError as err:
+        raise ScenarioError(f"material.bonds_per_particle: {err}" if "bonds_per_particle" in str(err) else str(err)) from None
+    sim.packing = packing
+    return sim
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)

@@ -1,0 +1,218 @@
+"""The bonded-particle DEM behind the driver's Simulation protocol (solver.simulation)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..loading.loadcell import LoadCell, tool_columns
+from ..loading.tools import tool_contact_totals
+from ..solver.failures import FailureRecorder
+from .kernels import BONDED, GONE, advance
+from .model import with_contacts
+
+# Steps between two checks of whether the contact list must be rebuilt: a fixed grid of steps, so
+# that a run's state does not depend on how its steps are split into advance calls.
+CONTACT_CHECK = 20
+
+
+class DemSimulation:
+    method = "dem"
+
+    def __init__(self, particles, inter, n_bonds, law, tools, tool_names, stable_dt, gravity, damping,
+                 skin, loaded_area=None):
+        self.particles, self.inter, self.n_bonds, self.law, self.tools = particles, inter, n_bonds, law, tools
+        self._tool_names = list(tool_names)
+        self.stable_dt = stable_dt
+        radius = particles.radius
+        self.wave_transit = float(2.0 * np.mean(radius) / math.sqrt(law.bond_modulus / np.mean(particles.mass / (
+            4.0 / 3.0 * math.pi * radius**3))))
+        self.gravity = np.asarray(gravity, float)
+        self.damping = float(damping)
+        self.skin = float(skin)
+        self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
+        self.time = 0.0
+        self.steps = 0
+        self.x0 = particles.x.copy()
+        self._x_listed = particles.x.copy()  # positions when the contact list was last built
+        self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
+        self._tool_force = np.zeros((len(tool_names), 3))
+        self._tool_energy = np.zeros(len(tool_names))
+        self.load_cell = LoadCell(tools)
+        self._failures = FailureRecorder(n_bonds)
+        self.warnings: list[str] = []
+        self._relist()
+        # Energy present at t = 0 (initial velocities) counts as work put in.
+        self._initial_energy = self._kinetic()
+
+    # -- stepping ----------------------------------------------------------------------------
+    def advance(self, n_steps: int, dt: float) -> None:
+        end = self.steps + n_steps
+        while self.steps < end:
+            if self.steps % CONTACT_CHECK == 0 and self._contacts_may_change(dt):
+                self._relist()
+            stop = min(end, (self.steps // CONTACT_CHECK + 1) * CONTACT_CHECK)
+            advance(stop - self.steps, self.steps, dt, self.particles, self.inter, self.tools, self.gravity,
+                    self.damping)
+            self.steps = stop
+        self.time = self.steps * dt
+
+    def _contacts_may_change(self, dt: float) -> bool:
+        """Whether a pair not listed could touch before the next check: some particle has moved,
+        or could move within the next CONTACT_CHECK steps (at twice its speed), half the skin."""
+        p = self.particles
+        moved = float(np.sqrt(np.max(np.sum((p.x - self._x_listed) ** 2, axis=1))))
+        speed = float(np.sqrt(np.max(np.sum(p.v**2, axis=1))))
+        return moved + 2.0 * speed * CONTACT_CHECK * dt > 0.5 * self.skin
+
+    def _relist(self) -> None:
+        self._dropped_friction += float(np.sum(self.inter.e_friction[self.n_bonds:]))
+        self.inter = with_contacts(self.particles, self.law, self.inter, self.n_bonds, self.skin)
+        self.inter.e_friction[self.n_bonds:] = 0.0
+        self._x_listed = self.particles.x.copy()
+
+    def state_is_finite(self) -> bool:
+        p = self.particles
+        return bool(np.isfinite(p.x).all() and np.isfinite(p.v).all() and np.isfinite(p.spin).all())
+
+    # -- results -------------------------------------------------------------------------------
+    @property
+    def broken(self) -> int:
+        s = self.inter.state[: self.n_bonds]
+        return int(np.count_nonzero(s != BONDED))
+
+    def broken_by_mode(self) -> dict[str, int]:
+        from ..solver.failures import MODE_NAMES
+
+        modes = self.inter.fail_mode[: self.n_bonds][self.inter.state[: self.n_bonds] != BONDED]
+        return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
+
+    def _tool_contact(self) -> None:
+        p = self.particles
+        tool_contact_totals(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction, self.tools, self._tool_force,
+                            self._tool_energy)
+
+    def interaction_energy(self, dt: float) -> float:
+        """Elastic energy of the live interactions at the mid-step positions x - v dt/2 (which
+        pair with the half-step velocities): kn un^2 / 2 (compression only once not bonded) and
+        |Fs|^2 / (2 kt) with the shear force carried half a step on."""
+        p, s = self.particles, self.inter
+        live = s.state != GONE
+        a, b = s.a[live], s.b[live]
+        x_mid = p.x - 0.5 * dt * p.v
+        d = x_mid[b] - x_mid[a]
+        dist = np.linalg.norm(d, axis=1)
+        n = d / dist[:, None]
+        un = s.d0[live] - dist
+        bonded = s.state[live] == BONDED
+        acting = bonded | (un >= 0.0)
+        kn, kt = s.kn[live], s.kt[live]
+        ra, rb = p.radius[a], p.radius[b]
+        la = (dist * ra / (ra + rb))[:, None]
+        lb = dist[:, None] - la
+        rel = p.v[b] - p.v[a] - np.cross(lb * p.spin[b] + la * p.spin[a], n)
+        rel -= np.sum(rel * n, axis=1)[:, None] * n
+        shear = s.shear[live] - 0.5 * dt * kt[:, None] * rel
+        normal = np.where(acting, 0.5 * kn * un**2, 0.0)
+        tangential = np.where(acting, 0.5 * np.sum(shear**2, axis=1) / kt, 0.0)
+        return float(np.sum(normal) + np.sum(tangential))
+
+    def _kinetic(self) -> float:
+        p = self.particles
+        return float(0.5 * np.sum(p.mass * np.sum(p.v**2, axis=1)) + 0.5 * np.sum(p.inertia * np.sum(p.spin**2, axis=1)))
+
+    def energies(self, dt: float) -> dict[str, float]:
+        p = self.particles
+        self._tool_contact()
+        return {
+            "energy.kinetic": self._kinetic(),
+            "energy.elastic": self.interaction_energy(dt),
+            "energy.contact": float(np.sum(self._tool_energy)),
+            "energy.damage": float(np.sum(self.inter.e_damage)),
+            "energy.friction": float(np.sum(self.inter.e_friction) + self._dropped_friction + np.sum(p.d_friction)),
+            "energy.damping": float(np.sum(p.w_damping)),
+            "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
+        }
+
+    def sample(self, dt: float) -> dict[str, float]:
+        energies = self.energies(dt)
+
+        def now():
+            self._tool_contact()
+            return self._tool_force.copy()
+
+        forces = self.load_cell.forces(now)
+        return {**tool_columns(self._tool_names, forces, self.tools.disp), **energies, "broken": self.broken}
+
+    def new_events(self):
+        s = self.inter
+        n = self.n_bonds
+        return self._failures.new(s.state[:n] != BONDED, s.fail_time[:n], s.fail_mode[:n],
+                                  lambda ids: 0.5 * (self.x0[s.a[ids]] + self.x0[s.b[ids]]))
+
+    def particle_stress(self) -> np.ndarray:
+        """Per particle, the stress tensor (1 / Vp) sum_c x_c (x) f_c (x_c from the centre to the
+        contact point, f_c the force on the particle there), symmetrised, (n, 6) in the order xx
+        yy zz xy yz xz. Pa, tension positive as crackle's other stresses: paper 003 eqs 7-8 with
+        the sign of geomechanics (compression positive) turned."""
+        p, s = self.particles, self.inter
+        n = len(p.radius)
+        live = s.state != GONE
+        a, b = s.a[live], s.b[live]
+        d = p.x[b] - p.x[a]
+        dist = np.linalg.norm(d, axis=1)
+        unit = d / dist[:, None]
+        f_b = s.force[live]
+        la = s.lever[live, 0][:, None]
+        lb = s.lever[live, 1][:, None]
+        sigma = np.zeros((n, 3, 3))
+        # On a: branch +la n, force -f_b; on b: branch -lb n, force +f_b. Both give -l n (x) f_b.
+        np.add.at(sigma, a, -np.einsum("ki,kj->kij", la * unit, f_b))
+        np.add.at(sigma, b, -np.einsum("ki,kj->kij", lb * unit, f_b))
+        volume = 4.0 / 3.0 * math.pi * p.radius**3
+        sigma /= volume[:, None, None]
+        sym = 0.5 * (sigma + sigma.transpose(0, 2, 1))
+        return np.stack([sym[:, 0, 0], sym[:, 1, 1], sym[:, 2, 2], sym[:, 0, 1], sym[:, 1, 2], sym[:, 0, 2]], axis=1)
+
+    def fields(self) -> dict:
+        p, s = self.particles, self.inter
+        n = self.n_bonds
+        return {
+            "points": p.x,
+            "point_data": {
+                "displacement": p.x - self.x0, "velocity": p.v, "spin": p.spin, "radius": p.radius,
+                "stress": self.particle_stress(),
+            },
+            "component_names": {"stress": ["xx", "yy", "zz", "xy", "yz", "xz"]},
+            "blocks": [("line", np.stack([s.a[:n], s.b[:n]], axis=1),
+                        {"intact": (s.state[:n] == BONDED).astype(np.int64), "state": s.state[:n].astype(np.int64)})],
+        }
+
+    def describe(self) -> str:
+        return f"{len(self.particles.radius):,} particles, {self.n_bonds:,} bonds"
+
+    def tool_names(self) -> list[str]:
+        return list(self._tool_names)
+
+    def bounds(self):
+        r = self.particles.radius[:, None]
+        return (self.x0 - r).min(axis=0), (self.x0 + r).max(axis=0)
+
+    def summary(self) -> dict:
+        n = len(self.particles.radius)
+        out = {
+            "particles": n,
+            "bonds": self.n_bonds,
+            "bonds_per_particle": 2.0 * self.n_bonds / n,
+            "broken_by_mode": self.broken_by_mode(),
+            "warnings": list(self.warnings),
+        }
+        if self.loaded_area:
+            peaks = self.load_cell.peaks()[0]
+            out["loaded_area"] = self.loaded_area
+            out["peak_stress"] = float(np.max(peaks, initial=0.0)) / self.loaded_area
+        return out
+
+    def extra_plots(self, out_dir) -> None:
+        pass
