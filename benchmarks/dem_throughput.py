@@ -1,0 +1,115 @@
+"""Throughput of the bonded-particle DEM step (interaction pass, particle pass, tools, spins).
+
+Set-up, per size: a box twice as tall as wide packed with the paper-003 radius distribution
+(Rmax/Rmin = 1.86, porosity 0.40, seed 1), bonded to 12 bonds per particle with the Table 1
+parameters, between two frictionless box platens; the top one moves down at 0.1 m/s so that the
+platens press on the sample while the step is timed (elastic range: no bond breaks in the timed
+steps). dt = 0.7 x the stable step.
+
+Procedure, per size: pack (timed: `packing_s`), build, warm up (the first call compiles or loads
+the numba cache), then time `--steps` steps `--repeats` times and keep the median. Each size runs
+in its own Python process, so that `peak_rss_mb` belongs to that size alone.
+
+Output: one line per size, then one JSON object on the last line:
+
+    {"sizes": [{"particles", "bonds", "interactions", "packing_s", "seconds_per_step",
+                "particle_steps_per_s", "bytes_per_particle", "peak_rss_mb", "threads"}, ...]}
+
+bytes_per_particle: nbytes of every array of the particles and interactions (bonds and listed
+contacts) over the particle count.
+
+    python benchmarks/dem_throughput.py --threads 2                 # 10k and 100k particles
+    python benchmarks/dem_throughput.py --sizes 10000 --repeats 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+
+def one_size(n_particles: int, steps: int, repeats: int) -> dict:
+    import numba
+    import numpy as np
+
+    from crackle.dem.build import build_dem_simulation
+    from crackle.dem.model import BondLaw
+    from crackle.dem.packing import Box, pack_spheres
+    from crackle.loading import History, Tool
+
+    mean_radius = 1e-3
+    # A box 1 x 1 x 2 holding n spheres at porosity 0.4.
+    volume = n_particles * 4.0 / 3.0 * math.pi * mean_radius**3 * 1.05 / 0.6
+    side = (volume / 2.0) ** (1.0 / 3.0)
+    started = time.perf_counter()
+    packing = pack_spheres(Box(np.zeros(3), np.array([side, side, 2 * side])), porosity=0.4,
+                           mean_radius=mean_radius, seed=1)
+    packing_s = time.perf_counter() - started
+    plate = (3 * side, 3 * side, 10 * mean_radius)
+    top = Tool("top", "box", (0.0, 0.0, -1.0), History.ramp(0.1, 1e-5),
+               center=(0.5 * side, 0.5 * side, 2 * side + 5 * mean_radius), size=plate)
+    bottom = Tool("bottom", "box", (0.0, 0.0, 1.0), History.constant(0.0),
+                  center=(0.5 * side, 0.5 * side, -5 * mean_radius), size=plate)
+    law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
+    sim = build_dem_simulation(packing.centers, packing.radii, 2500.0, law, bonds_per_particle=12.0,
+                               tools=[top, bottom], damping=0.2)
+    dt = 0.7 * sim.stable_dt
+    sim.advance(20, dt)  # compile or load the cache
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        sim.advance(steps, dt)
+        times.append((time.perf_counter() - t0) / steps)
+    per_step = statistics.median(times)
+    arrays = list(sim.particles) + list(sim.inter)
+    nbytes = sum(a.nbytes for a in arrays if hasattr(a, "nbytes"))
+    return {
+        "particles": len(packing.radii),
+        "bonds": sim.n_bonds,
+        "interactions": len(sim.inter.a),
+        "broken": sim.broken,
+        "packing_s": packing_s,
+        "seconds_per_step": per_step,
+        "particle_steps_per_s": len(packing.radii) / per_step,
+        "bytes_per_particle": nbytes / len(packing.radii),
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "threads": numba.get_num_threads(),
+        "repeat_seconds": times,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000], help="particle counts")
+    parser.add_argument("--steps", type=int, default=200, help="steps per timed repeat")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None, help="numba threads (default: numba's)")
+    parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one size
+    args = parser.parse_args()
+    if args.one:
+        print(json.dumps(one_size(args.one, args.steps, args.repeats)))
+        return
+    env = dict(os.environ)
+    if args.threads:
+        env["NUMBA_NUM_THREADS"] = str(args.threads)
+    rows = []
+    for n in args.sizes:
+        proc = subprocess.run([sys.executable, __file__, "--one", str(n), "--steps", str(args.steps), "--repeats",
+                               str(args.repeats)], env=env, capture_output=True, text=True, check=True)
+        row = json.loads(proc.stdout.strip().splitlines()[-1])
+        rows.append(row)
+        print(f"{row['particles']:>8,} particles {row['bonds']:>9,} bonds: {row['seconds_per_step'] * 1e3:8.2f} ms/step, "
+              f"{row['particle_steps_per_s'] / 1e6:6.2f} M particle-steps/s, {row['bytes_per_particle']:6.0f} B/particle, "
+              f"packing {row['packing_s']:.1f} s, peak RSS {row['peak_rss_mb']:.0f} MB, {row['threads']} threads")
+    print(json.dumps({"sizes": rows}))
+
+
+if __name__ == "__main__":
+    main()
