@@ -165,6 +165,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     except ValueError as err:
         raise ScenarioError(f"material.bonds_per_particle: {err}" if "bonds_per_particle" in str(err) else str(err)) from None
     sim.packing = packing
+    if scenario.specimen.shape == "disc":
+        sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim
 
 

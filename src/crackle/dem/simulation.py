@@ -32,6 +32,7 @@ class DemSimulation:
         self.damping = float(damping)
         self.skin = float(skin)
         self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
+        self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
         self.time = 0.0
         self.steps = 0
         self.x0 = particles.x.copy()
@@ -212,6 +213,10 @@ class DemSimulation:
             peaks = self.load_cell.peaks()[0]
             out["loaded_area"] = self.loaded_area
             out["peak_stress"] = float(np.max(peaks, initial=0.0)) / self.loaded_area
+            if self.brazilian:
+                diameter, thickness = self.brazilian
+                # The elastic Brazilian relation: the tensile stress across the loaded diameter.
+                out["brazilian_strength"] = 2.0 * float(np.max(peaks, initial=0.0)) / (math.pi * diameter * thickness)
         return out
 
     def extra_plots(self, out_dir) -> None:
