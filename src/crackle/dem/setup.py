@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from ..loading.build import build_loading, touch_specimen
 from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
-from ..schema import Positive, Strict
+from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres
@@ -102,6 +102,33 @@ class DemMaterial(Strict):
                        math.radians(self.friction_angle), math.radians(phi_c))
 
 
+class FlawSpec(Strict):
+    """[flaw]: a planar pre-existing crack through the specimen along y (paper 003 sections 4-5),
+    a segment of `length` in the x-z plane inclined by `angle` from x (z: the loading axis)."""
+
+    kind: Literal["open"] = "open"
+    """open: the particles that cut the flaw's slot are removed"""
+    center: Vec3
+    """m, the flaw's middle"""
+    angle: float = 0.0
+    """degrees, from the x axis towards z (0: normal to the loading axis z, 90: along it)"""
+    length: Positive
+    """m, in the x-z plane (paper 003: 20 % of the sample's height)"""
+    aperture: NonNegative = 0.0
+    """m, the slot's width; every particle that reaches into it is removed (0: those the flaw's plane cuts)"""
+
+    def removed(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Which particles reach into the slot (a mask)."""
+        along, across = self.axes()
+        rel = centers - np.asarray(self.center, float)
+        return (np.abs(rel @ across) < 0.5 * self.aperture + radii) & (np.abs(rel @ along) <= 0.5 * self.length)
+
+    def axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The unit vectors along the flaw and normal to it, both in the x-z plane."""
+        theta = math.radians(self.angle)
+        return np.array([math.cos(theta), 0.0, math.sin(theta)]), np.array([-math.sin(theta), 0.0, math.cos(theta)])
+
+
 class Scenario(ScenarioBase):
     method: Literal["dem"]
     """picks this method"""
@@ -111,6 +138,8 @@ class Scenario(ScenarioBase):
     """the particles"""
     material: DemMaterial
     """the bonds and contacts"""
+    flaw: FlawSpec | None = None
+    """a pre-existing crack (optional)"""
 
 
 def domain_of(spec: DemSpecimen):
@@ -142,8 +171,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     if pressures:
         raise ScenarioError("pressures: the DEM has no faces to load; remove [[pressures]]")
     packing = build_packing(scenario, base)
+    centers, radii = packing.centers, packing.radii
+    if scenario.flaw is not None:
+        centers, radii = _open_flaw(scenario.flaw, domain_of(scenario.specimen), centers, radii)
     # A touching platen is placed on the particle furthest along its direction (on its surface).
-    tools = [touch_specimen(t, packing.centers - packing.radii[:, None] * _unit(t.direction)) if spec.touch else t
+    tools = [touch_specimen(t, centers - radii[:, None] * _unit(t.direction)) if spec.touch else t
              for t, spec in zip(tools, scenario.all_tools())]
     domain = domain_of(scenario.specimen)
     moving = [t for t in tools if any(v != 0.0 for v in t.speed.values)]
@@ -152,13 +184,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         # The mean cross-section normal to the first moving tool: platen stress = force / it.
         direction = np.asarray(moving[0].direction, float)
         direction /= np.linalg.norm(direction)
-        along = packing.centers @ direction
-        extent = float((along + packing.radii).max() - (along - packing.radii).min())
+        along = centers @ direction
+        extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
     mat = scenario.material
     try:
         sim = build_dem_simulation(
-            packing.centers, packing.radii, mat.density, mat.law(), bonds_per_particle=mat.bonds_per_particle,
+            centers, radii, mat.density, mat.law(), bonds_per_particle=mat.bonds_per_particle,
             tools=tools, supports=supports, damping=mat.local_damping, gravity=scenario.run.gravity,
             velocity=np.asarray(scenario.specimen.initial_velocity, float), loaded_area=loaded_area,
         )
@@ -173,3 +205,18 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, float)
     return v / np.linalg.norm(v)
+
+
+def _open_flaw(flaw: FlawSpec, domain, centers, radii):
+    """The packing without the particles that reach into an open flaw's slot."""
+    if float(domain.signed_distance(np.asarray(flaw.center, float)[None, :])[0]) >= 0.0:
+        raise ScenarioError(f"flaw.center {list(flaw.center)} lies outside the specimen")
+    along, _ = flaw.axes()
+    for end in (-0.5, 0.5):
+        tip = np.asarray(flaw.center, float) + end * flaw.length * along
+        if float(domain.signed_distance(tip[None, :])[0]) >= 0.0:
+            raise ScenarioError("flaw.length: the flaw reaches out of the specimen; shorten it or move flaw.center")
+    removed = flaw.removed(centers, radii)
+    if not removed.any():
+        raise ScenarioError("flaw: no particle reaches into the flaw; check flaw.center and flaw.length")
+    return centers[~removed], radii[~removed]
