@@ -8,7 +8,7 @@ import numpy as np
 from ..loading.arrays import tool_arrays
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK
-from .model import BondLaw, bond_gamma, bonds, make_particles, normal_stiffness, stable_dt
+from .model import BondLaw, Joint, bond_gamma, bonds, make_particles, normal_stiffness, stable_dt, with_joints
 from .simulation import DemSimulation
 
 # The contact list holds the pairs closer than Ra + Rb + SKIN x the mean radius: rebuilt when a
@@ -19,12 +19,14 @@ NEW_CONTACTS = 6
 
 def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per_particle: float | None = None,
                          gamma: float | None = None, tools=(), supports=(), damping: float = 0.0,
-                         gravity=(0.0, 0.0, 0.0), velocity=None, loaded_area: float | None = None) -> DemSimulation:
+                         gravity=(0.0, 0.0, 0.0), velocity=None, loaded_area: float | None = None,
+                         joint: Joint | None = None) -> DemSimulation:
     """Particles at `centers` (m) with `radii` (m) and `density` (kg/m^3), bonded to every
     neighbour within gamma (Ra + Rb), gamma given or chosen for `bonds_per_particle`.
     `damping`: the local non-viscous damping alpha (0 to 1, paper 003 eq. 5). `tools`,
     `supports`: loading.Tool, loading.Support (a support holds the particles it selects).
-    `loaded_area` (m^2): the cross-section the platen stress is taken over."""
+    `loaded_area` (m^2): the cross-section the platen stress is taken over. `joint`: a closed
+    flaw, the bonds across it made smooth joints."""
     centers = np.ascontiguousarray(centers, dtype=float)
     radii = np.asarray(radii, dtype=float)
     if gamma is None:
@@ -35,6 +37,8 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     constraint, projection = support_constraints(supports, centers, scale)
     particles = make_particles(centers, radii, density, constraint, projection, velocity)
     inter = bonds(particles, law, gamma)
+    if joint is not None:
+        inter = with_joints(particles, inter, joint)
     mean_radius = float(np.mean(radii))
     # A particle against a tool: the spring of a bond to a particle of infinite radius,
     # 2 Y R, as the penalty (per area) 2 Y / (pi R_mean) times the particle's area pi R^2.

@@ -12,9 +12,16 @@ An interaction joins particles a and b, n the unit vector from a to b, D their d
            BROKEN   a former bond, purely frictional (|Fs| <= Fn tan_phi) while un >= 0; GONE once
                     it opens;
            CONTACT  a geometric contact (d0 = Ra + Rb): frictional with tan_phi, no force apart;
-           GONE     nothing (a later touch is a new CONTACT).
-The contact point lies on the line of centres at la = D Ra / (Ra + Rb) from a (lb = D - la
-from b), so the pair's moments cancel: torque on a = la (Fs x n), on b = lb (Fs x n).
+           GONE     nothing (a later touch is a new CONTACT);
+           JOINT    a smooth joint (paper 003 section 3, a closed flaw): normal and shear taken
+                    on the flaw's plane, not the line of centres: un grows by the contact point's
+                    relative approach along the flaw normal n_j (incremental, like the shear, so
+                    that the torques of a force off the line of centres do work that the springs
+                    store); frictional (tan_phi) with dilatancy (Fn = kn (un + tan_psi x plastic
+                    slip)); no force while open, never gone.
+The contact point lies on the line of centres e at la = D Ra / (Ra + Rb) from a (lb = D - la
+from b), so the pair's moments cancel: torque on a = la (F x e), on b = lb (F x e), F the force
+on b (only its shear part counts, except at a joint).
 
 Energy: elastic = kn un^2 / 2 + |Fs|^2 / (2 kt) of live interactions; a break books what its
 spring held into `e_damage`, a slip the friction force times the slip into `e_friction`.
@@ -32,7 +39,7 @@ from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
 from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
 
-BONDED, BROKEN, CONTACT, GONE = 0, 1, 2, 3
+BONDED, BROKEN, CONTACT, GONE, JOINT = 0, 1, 2, 3, 4
 
 Particles = namedtuple(
     "Particles",
@@ -42,7 +49,7 @@ Particles = namedtuple(
 Interactions = namedtuple(
     "Interactions",
     "a b state d0 kn kt fn_max cohesion tan_phi shear force moment lever fail_time fail_mode e_damage e_friction "
-    "start entry sign",
+    "start entry sign joint joint_normal joint_un joint_tan_psi joint_slip",
 )
 
 BLOCK = 256  # interactions or particles per parallel task
@@ -75,8 +82,11 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
         ny = dy / dist
         nz = dz / dist
         un = d0[i] - dist
-        fn = kn[i] * un
         k_t = kt[i]
+        if st == JOINT:
+            _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter)
+            continue
+        fn = kn[i] * un
         # The old shear force, turned into the new tangent plane (its magnitude kept).
         sx, sy, sz = shear[i, 0], shear[i, 1], shear[i, 2]
         old = math.sqrt(sx * sx + sy * sy + sz * sz)
@@ -157,6 +167,64 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
         moment[i, 2] = tx * ny - ty * nx
         lever[i, 0] = la
         lever[i, 1] = lb
+
+
+@njit(cache=True, inline="always")
+def _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter):
+    """A smooth-joint interaction (state JOINT): see the module's docstring."""
+    j = inter.joint[i]
+    nx, ny, nz = inter.joint_normal[j, 0], inter.joint_normal[j, 1], inter.joint_normal[j, 2]
+    ex = dx / dist
+    ey = dy / dist
+    ez = dz / dist
+    la = dist * radius[a] / (radius[a] + radius[b])
+    lb = dist - la
+    ox = lb * w[b, 0] + la * w[a, 0]
+    oy = lb * w[b, 1] + la * w[a, 1]
+    oz = lb * w[b, 2] + la * w[a, 2]
+    rx = v[b, 0] - v[a, 0] - (oy * ez - oz * ey)
+    ry = v[b, 1] - v[a, 1] - (oz * ex - ox * ez)
+    rz = v[b, 2] - v[a, 2] - (ox * ey - oy * ex)
+    rn = rx * nx + ry * ny + rz * nz
+    un = inter.joint_un[j] - rn * dt
+    inter.joint_un[j] = un
+    un += inter.joint_tan_psi[j] * inter.joint_slip[j]
+    shear, force, moment, lever = inter.shear, inter.force, inter.moment, inter.lever
+    sx, sy, sz = shear[i, 0], shear[i, 1], shear[i, 2]
+    if un <= 0.0:
+        # Open: no force; the shear spring slides empty.
+        inter.e_friction[i] += _shear_energy(sx, sy, sz, k_t)
+        shear[i, 0] = 0.0
+        shear[i, 1] = 0.0
+        shear[i, 2] = 0.0
+        return
+    tx = sx - k_t * (rx - rn * nx) * dt
+    ty = sy - k_t * (ry - rn * ny) * dt
+    tz = sz - k_t * (rz - rn * nz) * dt
+    fn = inter.kn[i] * un
+    cap = fn * inter.tan_phi[i]
+    trial = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if trial > cap:
+        slip = (trial - cap) / k_t
+        inter.joint_slip[j] += slip
+        inter.e_friction[i] += cap * slip
+        tx *= cap / trial
+        ty *= cap / trial
+        tz *= cap / trial
+    shear[i, 0] = tx
+    shear[i, 1] = ty
+    shear[i, 2] = tz
+    fx = fn * nx + tx
+    fy = fn * ny + ty
+    fz = fn * nz + tz
+    force[i, 0] = fx
+    force[i, 1] = fy
+    force[i, 2] = fz
+    moment[i, 0] = fy * ez - fz * ey
+    moment[i, 1] = fz * ex - fx * ez
+    moment[i, 2] = fx * ey - fy * ex
+    lever[i, 0] = la
+    lever[i, 1] = lb
 
 
 @njit(cache=True, inline="always")

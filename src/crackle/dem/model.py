@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .kernels import BONDED, BROKEN, CONTACT, GONE, Interactions, Particles
+from .kernels import BONDED, BROKEN, CONTACT, GONE, JOINT, Interactions, Particles
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
 # other particles separate.
@@ -90,8 +90,9 @@ def normal_stiffness(law: BondLaw, ra, rb):
 
 
 def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: np.ndarray,
-                 d0: np.ndarray, shear: np.ndarray | None = None) -> Interactions:
-    """Interaction arrays for `pairs` (sorted a < b) in `state`, with their particle CSR."""
+                 d0: np.ndarray, shear: np.ndarray | None = None, joints: dict | None = None) -> Interactions:
+    """Interaction arrays for `pairs` (sorted a < b) in `state`, with their particle CSR.
+    `joints`: the joint_* arrays to carry (none: no joint)."""
     k = len(pairs)
     a, b = pairs[:, 0].copy(), pairs[:, 1].copy()
     ra, rb = particles.radius[a], particles.radius[b]
@@ -109,7 +110,60 @@ def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: n
         force=np.zeros((k, 3)), moment=np.zeros((k, 3)), lever=np.zeros((k, 2)),
         fail_time=np.full(k, np.nan), fail_mode=np.zeros(k, dtype=np.int8),
         e_damage=np.zeros(k), e_friction=np.zeros(k), start=start, entry=entry, sign=sign,
+        **(joints or _no_joints(k)),
     )
+
+
+def _no_joints(k: int) -> dict:
+    # One dummy row keeps the compiled signature the same with and without joints.
+    return dict(joint=np.full(k, -1, dtype=np.int64), joint_normal=np.zeros((1, 3)), joint_un=np.zeros(1),
+                joint_tan_psi=np.zeros(1), joint_slip=np.zeros(1))
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A planar closed flaw as smooth joints (paper 003 section 3): the bonds whose line of
+    centres crosses the flaw's segment become JOINT interactions."""
+
+    center: np.ndarray  # m, on the flaw
+    normal: np.ndarray  # unit normal of the flaw's plane
+    along: np.ndarray  # unit vector along the flaw (in its plane); it runs through along normal x along
+    length: float  # m, along `along`
+    normal_stiffness: float  # Pa/m, Kn_j: kn = Kn_j Aint (eq. 9)
+    shear_stiffness: float  # Pa/m, Kt_j: kt = Kt_j Aint
+    friction_angle: float  # rad, phi_j
+    dilatancy_angle: float  # rad, psi_j
+
+    def crossed(self, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
+        """Which segments a-b cross the flaw (a mask)."""
+        sa = (xa - self.center) @ self.normal
+        sb = (xb - self.center) @ self.normal
+        cross = sa * sb < 0.0
+        t = np.where(cross, sa / np.where(cross, sa - sb, 1.0), 0.0)
+        point = xa + t[:, None] * (xb - xa)
+        return cross & (np.abs((point - self.center) @ self.along) <= 0.5 * self.length)
+
+
+def with_joints(particles: Particles, inter: Interactions, joint: Joint) -> Interactions:
+    """The bonds that cross `joint` turned into smooth joints (no cohesion, the joint's
+    stiffness, friction and dilatancy; normal oriented from a to b). ValueError when none does."""
+    x = particles.x
+    ids = np.flatnonzero(joint.crossed(x[inter.a], x[inter.b]) & (inter.state == BONDED))
+    if len(ids) == 0:
+        raise ValueError("no bond crosses the flaw: check its center, angle and length")
+    rest = x[inter.b[ids]] - x[inter.a[ids]]
+    normal = np.where((rest @ joint.normal)[:, None] >= 0.0, joint.normal, -joint.normal)
+    area = np.pi * np.minimum(particles.radius[inter.a[ids]], particles.radius[inter.b[ids]]) ** 2
+    inter.state[ids] = JOINT
+    inter.kn[ids] = joint.normal_stiffness * area
+    inter.kt[ids] = joint.shear_stiffness * area
+    inter.fn_max[ids] = 0.0
+    inter.cohesion[ids] = 0.0
+    inter.tan_phi[ids] = np.tan(joint.friction_angle)
+    index = np.full(len(inter.a), -1, dtype=np.int64)
+    index[ids] = np.arange(len(ids))
+    return inter._replace(joint=index, joint_normal=np.ascontiguousarray(normal), joint_un=np.zeros(len(ids)),
+                          joint_tan_psi=np.full(len(ids), np.tan(joint.dilatancy_angle)), joint_slip=np.zeros(len(ids)))
 
 
 def _particle_csr(n: int, a: np.ndarray, b: np.ndarray):
@@ -159,9 +213,12 @@ def with_contacts(particles: Particles, law: BondLaw, current: Interactions, n_b
     pairs = np.concatenate([np.stack([current.a[:n_bonds], current.b[:n_bonds]], axis=1), near])
     state = np.concatenate([current.state[:n_bonds], np.full(len(near), CONTACT)])
     d0 = np.concatenate([current.d0[:n_bonds], contact_d0])
-    merged = interactions(particles, law, pairs, state, d0, np.concatenate([current.shear[:n_bonds], shear]))
-    # The bonds' own state (strengths zeroed at failure, failure records, energies) carries over.
-    for name in ("fn_max", "cohesion", "tan_phi", "fail_time", "fail_mode", "e_damage", "e_friction"):
+    joints = dict(joint=np.concatenate([current.joint[:n_bonds], np.full(len(near), -1)]),
+                  **{name: getattr(current, name) for name in ("joint_normal", "joint_un", "joint_tan_psi", "joint_slip")})
+    merged = interactions(particles, law, pairs, state, d0, np.concatenate([current.shear[:n_bonds], shear]), joints)
+    # The bonds' own state (stiffness and strengths of joints, strengths zeroed at failure,
+    # failure records, energies) carries over.
+    for name in ("kn", "kt", "fn_max", "cohesion", "tan_phi", "fail_time", "fail_mode", "e_damage", "e_friction"):
         getattr(merged, name)[:n_bonds] = getattr(current, name)[:n_bonds]
     return merged
 

@@ -19,7 +19,7 @@ from ..loading.build import build_loading, touch_specimen
 from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
-from .model import BondLaw
+from .model import BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres
 from .simulation import DemSimulation
 
@@ -106,8 +106,9 @@ class FlawSpec(Strict):
     """[flaw]: a planar pre-existing crack through the specimen along y (paper 003 sections 4-5),
     a segment of `length` in the x-z plane inclined by `angle` from x (z: the loading axis)."""
 
-    kind: Literal["open"] = "open"
-    """open: the particles that cut the flaw's slot are removed"""
+    kind: Literal["open", "closed"] = "open"
+    """open: the particles that reach into the flaw's slot are removed; closed: the bonds across it become
+    smooth joints (paper 003 section 3)"""
     center: Vec3
     """m, the flaw's middle"""
     angle: float = 0.0
@@ -115,7 +116,20 @@ class FlawSpec(Strict):
     length: Positive
     """m, in the x-z plane (paper 003: 20 % of the sample's height)"""
     aperture: NonNegative = 0.0
-    """m, the slot's width; every particle that reaches into it is removed (0: those the flaw's plane cuts)"""
+    """m, open: the slot's width; every particle that reaches into it is removed (0: those the flaw's plane cuts)"""
+    normal_stiffness: Positive = 5e9
+    """Pa/m, closed: Kn_j, a joint's kn = Kn_j Aint (paper 003 eq. 9; 5 GPa/m in section 5)"""
+    shear_stiffness: Positive = 5e9
+    """Pa/m, closed: Kt_j, a joint's kt = Kt_j Aint"""
+    friction_angle: Annotated[float, Field(ge=0.0, lt=90.0)] = 18.0
+    """degrees, closed: phi_j"""
+    dilatancy_angle: Annotated[float, Field(ge=0.0, lt=90.0)] = 0.0
+    """degrees, closed: psi_j (the normal force grows by kn tan(psi_j) per unit of plastic slip)"""
+
+    def joint(self) -> Joint:
+        along, across = self.axes()
+        return Joint(np.asarray(self.center, float), across, along, self.length, self.normal_stiffness,
+                     self.shear_stiffness, math.radians(self.friction_angle), math.radians(self.dilatancy_angle))
 
     def removed(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Which particles reach into the slot (a mask)."""
@@ -172,8 +186,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         raise ScenarioError("pressures: the DEM has no faces to load; remove [[pressures]]")
     packing = build_packing(scenario, base)
     centers, radii = packing.centers, packing.radii
-    if scenario.flaw is not None:
-        centers, radii = _open_flaw(scenario.flaw, domain_of(scenario.specimen), centers, radii)
+    flaw = scenario.flaw
+    if flaw is not None:
+        _check_inside(flaw, domain_of(scenario.specimen))
+        if flaw.kind == "open":
+            centers, radii = _open_flaw(flaw, centers, radii)
     # A touching platen is placed on the particle furthest along its direction (on its surface).
     tools = [touch_specimen(t, centers - radii[:, None] * _unit(t.direction)) if spec.touch else t
              for t, spec in zip(tools, scenario.all_tools())]
@@ -193,9 +210,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
             centers, radii, mat.density, mat.law(), bonds_per_particle=mat.bonds_per_particle,
             tools=tools, supports=supports, damping=mat.local_damping, gravity=scenario.run.gravity,
             velocity=np.asarray(scenario.specimen.initial_velocity, float), loaded_area=loaded_area,
+            joint=flaw.joint() if flaw is not None and flaw.kind == "closed" else None,
         )
     except ValueError as err:
-        raise ScenarioError(f"material.bonds_per_particle: {err}" if "bonds_per_particle" in str(err) else str(err)) from None
+        field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"
+        raise ScenarioError(f"{field}: {err}") from None
     sim.packing = packing
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
@@ -207,8 +226,7 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _open_flaw(flaw: FlawSpec, domain, centers, radii):
-    """The packing without the particles that reach into an open flaw's slot."""
+def _check_inside(flaw: FlawSpec, domain) -> None:
     if float(domain.signed_distance(np.asarray(flaw.center, float)[None, :])[0]) >= 0.0:
         raise ScenarioError(f"flaw.center {list(flaw.center)} lies outside the specimen")
     along, _ = flaw.axes()
@@ -216,6 +234,10 @@ def _open_flaw(flaw: FlawSpec, domain, centers, radii):
         tip = np.asarray(flaw.center, float) + end * flaw.length * along
         if float(domain.signed_distance(tip[None, :])[0]) >= 0.0:
             raise ScenarioError("flaw.length: the flaw reaches out of the specimen; shorten it or move flaw.center")
+
+
+def _open_flaw(flaw: FlawSpec, centers, radii):
+    """The packing without the particles that reach into an open flaw's slot."""
     removed = flaw.removed(centers, radii)
     if not removed.any():
         raise ScenarioError("flaw: no particle reaches into the flaw; check flaw.center and flaw.length")

@@ -78,15 +78,18 @@ class DemSimulation:
         return bool(np.isfinite(p.x).all() and np.isfinite(p.v).all() and np.isfinite(p.spin).all())
 
     # -- results -------------------------------------------------------------------------------
+    def _failed(self) -> np.ndarray:
+        """Which bonds have failed (a joint never does)."""
+        return np.isfinite(self.inter.fail_time[: self.n_bonds])
+
     @property
     def broken(self) -> int:
-        s = self.inter.state[: self.n_bonds]
-        return int(np.count_nonzero(s != BONDED))
+        return int(np.count_nonzero(self._failed()))
 
     def broken_by_mode(self) -> dict[str, int]:
         from ..solver.failures import MODE_NAMES
 
-        modes = self.inter.fail_mode[: self.n_bonds][self.inter.state[: self.n_bonds] != BONDED]
+        modes = self.inter.fail_mode[: self.n_bonds][self._failed()]
         return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
 
     def _tool_contact(self) -> None:
@@ -106,13 +109,20 @@ class DemSimulation:
         dist = np.linalg.norm(d, axis=1)
         n = d / dist[:, None]
         un = s.d0[live] - dist
-        bonded = s.state[live] == BONDED
-        acting = bonded | (un >= 0.0)
-        kn, kt = s.kn[live], s.kt[live]
         ra, rb = p.radius[a], p.radius[b]
         la = (dist * ra / (ra + rb))[:, None]
         lb = dist[:, None] - la
         rel = p.v[b] - p.v[a] - np.cross(lb * p.spin[b] + la * p.spin[a], n)
+        # A joint: along its flaw's normal, its incremental un carried half a step on, dilatancy.
+        joint = s.joint[live]
+        at_joint = joint >= 0
+        jn = s.joint_normal[joint[at_joint]]
+        n[at_joint] = jn
+        un[at_joint] = (s.joint_un[joint[at_joint]] - 0.5 * dt * np.sum(rel[at_joint] * jn, axis=1)
+                        + s.joint_tan_psi[joint[at_joint]] * s.joint_slip[joint[at_joint]])
+        bonded = s.state[live] == BONDED
+        acting = bonded | (un >= 0.0)
+        kn, kt = s.kn[live], s.kt[live]
         rel -= np.sum(rel * n, axis=1)[:, None] * n
         shear = s.shear[live] - 0.5 * dt * kt[:, None] * rel
         normal = np.where(acting, 0.5 * kn * un**2, 0.0)
@@ -149,7 +159,7 @@ class DemSimulation:
     def new_events(self):
         s = self.inter
         n = self.n_bonds
-        return self._failures.new(s.state[:n] != BONDED, s.fail_time[:n], s.fail_mode[:n],
+        return self._failures.new(self._failed(), s.fail_time[:n], s.fail_mode[:n],
                                   lambda ids: 0.5 * (self.x0[s.a[ids]] + self.x0[s.b[ids]]))
 
     def particle_stress(self) -> np.ndarray:
