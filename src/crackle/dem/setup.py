@@ -216,6 +216,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"
         raise ScenarioError(f"{field}: {err}") from None
     sim.packing = packing
+    sim.sample_volume = domain.volume
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim

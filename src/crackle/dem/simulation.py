@@ -33,6 +33,8 @@ class DemSimulation:
         self.skin = float(skin)
         self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
         self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
+        # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
+        self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.time = 0.0
         self.steps = 0
         self.x0 = particles.x.copy()
@@ -186,6 +188,31 @@ class DemSimulation:
         sym = 0.5 * (sigma + sigma.transpose(0, 2, 1))
         return np.stack([sym[:, 0, 0], sym[:, 1, 1], sym[:, 2, 2], sym[:, 0, 1], sym[:, 1, 2], sym[:, 0, 2]], axis=1)
 
+    def homogenised_stress(self, cell: float | None = None, lower=None, upper=None):
+        """The particle stresses averaged on a grid of cubic cells (paper 003 appendix A, in 3D):
+        per cell, the sum of Vp sigma_p of the particles whose centre lies in it over the cell's
+        volume. `cell` (m): the cell size, default the mean particle diameter; one cell holding
+        the whole sample gives the Love-Weber stress of the assembly. Returns (lower corner (3,),
+        cell, stress (nx, ny, nz, 6) in the order xx yy zz xy yz xz, Pa, tension positive)."""
+        p = self.particles
+        cell = 2.0 * float(np.mean(p.radius)) if cell is None else float(cell)
+        lo = (p.x - p.radius[:, None]).min(axis=0) if lower is None else np.asarray(lower, float)
+        hi = (p.x + p.radius[:, None]).max(axis=0) if upper is None else np.asarray(upper, float)
+        shape = np.maximum(1, np.ceil((hi - lo) / cell - 1e-9).astype(int))
+        index = np.clip(np.floor((p.x - lo) / cell).astype(int), 0, shape - 1)
+        flat = np.ravel_multi_index(index.T, shape)
+        moment = self.particle_stress() * (4.0 / 3.0 * math.pi * p.radius**3)[:, None]
+        grid = np.zeros((int(np.prod(shape)), 6))
+        np.add.at(grid, flat, moment)
+        return lo, cell, grid.reshape(*shape, 6) / cell**3
+
+    def love_weber_stress(self) -> np.ndarray:
+        """The assembly's stress (xx yy zz xy yz xz, Pa): the particles' internal moments over the
+        sample's volume (the packing region), from the bonds and contacts between particles."""
+        p = self.particles
+        moment = self.particle_stress() * (4.0 / 3.0 * math.pi * p.radius**3)[:, None]
+        return moment.sum(axis=0) / self.sample_volume
+
     def fields(self) -> dict:
         p, s = self.particles, self.inter
         n = self.n_bonds
@@ -217,6 +244,7 @@ class DemSimulation:
             "bonds": self.n_bonds,
             "bonds_per_particle": 2.0 * self.n_bonds / n,
             "broken_by_mode": self.broken_by_mode(),
+            "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "warnings": list(self.warnings),
         }
         if self.loaded_area:
