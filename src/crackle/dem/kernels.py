@@ -60,6 +60,21 @@ def _shear_energy(sx, sy, sz, kt):
     return 0.5 * (sx * sx + sy * sy + sz * sz) / kt
 
 
+@njit(cache=True, inline="always")
+def _contact_velocity(v, w, radius, a, b, dist, ex, ey, ez):
+    """The contact point's lever arms (la from a, lb from b, on the line of centres e) and its
+    velocity on b relative to a, spins included."""
+    la = dist * radius[a] / (radius[a] + radius[b])
+    lb = dist - la
+    ox = lb * w[b, 0] + la * w[a, 0]
+    oy = lb * w[b, 1] + la * w[a, 1]
+    oz = lb * w[b, 2] + la * w[a, 2]
+    rx = v[b, 0] - v[a, 0] - (oy * ez - oz * ey)
+    ry = v[b, 1] - v[a, 1] - (oz * ex - ox * ez)
+    rz = v[b, 2] - v[a, 2] - (ox * ey - oy * ex)
+    return la, lb, rx, ry, rz
+
+
 @block_kernel
 def _interaction_block(lo, hi, t, dt, particles, inter):
     x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
@@ -100,14 +115,7 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
             sy *= old / turned
             sz *= old / turned
         # Relative motion of the contact point over the last step, tangential part.
-        la = dist * radius[a] / (radius[a] + radius[b])
-        lb = dist - la
-        ox = lb * w[b, 0] + la * w[a, 0]
-        oy = lb * w[b, 1] + la * w[a, 1]
-        oz = lb * w[b, 2] + la * w[a, 2]
-        rx = v[b, 0] - v[a, 0] - (oy * nz - oz * ny)
-        ry = v[b, 1] - v[a, 1] - (oz * nx - ox * nz)
-        rz = v[b, 2] - v[a, 2] - (ox * ny - oy * nx)
+        la, lb, rx, ry, rz = _contact_velocity(v, w, radius, a, b, dist, nx, ny, nz)
         rn = rx * nx + ry * ny + rz * nz
         ux = (rx - rn * nx) * dt
         uy = (ry - rn * ny) * dt
@@ -177,14 +185,7 @@ def _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter):
     ex = dx / dist
     ey = dy / dist
     ez = dz / dist
-    la = dist * radius[a] / (radius[a] + radius[b])
-    lb = dist - la
-    ox = lb * w[b, 0] + la * w[a, 0]
-    oy = lb * w[b, 1] + la * w[a, 1]
-    oz = lb * w[b, 2] + la * w[a, 2]
-    rx = v[b, 0] - v[a, 0] - (oy * ez - oz * ey)
-    ry = v[b, 1] - v[a, 1] - (oz * ex - ox * ez)
-    rz = v[b, 2] - v[a, 2] - (ox * ey - oy * ex)
+    la, lb, rx, ry, rz = _contact_velocity(v, w, radius, a, b, dist, ex, ey, ez)
     rn = rx * nx + ry * ny + rz * nz
     un = inter.joint_un[j] - rn * dt
     inter.joint_un[j] = un
