@@ -79,7 +79,7 @@ def _contact_velocity(v, w, radius, a, b, dist, ex, ey, ez):
 def _interaction_block(lo, hi, t, dt, particles, inter):
     x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
     a_of, b_of, state, d0, kn, kt = inter.a, inter.b, inter.state, inter.d0, inter.kn, inter.kt
-    shear, force, moment, lever = inter.shear, inter.force, inter.moment, inter.lever
+    shear, force, moment = inter.shear, inter.force, inter.moment
     for i in range(lo, hi):
         for d in range(3):
             force[i, d] = 0.0
@@ -128,11 +128,8 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
             _release(i, t, MODE_TENSION, state, shear, inter)
             continue
         if st != BONDED and un < 0.0:
-            # Apart: no force; the shear spring slides empty (friction), a former bond is gone.
-            inter.e_friction[i] += _shear_energy(sx, sy, sz, k_t)
-            shear[i, 0] = 0.0
-            shear[i, 1] = 0.0
-            shear[i, 2] = 0.0
+            # Apart: no force; a former bond is gone.
+            _slide_empty(i, sx, sy, sz, k_t, inter)
             if st == BROKEN:
                 state[i] = GONE
             continue
@@ -145,36 +142,22 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
             strength = inter.cohesion[i] + cap
             if trial > strength:
                 # Shear failure: in compression the pair goes on rubbing (BROKEN), else it is gone.
-                inter.fail_time[i] = t
-                inter.fail_mode[i] = MODE_SHEAR
                 if fn < 0.0:
                     inter.e_damage[i] += 0.5 * kn[i] * un * un + _shear_energy(tx, ty, tz, k_t)
                     _release(i, t, MODE_SHEAR, state, shear, inter)
                     continue
                 state[i] = BROKEN
+                inter.fail_time[i] = t
+                inter.fail_mode[i] = MODE_SHEAR
                 inter.e_damage[i] += 0.5 * (trial * trial - cap * cap) / k_t
-                tx *= cap / trial
-                ty *= cap / trial
-                tz *= cap / trial
+                tx, ty, tz = _scaled(tx, ty, tz, cap / trial)
         elif trial > cap:
             # Sliding: the cap times the slip (trial - cap) / kt. (The drop of the spring's
             # energy, (trial^2 - cap^2) / (2 kt), would book an extra kt slip^2 / 2 each step:
             # an error of first order in dt over a sliding distance.)
             inter.e_friction[i] += cap * (trial - cap) / k_t
-            tx *= cap / trial
-            ty *= cap / trial
-            tz *= cap / trial
-        shear[i, 0] = tx
-        shear[i, 1] = ty
-        shear[i, 2] = tz
-        force[i, 0] = fn * nx + tx
-        force[i, 1] = fn * ny + ty
-        force[i, 2] = fn * nz + tz
-        moment[i, 0] = ty * nz - tz * ny
-        moment[i, 1] = tz * nx - tx * nz
-        moment[i, 2] = tx * ny - ty * nx
-        lever[i, 0] = la
-        lever[i, 1] = lb
+            tx, ty, tz = _scaled(tx, ty, tz, cap / trial)
+        _store(i, fn, nx, ny, nz, tx, ty, tz, nx, ny, nz, la, lb, inter)
 
 
 @njit(cache=True, inline="always")
@@ -190,14 +173,10 @@ def _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter):
     un = inter.joint_un[j] - rn * dt
     inter.joint_un[j] = un
     un += inter.joint_tan_psi[j] * inter.joint_slip[j]
-    shear, force, moment, lever = inter.shear, inter.force, inter.moment, inter.lever
+    shear = inter.shear
     sx, sy, sz = shear[i, 0], shear[i, 1], shear[i, 2]
     if un <= 0.0:
-        # Open: no force; the shear spring slides empty.
-        inter.e_friction[i] += _shear_energy(sx, sy, sz, k_t)
-        shear[i, 0] = 0.0
-        shear[i, 1] = 0.0
-        shear[i, 2] = 0.0
+        _slide_empty(i, sx, sy, sz, k_t, inter)  # open: no force
         return
     tx = sx - k_t * (rx - rn * nx) * dt
     ty = sy - k_t * (ry - rn * ny) * dt
@@ -209,23 +188,41 @@ def _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter):
         slip = (trial - cap) / k_t
         inter.joint_slip[j] += slip
         inter.e_friction[i] += cap * slip
-        tx *= cap / trial
-        ty *= cap / trial
-        tz *= cap / trial
+        tx, ty, tz = _scaled(tx, ty, tz, cap / trial)
+    _store(i, fn, nx, ny, nz, tx, ty, tz, ex, ey, ez, la, lb, inter)
+
+
+@njit(cache=True, inline="always")
+def _scaled(x, y, z, factor):
+    return x * factor, y * factor, z * factor
+
+
+@njit(cache=True, inline="always")
+def _store(i, fn, nx, ny, nz, tx, ty, tz, ex, ey, ez, la, lb, inter):
+    """The interaction's shear force t, its force on b (fn along n plus t) and the moment of that
+    force about the line of centres e (F x e: the torque on a per unit of la, on b per unit of
+    lb; along e the normal part drops out exactly)."""
+    shear, force, moment = inter.shear, inter.force, inter.moment
     shear[i, 0] = tx
     shear[i, 1] = ty
     shear[i, 2] = tz
-    fx = fn * nx + tx
-    fy = fn * ny + ty
-    fz = fn * nz + tz
-    force[i, 0] = fx
-    force[i, 1] = fy
-    force[i, 2] = fz
-    moment[i, 0] = fy * ez - fz * ey
-    moment[i, 1] = fz * ex - fx * ez
-    moment[i, 2] = fx * ey - fy * ex
-    lever[i, 0] = la
-    lever[i, 1] = lb
+    force[i, 0] = fn * nx + tx
+    force[i, 1] = fn * ny + ty
+    force[i, 2] = fn * nz + tz
+    moment[i, 0] = (ty * ez - tz * ey) + fn * (ny * ez - nz * ey)
+    moment[i, 1] = (tz * ex - tx * ez) + fn * (nz * ex - nx * ez)
+    moment[i, 2] = (tx * ey - ty * ex) + fn * (nx * ey - ny * ex)
+    inter.lever[i, 0] = la
+    inter.lever[i, 1] = lb
+
+
+@njit(cache=True, inline="always")
+def _slide_empty(i, sx, sy, sz, k_t, inter):
+    """No force: the shear spring slides to nothing, its energy booked as friction."""
+    inter.e_friction[i] += _shear_energy(sx, sy, sz, k_t)
+    inter.shear[i, 0] = 0.0
+    inter.shear[i, 1] = 0.0
+    inter.shear[i, 2] = 0.0
 
 
 @njit(cache=True, inline="always")

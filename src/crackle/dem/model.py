@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .kernels import BONDED, BROKEN, CONTACT, GONE, JOINT, Interactions, Particles
+from .kernels import BONDED, CONTACT, GONE, JOINT, Interactions, Particles
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
 # other particles separate.

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 
-from ..loading.loadcell import LoadCell, tool_columns
-from ..loading.tools import tool_contact_totals
+from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
 from .kernels import BONDED, GONE, advance
 from .model import with_contacts
@@ -40,8 +39,7 @@ class DemSimulation:
         self.x0 = particles.x.copy()
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
-        self._tool_force = np.zeros((len(tool_names), 3))
-        self._tool_energy = np.zeros(len(tool_names))
+        self._springs = ToolSprings(tools, tool_names)
         self.load_cell = LoadCell(tools)
         self._failures = FailureRecorder(n_bonds)
         self.warnings: list[str] = []
@@ -94,10 +92,9 @@ class DemSimulation:
         modes = self.inter.fail_mode[: self.n_bonds][self._failed()]
         return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
 
-    def _tool_contact(self) -> None:
+    def _tool_springs(self) -> ToolSprings:
         p = self.particles
-        tool_contact_totals(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction, self.tools, self._tool_force,
-                            self._tool_energy)
+        return self._springs.measure(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction)
 
     def interaction_energy(self, dt: float) -> float:
         """Elastic energy of the live interactions at the mid-step positions x - v dt/2 (which
@@ -137,11 +134,10 @@ class DemSimulation:
 
     def energies(self, dt: float) -> dict[str, float]:
         p = self.particles
-        self._tool_contact()
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": self.interaction_energy(dt),
-            "energy.contact": float(np.sum(self._tool_energy)),
+            "energy.contact": float(np.sum(self._tool_springs().energy)),
             "energy.damage": float(np.sum(self.inter.e_damage)),
             "energy.friction": float(np.sum(self.inter.e_friction) + self._dropped_friction + np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
@@ -150,13 +146,7 @@ class DemSimulation:
 
     def sample(self, dt: float) -> dict[str, float]:
         energies = self.energies(dt)
-
-        def now():
-            self._tool_contact()
-            return self._tool_force.copy()
-
-        forces = self.load_cell.forces(now)
-        return {**tool_columns(self._tool_names, forces, self.tools.disp), **energies, "broken": self.broken}
+        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
 
     def new_events(self):
         s = self.inter

@@ -18,8 +18,7 @@ from ..analysis import (
 from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
 from ..solver.failures import FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
-from ..loading.loadcell import LoadCell, tool_columns
-from ..loading.tools import tool_contact_totals
+from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 from .kernels import advance, interface_energy, tet_energy_and_stress
 from .topology import INTACT, PRECRACK
 from .model import FdemModel
@@ -47,9 +46,7 @@ class FdemSimulation:
         self._stress = np.zeros((model.n_tets, 6))
         self._cohesive = np.zeros(model.n_interfaces)
         self._contact = np.zeros(model.n_interfaces)
-        n_tools = len(model.tool_specs)
-        self._tool_force = np.zeros((n_tools, 3))
-        self._tool_energy = np.zeros(n_tools)
+        self._springs = ToolSprings(model.tools, [t.name for t in model.tool_specs])
         self.load_cell = LoadCell(model.tools)
         self._no_radius = np.zeros(1)  # tet nodes touch tools with their centre
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
@@ -143,19 +140,13 @@ class FdemSimulation:
     def tool_names(self) -> list[str]:
         return [t.name for t in self.model.tool_specs]
 
-    def _tool_contact(self) -> None:
+    def _tool_springs(self) -> ToolSprings:
         n = self.model.nodes
-        tool_contact_totals(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction, self.model.tools,
-                            self._tool_force, self._tool_energy)
+        return self._springs.measure(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction)
 
     def tool_forces(self) -> np.ndarray:
         """Force of each tool on the specimen (N), through the load cell."""
-
-        def now():
-            self._tool_contact()
-            return self._tool_force.copy()
-
-        return self.load_cell.forces(now)
+        return self.load_cell.forces(lambda: self._tool_springs().force.copy())
 
     def energies(self, dt: float) -> dict[str, float]:
         m = self.model
@@ -165,12 +156,12 @@ class FdemSimulation:
         x_mid = nodes.x - 0.5 * dt * nodes.v
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
-        self._tool_contact()
+        tool_energy = self._tool_springs().energy
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),
             "energy.cohesive": float(np.sum(self._cohesive)),
-            "energy.contact": float(np.sum(self._contact) + np.sum(self._tool_energy)) + contact_energy(self.contact),
+            "energy.contact": float(np.sum(self._contact) + np.sum(tool_energy)) + contact_energy(self.contact),
             "energy.damage": float(np.sum(m.ifs.e_damage)),
             "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
             "energy.damping": float(np.sum(nodes.w_damping)),

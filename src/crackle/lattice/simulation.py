@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..loading.loadcell import LoadCell, tool_columns
-from ..loading.tools import tool_contact_totals
+from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
 from .kernels import advance
 
@@ -27,8 +26,7 @@ class LatticeSimulation:
         self.steps = 0
         self.x0 = nodes.x.copy()
         self._radius = np.array([self.radius])
-        self._tool_force = np.zeros((len(tool_names), 3))
-        self._tool_energy = np.zeros(len(tool_names))
+        self._springs = ToolSprings(tools, tool_names)
         self.load_cell = LoadCell(tools)
         self._failures = FailureRecorder(len(springs.a))
         self.warnings: list[str] = []
@@ -46,10 +44,9 @@ class LatticeSimulation:
     def broken(self) -> int:
         return int(np.count_nonzero(~self.springs.intact))
 
-    def _tool_contact(self) -> None:
+    def _tool_springs(self) -> ToolSprings:
         n = self.nodes
-        tool_contact_totals(n.x, self._radius, n.area, n.tool, n.tool_offset, n.friction, self.tools,
-                            self._tool_force, self._tool_energy)
+        return self._springs.measure(n.x, self._radius, n.area, n.tool, n.tool_offset, n.friction)
 
     def _spring_energy(self, x) -> float:
         s = self.springs
@@ -60,11 +57,10 @@ class LatticeSimulation:
         n = self.nodes
         # Potentials at the mid-step positions pair with the half-step velocities.
         x_mid = n.x - 0.5 * dt * n.v
-        self._tool_contact()
         return {
             "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))),
             "energy.elastic": self._spring_energy(x_mid),
-            "energy.contact": float(np.sum(self._tool_energy)),
+            "energy.contact": float(np.sum(self._tool_springs().energy)),
             "energy.damage": float(np.sum(self.springs.e_damage)),
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping)),
@@ -73,13 +69,7 @@ class LatticeSimulation:
 
     def sample(self, dt: float) -> dict[str, float]:
         energies = self.energies(dt)
-
-        def now():
-            self._tool_contact()
-            return self._tool_force.copy()
-
-        forces = self.load_cell.forces(now)
-        return {**tool_columns(self._tool_names, forces, self.tools.disp), **energies, "broken": self.broken}
+        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
 
     def new_events(self):
         s = self.springs

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .arrays import LOAD_CELL_RING
+from .tools import tool_contact_totals
 
 
 class LoadCell:
@@ -56,3 +57,25 @@ def tool_columns(names, forces: np.ndarray, displacements: np.ndarray) -> dict[s
         for axis, k in zip("xyz", range(3)):
             row[f"tool.{name}.u{axis}"] = float(u[k])
     return row
+
+
+class ToolSprings:
+    """The tool springs of a method's contact points (tet nodes, lattice nodes, particles) at
+    output times: their forces and stored energy now (the energy audit's share; the load cell's
+    reading before the first step) and the tool columns of a history row."""
+
+    def __init__(self, tools, names):
+        self.tools = tools
+        self.names = list(names)
+        self.force = np.zeros((len(self.names), 3))  # N, per tool, after `measure`
+        self.energy = np.zeros(len(self.names))  # J, per tool, after `measure`
+
+    def measure(self, x, radius, area, node_tool, node_offset, friction) -> "ToolSprings":
+        """The springs at the points' state (radius: one per point, or one for all)."""
+        tool_contact_totals(x, radius, area, node_tool, node_offset, friction, self.tools, self.force, self.energy)
+        return self
+
+    def columns(self, load_cell: LoadCell, measure) -> dict[str, float]:
+        """tool.NAME.f*/u* of a history row: the load cell's forces (`measure()`, returning this
+        object measured now, before the first step)."""
+        return tool_columns(self.names, load_cell.forces(lambda: measure().force.copy()), self.tools.disp)
