@@ -327,7 +327,7 @@ def test_love_weber_stress_matches_the_platen_stress(tmp_path):
     from crackle.scenario import load_scenario
     from crackle.solver import run
 
-    scenario, _ = load_scenario("dem-ucs", quick=True, overrides=["run.end_time=3e-4", "run.field_frames=0"])
+    scenario, _ = load_scenario("dem-ucs", quick=True, overrides=["run.end_time=3e-4", "run.field_frames=1"])
     sim, control = build_simulation(scenario)
     control.plots = False
     run(sim, control, tmp_path)
@@ -341,3 +341,19 @@ def test_love_weber_stress_matches_the_platen_stress(tmp_path):
     lo, cell, grid = sim.homogenised_stress()
     np.testing.assert_allclose(grid.sum(axis=(0, 1, 2)) * cell**3 / sim.sample_volume, stress, rtol=1e-9,
                                atol=1e-9 * abs(platen))
+    # The grid as ParaView reads it (the run's last frame): hexahedra of one cell each, whose
+    # stresses times their volumes sum to the same tensor, and each holding its particles.
+    import meshio
+
+    frame = meshio.read(sorted((tmp_path / "fields").glob("step_*.vtu"))[-1])
+    hexes = frame.cells_dict["hexahedron"]
+    cell_stress = frame.cell_data_dict["homogenised_stress"]["hexahedron"]
+    corners = frame.points[hexes]
+    np.testing.assert_allclose(np.ptp(corners, axis=1), cell, rtol=1e-9)
+    np.testing.assert_allclose(cell_stress.sum(axis=0) * cell**3 / sim.sample_volume, stress, rtol=1e-6,
+                               atol=1e-6 * abs(platen))
+    n = len(sim.particles.radius)
+    first = corners[:, 0]  # the lower corner of each cell
+    holder = np.all((sim.particles.x[:, None, :] >= first[None] - 1e-12) & (sim.particles.x[:, None, :] < first[None] + cell), axis=2)
+    assert np.all(holder.sum(axis=1) == 1)  # every particle in exactly one cell
+    assert np.all(frame.point_data["radius"][n:] == 0.0)

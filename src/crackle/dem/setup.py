@@ -217,6 +217,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         raise ScenarioError(f"{field}: {err}") from None
     sim.packing = packing
     sim.sample_volume = domain.volume
+    sim.flaw = flaw
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim

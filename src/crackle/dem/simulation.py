@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ..analysis.flaw import initiation_along_flaw
+from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
 from .kernels import BONDED, GONE, advance
@@ -32,6 +34,7 @@ class DemSimulation:
         self.skin = float(skin)
         self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
         self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
+        self.flaw = None  # the scenario's [flaw] (setup.FlawSpec), if any
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.time = 0.0
@@ -204,17 +207,30 @@ class DemSimulation:
         return moment.sum(axis=0) / self.sample_volume
 
     def fields(self) -> dict:
+        """The particles (points) with their bonds (lines, cell_kind 0), and the homogenised
+        stress on its grid of cells one mean diameter wide (hexahedra, cell_kind 1; their corner
+        points carry radius 0 and zero particle fields)."""
         p, s = self.particles, self.inter
         n = self.n_bonds
+        lo, cell, grid = self.homogenised_stress()
+        corners, hexes = _grid_cells(lo, cell, grid.shape[:3])
+        n_particles = len(p.x)
+        hexes += n_particles
+
+        def padded(values):
+            values = np.asarray(values)
+            return np.concatenate([values, np.zeros((len(corners), *values.shape[1:]), values.dtype)])
+
         return {
-            "points": p.x,
+            "points": np.concatenate([p.x, corners]),
             "point_data": {
-                "displacement": p.x - self.x0, "velocity": p.v, "spin": p.spin, "radius": p.radius,
-                "stress": self.particle_stress(),
+                "displacement": padded(p.x - self.x0), "velocity": padded(p.v), "spin": padded(p.spin),
+                "radius": padded(p.radius), "stress": padded(self.particle_stress()),
             },
-            "component_names": {"stress": ["xx", "yy", "zz", "xy", "yz", "xz"]},
+            "component_names": {"stress": STRESS_COMPONENTS, "homogenised_stress": STRESS_COMPONENTS},
             "blocks": [("line", np.stack([s.a[:n], s.b[:n]], axis=1),
-                        {"intact": (s.state[:n] == BONDED).astype(np.int64), "state": s.state[:n].astype(np.int64)})],
+                        {"intact": (s.state[:n] == BONDED).astype(np.int64), "state": s.state[:n].astype(np.int64)}),
+                       ("hexahedron", hexes, {"homogenised_stress": grid.reshape(-1, 6)})],
         }
 
     def describe(self) -> str:
@@ -237,6 +253,13 @@ class DemSimulation:
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "warnings": list(self.warnings),
         }
+        if self.flaw is not None and self.broken:
+            failed = np.flatnonzero(self._failed())
+            s = self.inter
+            along, across = self.flaw.axes()
+            out["flaw_initiation"] = initiation_along_flaw(0.5 * (self.x0[s.a[failed]] + self.x0[s.b[failed]]),
+                                                           s.fail_time[failed], self.flaw.center, along, across,
+                                                           self.flaw.length)
         if self.loaded_area:
             peaks = self.load_cell.peaks()[0]
             out["loaded_area"] = self.loaded_area
@@ -249,3 +272,17 @@ class DemSimulation:
 
     def extra_plots(self, out_dir) -> None:
         pass
+
+
+def _grid_cells(lower, cell: float, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The corner points and the hexahedra (VTK order) of a grid of `shape` cubic cells from
+    `lower`, the cells in C order of their (i, j, k) index as homogenised_stress gives them."""
+    nx, ny, nz = (int(v) for v in shape)
+    i, j, k = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij")
+    corners = np.asarray(lower, float) + cell * np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1)
+    node = np.arange((nx + 1) * (ny + 1) * (nz + 1)).reshape(nx + 1, ny + 1, nz + 1)
+    base = node[:nx, :ny, :nz]
+    dx, dy, dz = (ny + 1) * (nz + 1), nz + 1, 1
+    offsets = [0, dx, dx + dy, dy, dz, dx + dz, dx + dy + dz, dy + dz]
+    hexes = base.reshape(-1, 1) + np.array(offsets)
+    return corners, hexes.astype(np.int64)

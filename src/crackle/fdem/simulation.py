@@ -16,6 +16,7 @@ from ..analysis import (
     tip_and_plastic_zone,
 )
 from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
+from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
@@ -25,7 +26,6 @@ from .model import FdemModel
 
 
 # Columns of the Cauchy stress per tet in the fields (Pa).
-STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
 
 # Longest run of steps between two checks of the contact surface: new fracture faces take part in
 # surface contact at most this many steps after they fail.

@@ -10,6 +10,10 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
+# The column order of every symmetric tensor crackle writes (Voigt order, as in Abaqus' output
+# except for the shear order), named in ParaView through `component_names`.
+STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
+
 
 def _as_table(name: str, values, length: int) -> np.ndarray:
     """(length,) or (length, k) array; 3x3 tensors are flattened to 9 components."""
