@@ -16,6 +16,7 @@ METHODS = {
     "fdem": "crackle.fdem",
     "lattice": "crackle.lattice",
     "dem": "crackle.dem",
+    "meshfree": "crackle.meshfree",
 }
 
 

@@ -1,0 +1,8 @@
+"""Meshfree EFG particles through the wall of thin shells (paper 000): moving least-squares shape
+functions with a quadratic basis and the quartic spline kernel in material coordinates, nodal
+integration with a link stabilisation, explicit dynamics, J2 elasto-visco-plasticity. Fracture
+by link breaking is not there yet (issue 14)."""
+
+from .setup import Scenario, build_simulation
+
+__all__ = ["Scenario", "build_simulation"]

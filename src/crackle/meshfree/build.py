@@ -1,0 +1,100 @@
+"""A MeshfreeSimulation from particles, a material and the shared loads: what the scenario set-up
+and the tests both call."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
+from ..solver.integrator import support_constraints
+from .kernels import BLOCK, Links, Particles
+from .material import J2Law
+from .particles import PlateParticles
+from .shape import MAX_CONDITION, basis_terms, neighbour_links, quartic_spline_array, shape_functions
+from .simulation import MeshfreeSimulation
+
+
+class SetupError(ValueError):
+    """A discretisation that cannot run; `field` is the scenario key to change."""
+
+    def __init__(self, field: str, message: str):
+        super().__init__(message)
+        self.field = field
+
+
+def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law, dilation: float = 2.5,
+                              stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
+                              gravity=(0.0, 0.0, 0.0), velocity=None) -> MeshfreeSimulation:
+    """The particles of `plate` with support radius dilation x the largest grid step, the
+    material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
+    supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
+    (m/s^2) and an initial `velocity` (m/s, one for all or one per particle)."""
+    X = np.ascontiguousarray(plate.X, dtype=float)
+    n = len(X)
+    radius = dilation * float(np.max(plate.spacing))
+    start, neighbour, mirror = neighbour_links(X, radius)
+    value, grad, condition = shape_functions(X, plate.volume, start, neighbour, radius,
+                                             basis_terms(plate.thickness_axis, plate.layers))
+    bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
+    if bad.any():
+        worst = int(np.flatnonzero(bad)[0])
+        raise SetupError("particles.dilation", (
+            f"{int(bad.sum())} particle(s) (the first at {X[worst].round(6).tolist()} m, with "
+            f"{int(start[worst + 1] - start[worst])} neighbours) have a singular moment matrix: the support radius "
+            f"{dilation:g} x {np.max(plate.spacing):.3g} m holds too few neighbours for the quadratic basis; "
+            f"increase particles.dilation (2.5 or more)"))
+    row = np.repeat(np.arange(n), np.diff(start))
+    dX = X[neighbour] - X[row]
+    dist2 = np.einsum("ij,ij->i", dX, dX)
+    weight = quartic_spline_array(np.sqrt(dist2) / radius)
+    spread = np.bincount(row, weights=weight * dist2, minlength=n)
+    table = law.table()
+    stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
+    links = Links(start, neighbour, mirror, value, grad, stiffness, np.zeros((len(neighbour), 3)))
+    scale = float(np.max(np.ptp(X, axis=0)))
+    constraint, projection = support_constraints(supports, X, scale)
+    mass = density * plate.volume
+    v = np.zeros((n, 3))
+    if velocity is not None:
+        v[:] = np.asarray(velocity, dtype=float)
+    particles = Particles(
+        x=X.copy(), v=v, X=X, mass=mass, volume=plate.volume.copy(), area=plate.area.copy(), constraint=constraint,
+        projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
+        friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
+        plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
+        deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_sum=np.zeros((n, 3)),
+    )
+    h = float(np.min(plate.spacing))
+    penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
+    tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
+    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    dt = stable_step(particles, links, row, dX, table, tool_k)
+    c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
+    return MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
+                              gravity, damping, plate)
+
+
+def stable_step(particles, links, row, dX, law_table, tool_k) -> float:
+    """2 / omega_max with omega_max^2 bounded by Gershgorin's theorem on the mass-scaled
+    stiffness of the linearised step (block norms): the nodal-integration stiffness
+    sum_I V_I C grad N_L(X_I) grad N_M(X_I) (|C| <= 3 lambda + 2 mu), the stabilisation's
+    Hessian and the tool penalties. A bound, so the step is stable whatever the mode (measured
+    in tests/test_meshfree.py against the highest frequency found)."""
+    n = len(particles.mass)
+    start, neighbour, grad, k = links.start, links.neighbour, links.grad, links.stiffness
+    inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
+    gn = np.linalg.norm(grad, axis=1)
+    c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
+    # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
+    G = np.bincount(row, weights=gn * inv_sqrt_m[neighbour], minlength=n)
+    elastic = c_norm * np.bincount(neighbour, weights=particles.volume[row] * gn * G[row], minlength=n)
+    # Stabilisation: d eps_IJ / d x_M = delta_JM - delta_IM - grad N_M(X_I) . dX_IJ, bounded row by row.
+    dlen = np.linalg.norm(dX, axis=1)
+    s = inv_sqrt_m[neighbour] + inv_sqrt_m[row] + dlen * G[row]
+    Z = np.bincount(row, weights=k * s * dlen, minlength=n)
+    stab = (np.bincount(neighbour, weights=k * s, minlength=n) + np.bincount(row, weights=k * s, minlength=n)
+            + np.bincount(neighbour, weights=gn * Z[row], minlength=n))
+    omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
+    return float(2.0 / math.sqrt(np.max(omega2)))

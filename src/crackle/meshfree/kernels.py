@@ -1,0 +1,235 @@
+"""The compiled step of the meshfree (EFG) method: a pass over the particles that computes each
+one's deformation gradient from its links, its stress (material.stress_update) and its
+stabilisation, then a pass over the particles that gathers their forces from the links of their
+neighbours and calls the shared tool contact (loading.tools) and node update (solver.integrator).
+No races: the first pass writes only the particle's own rows and the rows of its own links, the
+second reads them in the fixed CSR order.
+
+Nodal integration (the particles are the quadrature points, weight = nodal volume V):
+  F_I = I + sum_J u_J (x) grad N_J(X_I)                      (u = x - X, the nodal displacements)
+  f_L = - sum_{I ~ L} V_I P_I grad N_L(X_I)                  (P = F S, first Piola-Kirchhoff)
+Nodal integration alone has zero-energy modes (a field oscillating from particle to particle that
+no particle's gradient sees). The stabilisation penalises, link by link, the part of the relative
+motion of two neighbours that the particle's own F does not explain,
+  eps_IJ = (x_J - x_I) - F_I (X_J - X_I),   energy (1/2) sum_I sum_J k_IJ |eps_IJ|^2,
+k_IJ = alpha E V_I w_IJ / (sum_J w_IJ |X_J - X_I|^2) (alpha = particles.stabilisation, w the
+kernel weights): a strain energy density alpha E |eps / dX|^2 / 2 averaged over the support. It
+is zero for every linear displacement field and every rigid motion (the patch test is
+untouched), it is a true potential (its forces are its exact derivative, so the energy audit
+holds it: `energy.stabilisation`), and it stiffens exactly the modes nodal integration leaves
+free (after Ganzenmueller's hourglass control of total-Lagrangian SPH). Its force on L:
+  f_L += q_L - sum_{I ~ L} (k_IL eps_IL - M_I grad N_L(X_I)),
+  q_I = sum_J k_IJ eps_IJ,  M_I = sum_J k_IJ eps_IJ (x) (X_J - X_I),
+so the first pass stores T_I = V_I P_I - M_I and q_I and every link's k eps.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..solver.integrator import block_kernel, move, update_velocity
+from .material import stress_update
+
+Particles = namedtuple(
+    "Particles",
+    "x v X mass volume area constraint projection tool tool_offset friction d_friction w_external w_damping "
+    "plastic eq_plastic w_plastic stress deformation internal stab_sum",
+)
+# start, neighbour: the CSR of each particle's links (itself included); mirror: the position of
+# the reverse link; value, grad: N_J(X_I), grad N_J(X_I); stiffness: k_IJ; stab_force: k eps.
+Links = namedtuple("Links", "start neighbour mirror value grad stiffness stab_force")
+
+BLOCK = 128  # particles per parallel task
+
+
+@block_kernel
+def _stress_block(lo, hi, dt, p, links, law):
+    x, X, start, neighbour, grad = p.x, p.X, links.start, links.neighbour, links.grad
+    k_link, stab_force = links.stiffness, links.stab_force
+    for i in range(lo, hi):
+        f00 = 1.0
+        f01 = 0.0
+        f02 = 0.0
+        f10 = 0.0
+        f11 = 1.0
+        f12 = 0.0
+        f20 = 0.0
+        f21 = 0.0
+        f22 = 1.0
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            ux = x[j, 0] - X[j, 0]
+            uy = x[j, 1] - X[j, 1]
+            uz = x[j, 2] - X[j, 2]
+            g0 = grad[r, 0]
+            g1 = grad[r, 1]
+            g2 = grad[r, 2]
+            f00 += ux * g0
+            f01 += ux * g1
+            f02 += ux * g2
+            f10 += uy * g0
+            f11 += uy * g1
+            f12 += uy * g2
+            f20 += uz * g0
+            f21 += uz * g1
+            f22 += uz * g2
+        # Green-Lagrange strain E = (F^T F - I) / 2.
+        e0 = 0.5 * (f00 * f00 + f10 * f10 + f20 * f20 - 1.0)
+        e1 = 0.5 * (f01 * f01 + f11 * f11 + f21 * f21 - 1.0)
+        e2 = 0.5 * (f02 * f02 + f12 * f12 + f22 * f22 - 1.0)
+        e3 = 0.5 * (f00 * f01 + f10 * f11 + f20 * f21)
+        e4 = 0.5 * (f01 * f02 + f11 * f12 + f21 * f22)
+        e5 = 0.5 * (f00 * f02 + f10 * f12 + f20 * f22)
+        s0, s1, s2, s3, s4, s5, work = stress_update(i, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, dt, law)
+        vol = p.volume[i]
+        if work != 0.0:
+            p.w_plastic[i] += vol * work
+        st = p.stress
+        st[i, 0] = s0
+        st[i, 1] = s1
+        st[i, 2] = s2
+        st[i, 3] = s3
+        st[i, 4] = s4
+        st[i, 5] = s5
+        d = p.deformation
+        d[i, 0] = f00
+        d[i, 1] = f01
+        d[i, 2] = f02
+        d[i, 3] = f10
+        d[i, 4] = f11
+        d[i, 5] = f12
+        d[i, 6] = f20
+        d[i, 7] = f21
+        d[i, 8] = f22
+        # Stabilisation: each link's unexplained relative motion eps = dx - F dX.
+        qx = 0.0
+        qy = 0.0
+        qz = 0.0
+        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            dX0 = X[j, 0] - X[i, 0]
+            dX1 = X[j, 1] - X[i, 1]
+            dX2 = X[j, 2] - X[i, 2]
+            k = k_link[r]
+            ex = k * (x[j, 0] - x[i, 0] - (f00 * dX0 + f01 * dX1 + f02 * dX2))
+            ey = k * (x[j, 1] - x[i, 1] - (f10 * dX0 + f11 * dX1 + f12 * dX2))
+            ez = k * (x[j, 2] - x[i, 2] - (f20 * dX0 + f21 * dX1 + f22 * dX2))
+            stab_force[r, 0] = ex
+            stab_force[r, 1] = ey
+            stab_force[r, 2] = ez
+            qx += ex
+            qy += ey
+            qz += ez
+            m00 += ex * dX0
+            m01 += ex * dX1
+            m02 += ex * dX2
+            m10 += ey * dX0
+            m11 += ey * dX1
+            m12 += ey * dX2
+            m20 += ez * dX0
+            m21 += ez * dX1
+            m22 += ez * dX2
+        p.stab_sum[i, 0] = qx
+        p.stab_sum[i, 1] = qy
+        p.stab_sum[i, 2] = qz
+        # T = V P - M with P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2).
+        t = p.internal
+        t[i, 0] = vol * (f00 * s0 + f01 * s3 + f02 * s5) - m00
+        t[i, 1] = vol * (f00 * s3 + f01 * s1 + f02 * s4) - m01
+        t[i, 2] = vol * (f00 * s5 + f01 * s4 + f02 * s2) - m02
+        t[i, 3] = vol * (f10 * s0 + f11 * s3 + f12 * s5) - m10
+        t[i, 4] = vol * (f10 * s3 + f11 * s1 + f12 * s4) - m11
+        t[i, 5] = vol * (f10 * s5 + f11 * s4 + f12 * s2) - m12
+        t[i, 6] = vol * (f20 * s0 + f21 * s3 + f22 * s5) - m20
+        t[i, 7] = vol * (f20 * s3 + f21 * s1 + f22 * s4) - m21
+        t[i, 8] = vol * (f20 * s5 + f21 * s4 + f22 * s2) - m22
+
+
+@block_kernel
+def _particle_block(lo, hi, slot, dt, p, links, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
+    x, v, mass = p.x, p.v, p.mass
+    start, neighbour, mirror, grad, stab_force, t = (links.start, links.neighbour, links.mirror, links.grad,
+                                                     links.stab_force, p.internal)
+    force_slots = tools.force_slots
+    n_tool = tools.kind.shape[0]
+    for g in range(lo, hi):
+        fx = p.stab_sum[g, 0]
+        fy = p.stab_sum[g, 1]
+        fz = p.stab_sum[g, 2]
+        for r in range(start[g], start[g + 1]):
+            i = neighbour[r]
+            back = mirror[r]  # the link (i, g): grad N_g(X_i) and k eps of i towards g
+            g0 = grad[back, 0]
+            g1 = grad[back, 1]
+            g2 = grad[back, 2]
+            fx -= t[i, 0] * g0 + t[i, 1] * g1 + t[i, 2] * g2 + stab_force[back, 0]
+            fy -= t[i, 3] * g0 + t[i, 4] * g1 + t[i, 5] * g2 + stab_force[back, 1]
+            fz -= t[i, 6] * g0 + t[i, 7] * g1 + t[i, 8] * g2 + stab_force[back, 2]
+        m = mass[g]
+        cx, cy, cz, tool_work = contact_with_tools(
+            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, p.area[g], dt, slot, tools, n_tool,
+            force_slots, tool_v_prev, tool_v_next, p.tool, p.tool_offset, p.friction, p.d_friction,
+        )
+        update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
+                        m, alpha, dt, p.constraint, p.projection, p.w_external, p.w_damping)
+        move(g, x, v, dt)
+
+
+@njit(parallel=True, cache=True)
+def advance(n_steps, first_step, dt, particles, links, law, tools, radius, gravity, alpha):
+    """n_steps central-difference steps from step number first_step (time first_step x dt, the
+    same however a run is split into calls); arrays updated in place."""
+    n_tool = tools.kind.shape[0]
+    n = particles.x.shape[0]
+    n_block = (n + BLOCK - 1) // BLOCK
+    tool_v_prev = np.zeros((max(n_tool, 1), 3))
+    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    for step in range(n_steps):
+        t = (first_step + step) * dt
+        tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
+        for blk in prange(n_block):
+            lo = blk * BLOCK
+            _stress_block(lo, min(lo + BLOCK, n), dt, particles, links, law)
+        for blk in prange(n_block):
+            lo = blk * BLOCK
+            _particle_block(lo, min(lo + BLOCK, n), blk, dt, particles, links, tools, tool_v_prev, tool_v_next,
+                            radius, gravity, alpha)
+        load_cell_step((first_step + step + 1) * dt, tools)
+        move_tools(dt, tools, tool_v_next)
+
+
+@njit(parallel=True, cache=True)
+def strain_energies(x, X, volume, plastic, start, neighbour, grad, stiffness, law, elastic, stabilisation):
+    """Per particle, at positions x: the elastic energy V (E - Ep) : C : (E - Ep) / 2 with its
+    current plastic strain, and its links' stabilisation energy sum_J k |eps|^2 / 2 (J)."""
+    lam, mu = law[0], law[1]
+    for i in prange(x.shape[0]):
+        F = np.eye(3)
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            for a in range(3):
+                for b in range(3):
+                    F[a, b] += (x[j, a] - X[j, a]) * grad[r, b]
+        C = F.T @ F
+        e0 = 0.5 * (C[0, 0] - 1.0) - plastic[i, 0]
+        e1 = 0.5 * (C[1, 1] - 1.0) - plastic[i, 1]
+        e2 = 0.5 * (C[2, 2] - 1.0) - plastic[i, 2]
+        e3 = 0.5 * C[0, 1] - plastic[i, 3]
+        e4 = 0.5 * C[1, 2] - plastic[i, 4]
+        e5 = 0.5 * C[0, 2] - plastic[i, 5]
+        tr = e0 + e1 + e2
+        elastic[i] = volume[i] * (0.5 * lam * tr * tr + mu * (e0 * e0 + e1 * e1 + e2 * e2
+                                                              + 2.0 * (e3 * e3 + e4 * e4 + e5 * e5)))
+        acc = 0.0
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            for a in range(3):
+                d = x[j, a] - x[i, a] - (F[a, 0] * (X[j, 0] - X[i, 0]) + F[a, 1] * (X[j, 1] - X[i, 1])
+                                         + F[a, 2] * (X[j, 2] - X[i, 2]))
+                acc += d * d * stiffness[r]
+        stabilisation[i] = 0.5 * acc

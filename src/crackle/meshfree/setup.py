@@ -1,0 +1,121 @@
+"""The meshfree method's scenario sections and the build of a scenario into a MeshfreeSimulation.
+
+[specimen] a box (FDEM's keys; its thinnest side is the wall thickness) filled by [particles]
+(an in-plane spacing, particles through the thickness, the support's dilation factor and the
+stabilisation of nodal integration); [material] the elastic constants and the J2
+elasto-visco-plastic law of paper 000 eqs 14-15. Tools, supports, run control and outputs are
+the shared ones.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from ..loading.build import build_loading
+from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Specimen
+from ..schema import NonNegative, Positive, PositiveOrInf, Strict
+from .build import SetupError, build_meshfree_simulation
+from .material import J2Law
+from .particles import plate_particles
+from .simulation import MeshfreeSimulation
+
+
+class MeshfreeSpecimen(Specimen):
+    """[specimen]: the plate the particles fill (FDEM's box keys; no element size)."""
+
+    shape: Literal["box", "beam"]
+    """box and beam: size, origin; the thinnest side is the wall thickness"""
+
+    @model_validator(mode="after")
+    def _needs(self):
+        if self.size is None:
+            raise ValueError(f"shape '{self.shape}' needs size")
+        if self.element_size is not None:
+            raise ValueError("element_size is not used by the meshfree method: the particle spacing is particles.spacing")
+        if "layers" in self.model_fields_set:
+            raise ValueError("layers: the meshfree method's particles through the thickness are particles.layers")
+        if any(w != 0.0 for w in self.angular_velocity):
+            raise ValueError("angular_velocity: not available for the meshfree method yet (initial_velocity is)")
+        return self
+
+
+class ParticlesSpec(Strict):
+    """[particles]: the EFG particles filling the specimen and their shape functions."""
+
+    spacing: Positive
+    """m, between neighbouring particles along the in-plane sides (adjusted to fit the sides exactly)"""
+    layers: int = 3
+    """particles through the wall thickness (on both faces and evenly between): 2 or 3 as in paper 000; with 2
+    the quadratic basis drops the square of the through-thickness coordinate"""
+    dilation: Positive = 2.5
+    """support radius / the largest particle step (in-plane or through the thickness): the quadratic basis needs
+    2.5 or more (below that, edge and corner particles see too few neighbours: a singular moment matrix)"""
+    stabilisation: NonNegative = 0.1
+    """alpha: the penalty on the relative motion of linked particles that their deformation gradient does not
+    explain (the zero-energy modes of nodal integration), a stiffness alpha E per link; 0: off"""
+
+    @field_validator("layers")
+    @classmethod
+    def _enough_layers(cls, n):
+        if n < 2:
+            raise ValueError(f"layers = {n}: at least 2 particles through the thickness are needed for a gradient "
+                             "through it (paper 000 uses 2-3)")
+        return n
+
+
+class MeshfreeMaterial(ElasticSpec):
+    """[material]: density, elastic constants and the J2 elasto-visco-plastic law (paper 000 eqs 14-15):
+    flow stress yield_stress (1 + ep / reference_plastic_strain)^hardening_exponent
+    (1 + rate / reference_strain_rate)^rate_exponent."""
+
+    yield_stress: PositiveOrInf = math.inf
+    """Pa, sigma0: the initial yield stress (inf: elastic)"""
+    reference_plastic_strain: Positive = 1.0
+    """ep0 of eq. 14; with hardening_exponent 1 the hardening modulus is yield_stress / it"""
+    hardening_exponent: Annotated[float, Field(ge=0.0)] = 0.0
+    """1/n of eq. 14 (0: perfectly plastic, 1: linear hardening)"""
+    reference_strain_rate: Positive = 1.0
+    """1/s, the reference plastic strain rate of eq. 15"""
+    rate_exponent: Annotated[float, Field(ge=0.0)] = 0.0
+    """1/m of eq. 15, the strain-rate sensitivity (0: rate independent)"""
+
+    def law(self) -> J2Law:
+        return J2Law(self.youngs_modulus, self.poissons_ratio, self.yield_stress, self.reference_plastic_strain,
+                     self.hardening_exponent, self.reference_strain_rate, self.rate_exponent)
+
+
+class Scenario(ScenarioBase):
+    method: Literal["meshfree"]
+    """picks this method"""
+    specimen: MeshfreeSpecimen
+    """the plate the particles fill"""
+    particles: ParticlesSpec
+    """the particles and their shape functions"""
+    material: MeshfreeMaterial
+    """elastic constants and the J2 law"""
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
+    tools, supports, pressures = build_loading(scenario, base)
+    if pressures:
+        raise ScenarioError("pressures: not available for the meshfree method yet; remove [[pressures]]")
+    spec, particles = scenario.specimen, scenario.particles
+    try:
+        plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
+    except ValueError as err:
+        raise ScenarioError(f"particles.{err}") from None
+    mat = scenario.material
+    try:
+        return build_meshfree_simulation(
+            plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
+            tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
+            velocity=spec.initial_velocity,
+        )
+    except SetupError as err:
+        raise ScenarioError(f"{err.field}: {err}") from None
+    except ValueError as err:
+        raise ScenarioError(f"supports: {err}") from None

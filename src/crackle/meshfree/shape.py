@@ -1,0 +1,185 @@
+"""Moving least-squares (MLS) shape functions of the element-free Galerkin method (paper 000
+eqs 5-9), evaluated once at set-up at the particles themselves (nodal integration) and stored per
+neighbour link in CSR arrays, so that the step only gathers.
+
+For the particle I at X_I and each neighbour J within the support radius R (the links of row I):
+  N_J(X_I) = V_J w_J p(xi_J) . A^-1 p(0)          A = sum_J V_J w_J p(xi_J) p(xi_J)^T
+where xi_J = (X_J - X_I) / R (the basis centred on X_I and scaled by R keeps A well conditioned),
+V_J the nodal volume (eq. 8 puts it in the weights), w the quartic spline of s = |X_J - X_I| / R
+(eq. 9; material coordinates: the links never change with the motion), and p the quadratic basis
+  1, xi_x, xi_y, xi_z, xi_x^2, xi_y^2, xi_z^2, xi_x xi_y, xi_y xi_z, xi_x xi_z
+(with two particles through a wall, the square of the through-thickness coordinate is dropped:
+it is not independent of 1 and that coordinate on two planes). The gradient at X_I follows from
+differentiating with the basis centre held fixed: A grad(gamma) = grad p(0) - grad(A) gamma,
+gamma = A^-1 p(0), so that
+  grad N_J(X_I) = V_J (grad w_J (p_J . gamma) + w_J (p_J . grad gamma)).
+Both reproduce every field of the basis exactly: values and gradients of linear fields to
+rounding (tests/test_meshfree.py, the patch test).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+from scipy.spatial import cKDTree
+
+FULL_BASIS = np.arange(10, dtype=np.int64)
+# A moment matrix whose 2-norm condition number exceeds this is taken as singular.
+MAX_CONDITION = 1e10
+
+
+@njit(cache=True, inline="always")
+def quartic_spline(s):
+    """w(s) = 1 - 6 s^2 + 8 s^3 - 3 s^4 for s <= 1, else 0 (paper 000 eq. 9), and dw/ds."""
+    if s >= 1.0:
+        return 0.0, 0.0
+    return 1.0 - s * s * (6.0 - s * (8.0 - 3.0 * s)), -12.0 * s + 24.0 * s * s - 12.0 * s * s * s
+
+
+def basis_terms(thickness_axis: int, layers: int) -> np.ndarray:
+    """Indices of the quadratic basis terms used: all 10, or without the square of the
+    through-thickness coordinate (term 4 + axis) with only two particles through the wall."""
+    if layers >= 3:
+        return FULL_BASIS.copy()
+    return np.array([k for k in range(10) if k != 4 + thickness_axis], dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def _basis(xi0, xi1, xi2, terms, p):
+    full0 = 1.0
+    for k in range(terms.shape[0]):
+        t = terms[k]
+        if t == 0:
+            p[k] = full0
+        elif t == 1:
+            p[k] = xi0
+        elif t == 2:
+            p[k] = xi1
+        elif t == 3:
+            p[k] = xi2
+        elif t == 4:
+            p[k] = xi0 * xi0
+        elif t == 5:
+            p[k] = xi1 * xi1
+        elif t == 6:
+            p[k] = xi2 * xi2
+        elif t == 7:
+            p[k] = xi0 * xi1
+        elif t == 8:
+            p[k] = xi1 * xi2
+        else:
+            p[k] = xi0 * xi2
+
+
+@njit(parallel=True, cache=True)
+def _shape_functions(X, volume, start, neighbour, radius, terms, value, grad, condition):
+    """value[r] = N_J(X_I), grad[r] = grad N_J(X_I) for every link r = (I, J) of row I;
+    condition[I]: the 2-norm condition number of I's moment matrix (inf when singular; then
+    I's rows are left zero). Each particle writes only its own rows: thread-count independent."""
+    n = X.shape[0]
+    m = terms.shape[0]
+    for i in prange(n):
+        A = np.zeros((m, m))
+        dA = np.zeros((3, m, m))
+        p = np.zeros(m)
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            xi0 = (X[j, 0] - X[i, 0]) / radius
+            xi1 = (X[j, 1] - X[i, 1]) / radius
+            xi2 = (X[j, 2] - X[i, 2]) / radius
+            s = np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2)
+            w, dw = quartic_spline(s)
+            if w <= 0.0:
+                continue
+            _basis(xi0, xi1, xi2, terms, p)
+            vw = volume[j] * w
+            # d w(|x - X_J| / R) / d x at x = X_I: dw/ds (X_I - X_J) / (R |X_I - X_J|) = -dw xi / (R s).
+            g0 = g1 = g2 = 0.0
+            if s > 0.0:
+                c = -volume[j] * dw / (radius * s)
+                g0 = c * xi0
+                g1 = c * xi1
+                g2 = c * xi2
+            for a in range(m):
+                for b in range(m):
+                    pp = p[a] * p[b]
+                    A[a, b] += vw * pp
+                    dA[0, a, b] += g0 * pp
+                    dA[1, a, b] += g1 * pp
+                    dA[2, a, b] += g2 * pp
+        cond = np.linalg.cond(A)
+        condition[i] = cond
+        if not np.isfinite(cond) or cond > MAX_CONDITION:
+            continue
+        Ainv = np.linalg.inv(A)
+        gamma = Ainv[:, 0].copy()  # A^-1 p(0), p(0) = e_0
+        dgamma = np.zeros((3, m))
+        for k in range(3):
+            rhs = np.zeros(m)
+            rhs[1 + k] = 1.0 / radius  # d p / d x_k at the centre: only the linear term xi_k
+            for a in range(m):
+                acc = 0.0
+                for b in range(m):
+                    acc += dA[k, a, b] * gamma[b]
+                rhs[a] -= acc
+            for a in range(m):
+                acc = 0.0
+                for b in range(m):
+                    acc += Ainv[a, b] * rhs[b]
+                dgamma[k, a] = acc
+        for r in range(start[i], start[i + 1]):
+            j = neighbour[r]
+            xi0 = (X[j, 0] - X[i, 0]) / radius
+            xi1 = (X[j, 1] - X[i, 1]) / radius
+            xi2 = (X[j, 2] - X[i, 2]) / radius
+            s = np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2)
+            w, dw = quartic_spline(s)
+            _basis(xi0, xi1, xi2, terms, p)
+            pg = 0.0
+            for a in range(m):
+                pg += p[a] * gamma[a]
+            value[r] = volume[j] * w * pg
+            c = -dw / (radius * s) if s > 0.0 else 0.0
+            for k in range(3):
+                xik = xi0 if k == 0 else (xi1 if k == 1 else xi2)
+                pdg = 0.0
+                for a in range(m):
+                    pdg += p[a] * dgamma[k, a]
+                grad[r, k] = volume[j] * (c * xik * pg + w * pdg)
+
+
+def neighbour_links(X: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The links of every particle to the particles closer than `radius` (itself included), as
+    CSR (start (n + 1), neighbour), each row in increasing neighbour order, and `mirror`: for the
+    link (I, J) the position of (J, I) (the relation is symmetric: one radius for all)."""
+    tree = cKDTree(X)
+    lists = tree.query_ball_point(X, radius * (1.0 - 1e-12))
+    counts = np.array([len(row) for row in lists], dtype=np.int64)
+    start = np.zeros(len(X) + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    neighbour = np.concatenate([np.sort(np.asarray(row, dtype=np.int64)) for row in lists])
+    row = np.repeat(np.arange(len(X), dtype=np.int64), counts)
+    n = np.int64(len(X))
+    key = row * n + neighbour  # increasing: rows in order, each row sorted
+    mirror = np.searchsorted(key, neighbour * n + row)
+    if not np.array_equal(key[mirror], neighbour * n + row):
+        raise RuntimeError("neighbour links are not symmetric")
+    return start, neighbour, mirror
+
+
+def shape_functions(X: np.ndarray, volume: np.ndarray, start: np.ndarray, neighbour: np.ndarray, radius: float,
+                    terms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(value (links,), grad (links, 3), condition (n,)) of the MLS shape functions at the
+    particles; see the module docstring."""
+    value = np.zeros(len(neighbour))
+    grad = np.zeros((len(neighbour), 3))
+    condition = np.zeros(len(X))
+    _shape_functions(np.ascontiguousarray(X, dtype=float), np.asarray(volume, dtype=float), start, neighbour,
+                     float(radius), terms, value, grad, condition)
+    return value, grad, condition
+
+
+def quartic_spline_array(s: np.ndarray) -> np.ndarray:
+    """The quartic spline (eq. 9) of an array of s."""
+    s = np.asarray(s, dtype=float)
+    return np.where(s < 1.0, 1.0 - s * s * (6.0 - s * (8.0 - 3.0 * s)), 0.0)

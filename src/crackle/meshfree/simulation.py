@@ -1,0 +1,141 @@
+"""The meshfree (EFG) particles behind the driver's Simulation protocol (solver.simulation)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.fields import STRESS_COMPONENTS
+from ..loading.loadcell import LoadCell, ToolSprings
+from ..solver.failures import FailureRecorder
+from .kernels import advance, strain_energies
+
+
+class MeshfreeSimulation:
+    method = "meshfree"
+
+    def __init__(self, particles, links, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
+                 damping, plate):
+        self.particles, self.links, self.law, self.tools = particles, links, law, tools
+        self._tool_names = list(tool_names)
+        self.support_radius = float(support_radius)
+        self.stable_dt = float(stable_dt)
+        self.wave_transit = float(wave_transit)
+        self.gravity = np.asarray(gravity, dtype=float)
+        self.damping = float(damping)
+        self.plate = plate
+        # The particles on the faces are on the specimen's surface: they meet the tools there.
+        self.contact_radius = 0.0
+        self.time = 0.0
+        self.steps = 0
+        self._radius = np.array([self.contact_radius])
+        self._springs = ToolSprings(tools, tool_names)
+        self.load_cell = LoadCell(tools)
+        # No link breaks yet (fracture is the next step of issue 14): the recorder sees none.
+        self._failures = FailureRecorder(0)
+        self.warnings: list[str] = []
+        # Energy present at t = 0 (an initial velocity) counts as work put in.
+        self._initial_energy = self._kinetic()
+
+    def advance(self, n_steps: int, dt: float) -> None:
+        advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.contact_radius,
+                self.gravity, self.damping)
+        self.steps += n_steps
+        self.time = self.steps * dt
+
+    def state_is_finite(self) -> bool:
+        p = self.particles
+        return bool(np.isfinite(p.x).all() and np.isfinite(p.v).all())
+
+    @property
+    def broken(self) -> int:
+        return 0
+
+    def _tool_springs(self) -> ToolSprings:
+        p = self.particles
+        return self._springs.measure(p.x, self._radius, p.area, p.tool, p.tool_offset, p.friction)
+
+    def _kinetic(self) -> float:
+        p = self.particles
+        return float(0.5 * np.sum(p.mass * np.einsum("ij,ij->i", p.v, p.v)))
+
+    def strain_energies(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """Per particle, the elastic and the stabilisation energy (J) at positions x."""
+        p, s = self.particles, self.links
+        elastic = np.zeros(len(x))
+        stab = np.zeros(len(x))
+        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, s.start, s.neighbour, s.grad, s.stiffness,
+                        self.law, elastic, stab)
+        return elastic, stab
+
+    def energies(self, dt: float) -> dict[str, float]:
+        p = self.particles
+        # Potentials at the mid-step positions pair with the half-step velocities.
+        elastic, stab = self.strain_energies(p.x - 0.5 * dt * p.v)
+        return {
+            "energy.kinetic": self._kinetic(),
+            "energy.elastic": float(np.sum(elastic)),
+            "energy.stabilisation": float(np.sum(stab)),
+            "energy.plastic": float(np.sum(p.w_plastic)),
+            "energy.contact": float(np.sum(self._tool_springs().energy)),
+            "energy.friction": float(np.sum(p.d_friction)),
+            "energy.damping": float(np.sum(p.w_damping)),
+            "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
+        }
+
+    def sample(self, dt: float) -> dict[str, float]:
+        energies = self.energies(dt)
+        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
+
+    def new_events(self):
+        return self._failures.new(np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0, dtype=np.int8),
+                                  lambda ids: np.zeros((len(ids), 3)))
+
+    def cauchy_stress(self) -> np.ndarray:
+        """Per particle, the Cauchy stress sigma = F S F^T / det F from the last step (n, 6), in the
+        order xx yy zz xy yz xz, Pa."""
+        p = self.particles
+        F = p.deformation.reshape(-1, 3, 3)
+        s = p.stress
+        S = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
+        sigma = np.einsum("nab,nbc,ndc->nad", F, S, F) / np.linalg.det(F)[:, None, None]
+        return np.stack([sigma[:, 0, 0], sigma[:, 1, 1], sigma[:, 2, 2], sigma[:, 0, 1], sigma[:, 1, 2],
+                         sigma[:, 0, 2]], axis=1)
+
+    def fields(self) -> dict:
+        """The particles as points (vertex cells) with their displacement (of the nodal
+        parameters), velocity, Cauchy stress and equivalent plastic strain."""
+        p = self.particles
+        n = len(p.x)
+        return {
+            "points": p.x,
+            "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
+                           "plastic_strain": p.eq_plastic.copy()},
+            "component_names": {"stress": STRESS_COMPONENTS},
+            "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
+        }
+
+    def describe(self) -> str:
+        n = len(self.particles.x)
+        return f"{n:,} particles, {len(self.links.neighbour) / n:.0f} links each"
+
+    def tool_names(self) -> list[str]:
+        return list(self._tool_names)
+
+    def bounds(self):
+        return self.particles.X.min(axis=0), self.particles.X.max(axis=0)
+
+    def summary(self) -> dict:
+        p = self.particles
+        n = len(p.x)
+        return {
+            "particles": n,
+            "links": int(len(self.links.neighbour) - n),  # without each particle's link to itself
+            "broken_links": 0,
+            "layers": int(self.plate.layers),
+            "support_radius": self.support_radius,
+            "max_plastic_strain": float(np.max(p.eq_plastic, initial=0.0)),
+            "warnings": list(self.warnings),
+        }
+
+    def extra_plots(self, out_dir) -> None:
+        pass
