@@ -204,8 +204,7 @@ def test_elastic_modulus_is_reproducible_across_packings(tmp_path):
         h, summary = _ucs_quick(tmp_path, f"packing.seed={seed}", "packing.mean_radius=7.5e-4", "tools.0.speed=0.2",
                                 "run.end_time=2.2e-4", "material.tensile_strength=4.5e8", "material.cohesion=4.5e9")
         assert summary["broken"] == 0
-        stress = -h["tooltopfz"] / summary["loaded_area"]
-        strain = -h["tooltopuz"] / 0.054
+        stress, strain = h["platenstress"], h["platenstrain"]
         window = (strain > 2e-4) & (strain < 6e-4)
         moduli.append(np.polyfit(strain[window], stress[window], 1)[0])
     mean = np.mean(moduli)
@@ -219,6 +218,12 @@ def test_dem_ucs_quick_breaks_the_sample(tmp_path):
     run stops after the peak, and the energy audit closes within 1 %."""
     h, summary = _ucs_quick(tmp_path)
     assert summary["method"] == "dem" and summary["status"] == "stopped"
+    # The history's UCS curve: platen stress = top platen force / loaded area (its largest row
+    # within 2 % of the load cell's peak, which sees every step), platen strain = travel / the
+    # sample's height (54 mm, to the particles' extent: 1e-3) at 0.1 m/s.
+    assert np.max(h["platenstress"]) == pytest.approx(summary["peak_stress"], rel=0.02)
+    assert h["platenstress"][-1] < 0.2 * summary["peak_stress"]
+    assert h["platenstrain"][-1] == pytest.approx(0.1 * (h["time"][-1] - 0.5e-4) / 0.054, rel=1e-2)  # ramp 0.1 ms
     assert summary["broken"] > 1000 and summary["broken_by_mode"]["tension"] > summary["broken"] / 2
     assert 20e6 < summary["peak_stress"] < 100e6
     assert summary["particles"] > 2000 and summary["bonds_per_particle"] == pytest.approx(12.0, abs=0.01)

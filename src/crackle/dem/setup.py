@@ -21,7 +21,7 @@ from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres
-from .simulation import DemSimulation
+from .simulation import DemSimulation, Platen
 
 
 class DemSpecimen(Specimen):
@@ -195,15 +195,15 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     tools = [touch_specimen(t, centers - radii[:, None] * _unit(t.direction)) if spec.touch else t
              for t, spec in zip(tools, scenario.all_tools())]
     domain = domain_of(scenario.specimen)
-    moving = [t for t in tools if any(v != 0.0 for v in t.speed.values)]
-    loaded_area = None
+    moving = [i for i, t in enumerate(tools) if any(v != 0.0 for v in t.speed.values)]
+    loaded_area = platen = None
     if moving:
         # The mean cross-section normal to the first moving tool: platen stress = force / it.
-        direction = np.asarray(moving[0].direction, float)
-        direction /= np.linalg.norm(direction)
+        direction = _unit(tools[moving[0]].direction)
         along = centers @ direction
         extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
+        platen = Platen(tools[moving[0]].name, direction, extent)
     mat = scenario.material
     try:
         sim = build_dem_simulation(
@@ -218,6 +218,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     sim.packing = packing
     sim.sample_volume = domain.volume
     sim.flaw = flaw
+    sim.platen = platen
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim

@@ -3,15 +3,28 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..analysis.flaw import initiation_along_flaw
+from ..io import plot_stress_strain
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
 from .kernels import BONDED, GONE, advance
 from .model import with_contacts
+
+@dataclass(frozen=True)
+class Platen:
+    """The first moving tool: its force on the sample along its travel over the loaded area is
+    the history's `platen.stress`, its travel over the sample's extent along it `platen.strain`
+    (both positive in compression, as a UCS curve is read)."""
+
+    name: str
+    direction: np.ndarray  # unit, the tool's travel
+    length: float  # m, the sample's extent along it
+
 
 # Steps between two checks of whether the contact list must be rebuilt: a fixed grid of steps, so
 # that a run's state does not depend on how its steps are split into advance calls.
@@ -35,6 +48,7 @@ class DemSimulation:
         self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
         self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
         self.flaw = None  # the scenario's [flaw] (setup.FlawSpec), if any
+        self.platen: Platen | None = None  # the tool whose stress and strain the history gives
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.time = 0.0
@@ -148,8 +162,14 @@ class DemSimulation:
         }
 
     def sample(self, dt: float) -> dict[str, float]:
-        energies = self.energies(dt)
-        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
+        row = self._springs.columns(self.load_cell, self._tool_springs)
+        if self.platen is not None and self.loaded_area:
+            name, along = self.platen.name, self.platen.direction
+            force = np.array([row[f"tool.{name}.f{c}"] for c in "xyz"])  # on the sample
+            travel = np.array([row[f"tool.{name}.u{c}"] for c in "xyz"])
+            row["platen.stress"] = float(force @ along) / self.loaded_area
+            row["platen.strain"] = float(travel @ along) / self.platen.length
+        return {**row, **self.energies(dt), "broken": self.broken}
 
     def new_events(self):
         s = self.inter
@@ -271,7 +291,8 @@ class DemSimulation:
         return out
 
     def extra_plots(self, out_dir) -> None:
-        pass
+        if self.platen is not None and self.loaded_area:
+            plot_stress_strain(out_dir / "history.csv", out_dir / "plots" / "stress_strain.png")
 
 
 def _grid_cells(lower, cell: float, shape) -> tuple[np.ndarray, np.ndarray]:

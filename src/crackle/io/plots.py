@@ -101,6 +101,23 @@ def plot_load_displacement(history, path) -> Path:
     return _save(fig, path)
 
 
+def plot_stress_strain(history, path, stress: str = "platen.stress", strain: str = "platen.strain") -> Path:
+    """Platen stress (MPa) against platen strain (%), as a rock-mechanics UCS curve: both
+    positive in compression."""
+    cols = _columns(history)
+    fig = _new_figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    if stress in cols and strain in cols:
+        ax.plot(np.asarray(cols[strain], float) * 100.0, np.asarray(cols[stress], float) * 1e-6)
+    else:
+        ax.text(0.5, 0.5, "no platen data", transform=ax.transAxes, ha="center")
+    ax.set_xlabel("platen strain [%]")
+    ax.set_ylabel("platen stress [MPa]")
+    ax.set_title("Stress-strain")
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
 def plot_energies(history, path) -> Path:
     """Every ``energy.*`` column against time, plus the imbalance (dashed).
 
