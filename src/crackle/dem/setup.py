@@ -55,12 +55,12 @@ class PackingSpec(Strict):
     seed: Annotated[int, Field(ge=0)] = 0
     """of the random packing: the same seed, the same packing"""
     file: str | None = None
-    """a packing saved before (.npz, crackle.dem.packing.Packing.save) instead of a new one; relative to the
-    scenario file's folder"""
+    """a packing saved before (.npz, crackle.dem.packing.Packing.save) instead of a new one, relative to the
+    scenario file's folder; it takes the place of the keys above (a warning says so when they are set too)"""
 
     @model_validator(mode="after")
     def _one_source(self):
-        if (self.mean_radius is None) == (self.file is None):
+        if self.mean_radius is None and self.file is None:
             raise ValueError("give mean_radius (a new packing) or file (a saved one)")
         return self
 
@@ -216,6 +216,9 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"
         raise ScenarioError(f"{field}: {err}") from None
     sim.packing = packing
+    if scenario.packing.file is not None and scenario.packing.mean_radius is not None:
+        sim.warnings.append(f"packing.file {scenario.packing.file} is used: packing.mean_radius, porosity, "
+                            "radius_ratio and seed do not apply")
     sim.sample_volume = domain.volume
     sim.flaw = flaw
     sim.platen = platen
