@@ -12,7 +12,7 @@ from ..solver.integrator import support_constraints
 from .kernels import BLOCK, Links, Particles
 from .material import J2Law
 from .particles import PlateParticles
-from .shape import MAX_CONDITION, basis_terms, neighbour_links, quartic_spline_array, shape_functions
+from .shape import basis_terms, quartic_spline_array, smoothed_gradients
 from .simulation import MeshfreeSimulation
 
 
@@ -27,23 +27,20 @@ class SetupError(ValueError):
 def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None) -> MeshfreeSimulation:
-    """The particles of `plate` with support radius dilation x the largest grid step, the
+    """The particles of `plate` with support radius dilation x the largest grid step (gradients
+    by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2) and an initial `velocity` (m/s, one for all or one per particle)."""
     X = np.ascontiguousarray(plate.X, dtype=float)
     n = len(X)
     radius = dilation * float(np.max(plate.spacing))
-    start, neighbour, mirror = neighbour_links(X, radius)
-    value, grad, condition = shape_functions(X, plate.volume, start, neighbour, radius,
-                                             basis_terms(plate.thickness_axis, plate.layers))
-    bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
-    if bad.any():
-        worst = int(np.flatnonzero(bad)[0])
+    start, neighbour, grad, condition, first_bad = smoothed_gradients(
+        X, plate.volume, plate.cell_lo, plate.cell_hi, radius, basis_terms(plate.thickness_axis, plate.layers))
+    if first_bad is not None:
         raise SetupError("particles.dilation", (
-            f"{int(bad.sum())} particle(s) (the first at {X[worst].round(6).tolist()} m, with "
-            f"{int(start[worst + 1] - start[worst])} neighbours) have a singular moment matrix: the support radius "
-            f"{dilation:g} x {np.max(plate.spacing):.3g} m holds too few neighbours for the quadratic basis; "
+            f"the moment matrix at {first_bad.round(6).tolist()} m (a particle's cell face) is singular: the support "
+            f"radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles for the quadratic basis; "
             f"increase particles.dilation (2.5 or more)"))
     row = np.repeat(np.arange(n), np.diff(start))
     dX = X[neighbour] - X[row]
@@ -52,7 +49,12 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
     spread = np.bincount(row, weights=weight * dist2, minlength=n)
     table = law.table()
     stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
-    links = Links(start, neighbour, mirror, value, grad, stiffness, np.zeros((len(neighbour), 3)))
+    # The transpose of the links, for the gather: for particle L, every link (I, L) in order of I.
+    back_link = np.lexsort((row, neighbour))
+    back_start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
+    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)), back_start, back_link,
+                  row[back_link])
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
     mass = density * plate.volume

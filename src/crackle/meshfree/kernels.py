@@ -5,12 +5,16 @@ neighbours and calls the shared tool contact (loading.tools) and node update (so
 No races: the first pass writes only the particle's own rows and the rows of its own links, the
 second reads them in the fixed CSR order.
 
-Nodal integration (the particles are the quadrature points, weight = nodal volume V):
-  F_I = I + sum_J u_J (x) grad N_J(X_I)                      (u = x - X, the nodal displacements)
-  f_L = - sum_{I ~ L} V_I P_I grad N_L(X_I)                  (P = F S, first Piola-Kirchhoff)
-Nodal integration alone has zero-energy modes (a field oscillating from particle to particle that
-no particle's gradient sees). The stabilisation penalises, link by link, the part of the relative
-motion of two neighbours that the particle's own F does not explain,
+Nodal integration (the particles are the quadrature points, weight = nodal volume V), with the
+gradients smoothed over each particle's cell (stabilised conforming nodal integration, see
+shape.smoothed_gradients: it meets the integration constraint, so a uniform stress leaves
+every particle away from the boundary in equilibrium):
+  F_I = I + sum_J u_J (x) grad N_J(I)                        (u = x - X, the nodal displacements)
+  f_L = - sum_{I ~ L} V_I P_I grad N_L(I)                    (P = F S, first Piola-Kirchhoff)
+One point per particle still leaves zero-energy modes (a field oscillating from particle to
+particle that no particle's gradient sees). The link stabilisation penalises, link by link, the
+part of the relative motion of two linked particles that the particle's own F does not
+explain,
   eps_IJ = (x_J - x_I) - F_I (X_J - X_I),   energy (1/2) sum_I sum_J k_IJ |eps_IJ|^2,
 k_IJ = alpha E V_I w_IJ / (sum_J w_IJ |X_J - X_I|^2) (alpha = particles.stabilisation, w the
 kernel weights): a strain energy density alpha E |eps / dX|^2 / 2 averaged over the support. It
@@ -39,9 +43,10 @@ Particles = namedtuple(
     "x v X mass volume area constraint projection tool tool_offset friction d_friction w_external w_damping "
     "plastic eq_plastic w_plastic stress deformation internal stab_sum",
 )
-# start, neighbour: the CSR of each particle's links (itself included); mirror: the position of
-# the reverse link; value, grad: N_J(X_I), grad N_J(X_I); stiffness: k_IJ; stab_force: k eps.
-Links = namedtuple("Links", "start neighbour mirror value grad stiffness stab_force")
+# start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
+# I (smoothed over I's cell); stiffness: k_IJ; stab_force: k eps; back_start, back_link,
+# back_row: the transpose, for particle L every link (I, L) and its I, in order of I.
+Links = namedtuple("Links", "start neighbour grad stiffness stab_force back_start back_link back_row")
 
 BLOCK = 128  # particles per parallel task
 
@@ -153,17 +158,17 @@ def _stress_block(lo, hi, dt, p, links, law):
 @block_kernel
 def _particle_block(lo, hi, slot, dt, p, links, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
     x, v, mass = p.x, p.v, p.mass
-    start, neighbour, mirror, grad, stab_force, t = (links.start, links.neighbour, links.mirror, links.grad,
-                                                     links.stab_force, p.internal)
+    back_start, back_link, back_row, grad, stab_force, t = (links.back_start, links.back_link, links.back_row,
+                                                            links.grad, links.stab_force, p.internal)
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     for g in range(lo, hi):
         fx = p.stab_sum[g, 0]
         fy = p.stab_sum[g, 1]
         fz = p.stab_sum[g, 2]
-        for r in range(start[g], start[g + 1]):
-            i = neighbour[r]
-            back = mirror[r]  # the link (i, g): grad N_g(X_i) and k eps of i towards g
+        for r in range(back_start[g], back_start[g + 1]):
+            i = back_row[r]
+            back = back_link[r]  # the link (i, g): grad N_g at i and k eps of i towards g
             g0 = grad[back, 0]
             g1 = grad[back, 1]
             g2 = grad[back, 2]

@@ -20,6 +20,8 @@ class PlateParticles:
     thickness_axis: int  # 0, 1 or 2: the box's thinnest side
     spacing: np.ndarray  # (3,) m, grid step along x, y, z as used
     layers: int
+    cell_lo: np.ndarray  # (n, 3) m, lower corner of each particle's cell (its nodal integration domain)
+    cell_hi: np.ndarray  # (n, 3) m, upper corner
 
 
 def plate_particles(origin, size, spacing: float, layers: int) -> PlateParticles:
@@ -47,4 +49,6 @@ def plate_particles(origin, size, spacing: float, layers: int) -> PlateParticles
     cell = np.stack([sx.ravel(), sy.ravel(), sz.ravel()], axis=1)
     volume = np.prod(cell, axis=1)
     area = volume / cell[:, axis]
-    return PlateParticles(X, volume, area, axis, steps, layers)
+    cell_lo = np.maximum(X - 0.5 * steps, origin)
+    cell_hi = np.minimum(X + 0.5 * steps, origin + size)
+    return PlateParticles(X, volume, area, axis, steps, layers, cell_lo, cell_hi)

@@ -1,6 +1,8 @@
 """Moving least-squares (MLS) shape functions of the element-free Galerkin method (paper 000
-eqs 5-9), evaluated once at set-up at the particles themselves (nodal integration) and stored per
-neighbour link in CSR arrays, so that the step only gathers.
+eqs 5-9), evaluated once at set-up and stored per neighbour link in CSR arrays, so that the step
+only gathers: at the particles themselves (`shape_functions`: values and derivatives), and the
+gradients the step uses, smoothed over each particle's cell (`smoothed_gradients`, stabilised
+conforming nodal integration).
 
 For the particle I at X_I and each neighbour J within the support radius R (the links of row I):
   N_J(X_I) = V_J w_J p(xi_J) . A^-1 p(0)          A = sum_J V_J w_J p(xi_J) p(xi_J)^T
@@ -183,3 +185,95 @@ def quartic_spline_array(s: np.ndarray) -> np.ndarray:
     """The quartic spline (eq. 9) of an array of s."""
     s = np.asarray(s, dtype=float)
     return np.where(s < 1.0, 1.0 - s * s * (6.0 - s * (8.0 - 3.0 * s)), 0.0)
+
+
+@njit(parallel=True, cache=True)
+def _values_at(points, X, volume, start, neighbour, radius, terms, value, condition):
+    """value[r] = N_J(points[q]) for every link r = (q, J) of evaluation point q (the same MLS
+    as _shape_functions, centred on the point); condition[q] as there."""
+    m = terms.shape[0]
+    for q in prange(points.shape[0]):
+        A = np.zeros((m, m))
+        p = np.zeros(m)
+        for r in range(start[q], start[q + 1]):
+            j = neighbour[r]
+            xi0 = (X[j, 0] - points[q, 0]) / radius
+            xi1 = (X[j, 1] - points[q, 1]) / radius
+            xi2 = (X[j, 2] - points[q, 2]) / radius
+            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2))
+            if w <= 0.0:
+                continue
+            _basis(xi0, xi1, xi2, terms, p)
+            vw = volume[j] * w
+            for a in range(m):
+                for b in range(m):
+                    A[a, b] += vw * p[a] * p[b]
+        cond = np.linalg.cond(A)
+        condition[q] = cond
+        if not np.isfinite(cond) or cond > MAX_CONDITION:
+            continue
+        gamma = np.linalg.solve(A, np.eye(m)[:, 0].copy())
+        for r in range(start[q], start[q + 1]):
+            j = neighbour[r]
+            xi0 = (X[j, 0] - points[q, 0]) / radius
+            xi1 = (X[j, 1] - points[q, 1]) / radius
+            xi2 = (X[j, 2] - points[q, 2]) / radius
+            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2))
+            _basis(xi0, xi1, xi2, terms, p)
+            pg = 0.0
+            for a in range(m):
+                pg += p[a] * gamma[a]
+            value[r] = volume[j] * w * pg
+
+
+def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cell_lo: np.ndarray, cell_hi: np.ndarray, radius: float,
+                       terms: np.ndarray):
+    """Stabilised conforming nodal integration (Chen et al. 2001): the gradient of N_J at the
+    particle I is the mean over I's cell (the box [cell_lo, cell_hi], volume V_I) by the
+    divergence theorem, grad N_J(I) = (1 / V_I) sum_faces n A N_J(face centre), one point per
+    face (exact for linear fields). Neighbouring cells share their faces, so under a uniform
+    stress the particle forces are exactly the boundary's traction term: the integration
+    constraint that direct nodal integration misses. Returns the CSR links of the particles
+    (start, neighbour: every J that is nonzero at one of I's face centres, itself included, in
+    increasing order), grad (links, 3), and the largest moment-matrix condition number over the
+    face centres with the first bad point (or None)."""
+    n = len(X)
+    centre = 0.5 * (cell_lo + cell_hi)
+    points, owner, weight = [], [], []
+    for axis in range(3):
+        area = np.prod(np.delete(cell_hi - cell_lo, axis, axis=1), axis=1)
+        for side, bound in ((-1.0, cell_lo), (1.0, cell_hi)):
+            face = centre.copy()
+            face[:, axis] = bound[:, axis]
+            normal = np.zeros((n, 3))
+            normal[:, axis] = side * area / volume
+            points.append(face)
+            owner.append(np.arange(n))
+            weight.append(normal)
+    points = np.concatenate(points)
+    owner = np.concatenate(owner)
+    weight = np.concatenate(weight)
+    tree = cKDTree(X)
+    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12))
+    counts = np.array([len(r) for r in lists], dtype=np.int64)
+    start = np.zeros(len(points) + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    neighbour = np.concatenate([np.sort(np.asarray(r, dtype=np.int64)) for r in lists])
+    value = np.zeros(len(neighbour))
+    condition = np.zeros(len(points))
+    _values_at(np.ascontiguousarray(points), np.ascontiguousarray(X, dtype=float), np.asarray(volume, dtype=float),
+               start, neighbour, float(radius), terms, value, condition)
+    bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
+    first_bad = points[np.flatnonzero(bad)[0]] if bad.any() else None
+    # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
+    point_of = np.repeat(np.arange(len(points)), counts)
+    rows = owner[point_of]
+    parts = weight[point_of] * value[:, None]
+    order = np.lexsort((neighbour, rows))
+    rows, cols, parts = rows[order], neighbour[order], parts[order]
+    first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
+    grad = np.add.reduceat(parts, first, axis=0)
+    link_row, link_col = rows[first], cols[first]
+    link_start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(link_row, minlength=n), out=link_start[1:])
+    return link_start, link_col, grad, float(np.max(condition)), first_bad
