@@ -14,7 +14,7 @@ by `|` and a suffix written after the number (` deg`); a missing value (none, na
     python docs/validate.py --quick --check      # run, report what differs, exit 1 if anything does
     python docs/validate.py --quick --cases 3pb brazilian-0
 
-About 15 minutes on 2 cores (15 runs). Rows that need the full examples or longer runs carry no
+About 20 minutes on 2 cores (33 runs). Rows that need the full examples or longer runs carry no
 markers: their commands and wall times are stated beside them.
 """
 
@@ -26,6 +26,8 @@ import re
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 DOC = Path(__file__).with_name("validation.md")
 MARKER = re.compile(r"<!--q:(?P<case>[\w.-]+):(?P<value>[\w.*-]+):(?P<format>[^>]*?)-->(?P<text>.*?)<!--/q-->")
@@ -51,6 +53,14 @@ CASES = {
     "multipoint-5": [*MULTIPOINT, "--set", "plates.polar=[90,90,90,90,90]", "--set", "plates.azimuth=[0,72,144,216,288]"],
     "multipoint-6": [*MULTIPOINT, "--set", "plates.polar=[90,90,90,90,90,90]",
                      "--set", "plates.azimuth=[0,60,120,180,240,300]"],
+    "dem-ucs": ["dem-ucs", "--quick"],
+    "dem-brazilian": ["dem-brazilian", "--quick"],
+    **{f"dem-damping-{a}": ["dem-ucs", "--quick", "--set", f"material.local_damping={a}"] for a in ("0.1", "0.4", "0.8")},
+    **{f"dem-damping-{a}-slow": ["dem-ucs", "--quick", "--set", f"material.local_damping={a}", "--set", "tools.0.speed=0.025",
+                                 "--set", "run.end_time=8e-3"] for a in ("0.1", "0.2", "0.4", "0.8")},
+    **{f"dem-flaw-{a}": ["dem-flaw", "--quick", "--set", f"flaw.angle={a}"] for a in (0, 30, 60, 90)},
+    **{f"dem-closed-{a}": ["dem-flaw", "--quick", "--set", "flaw.kind=closed", "--set", f"flaw.angle={a}"]
+       for a in (0, 30, 60, 90)},
 }
 
 # Brazilian disc (paper 001 section 4): F = ft pi D t / 2 for ft = 3 MPa, D = 40 mm, t = 15 mm.
@@ -72,11 +82,20 @@ def _failure_time(which):
     return value
 
 
+def _platen_modulus(run) -> float:
+    """GPa: the slope of platen stress against platen strain over 0.02-0.04 % (DEM)."""
+    h = run["history"]
+    stress, strain = h["platenstress"], h["platenstrain"]
+    window = (strain > 2e-4) & (strain < 4e-4)
+    return float(np.polyfit(strain[window], stress[window], 1)[0]) * 1e-9
+
+
 DERIVED = {
     "peak_over_elastic": lambda run: run["summary"]["peak_force"] / ELASTIC_BRAZILIAN_PEAK,
     "splitting_angle": _splitting_angle,
     "first_failure_us": _failure_time(min),
     "last_failure_us": _failure_time(max),
+    "platen_modulus_gpa": _platen_modulus,
 }
 
 
@@ -100,7 +119,9 @@ def run_case(name: str, out_root: Path) -> dict:
     source, quick, overrides = args[0], "--quick" in args, [a for i, a in enumerate(args) if i and args[i - 1] == "--set"]
     result = run_scenario(source, out_root / name, overrides=overrides, quick=quick, progress=False)
     print(f"  {name}: {result.summary['status']}, {result.summary['wall_time']:.0f} s", flush=True)
-    return {"args": overrides, "summary": result.summary, "events": read_events_csv(result.out_dir / "events.csv")}
+    history = np.genfromtxt(result.out_dir / "history.csv", delimiter=",", names=True)
+    return {"args": overrides, "summary": result.summary, "events": read_events_csv(result.out_dir / "events.csv"),
+            "history": history}
 
 
 def main(argv=None) -> int:
