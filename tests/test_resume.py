@@ -81,7 +81,8 @@ def test_finished_run_continued_to_a_later_end(tmp_path):
 
 
 def test_resume_refusals(tmp_path, capsys):
-    """Exit 2 with one message: no checkpoint; a changed model; an end time already reached."""
+    """Exit 2 with one message: no checkpoint; a changed model; an end time already reached; a
+    checkpoint written by other sources."""
     out = tmp_path / "run"
     assert main(["run", LATTICE, "--out", str(out)]) == 0
     capsys.readouterr()
@@ -93,6 +94,15 @@ def test_resume_refusals(tmp_path, capsys):
         ([LATTICE, "--resume", str(out), "--out", str(tmp_path / "elsewhere")], "drop --out"),
     ]
     history = (out / "history.csv").read_bytes()
+    # A checkpoint written by other sources (a development install edited since).
+    import pickle
+
+    other = tmp_path / "other-code"
+    other.mkdir()
+    checkpoint = pickle.loads((out / "checkpoint.pkl").read_bytes())
+    checkpoint.code = "0" * 16
+    (other / "checkpoint.pkl").write_bytes(pickle.dumps(checkpoint))
+    cases.append(([LATTICE, "--resume", str(other), "--set", "run.end_time=1e-4"], "before its sources changed"))
     for argv, expected in cases:
         assert main(["run", *argv]) == 2
         err = capsys.readouterr().err

@@ -10,16 +10,32 @@ checkpoints you wrote (like any restart file, it can run code when read).
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import pickle
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__
 
 CHECKPOINT_FILE = "checkpoint.pkl"
 # Bumped when what a checkpoint holds changes; an older one is refused with a message.
-CHECKPOINT_FORMAT = 3
+CHECKPOINT_FORMAT = 4
+
+
+@functools.cache
+def code_fingerprint() -> str:
+    """A hash of crackle's own Python sources. The pickled Simulation holds the state layout of
+    the code that wrote it: under other code a resume could fail half-way or, worse, run on with
+    state the new code reads differently, so a checkpoint resumes only under the same sources (a
+    version number does not change with every edit of a development install)."""
+    digest = hashlib.sha256()
+    package = Path(__file__).resolve().parents[1]
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 # Scenario keys a resumed run may change: how far it goes and what it writes, never the model.
 RESUMABLE_KEYS = ("run.end_time", "run.history_samples", "run.field_frames", "run.stop", "run.checkpoint",
@@ -40,6 +56,7 @@ class Checkpoint:
     scenario: dict  # the validated scenario (model_dump), for the resume check
     crackle_version: str = __version__
     format: int = CHECKPOINT_FORMAT
+    code: str = field(default_factory=code_fingerprint)  # the sources that wrote it
 
 
 def save_checkpoint(out_dir: Path, checkpoint: Checkpoint) -> Path:
@@ -69,6 +86,12 @@ def load_checkpoint(run_dir: Path) -> Checkpoint:
         raise CheckpointError(
             f"--resume {run_dir}: {CHECKPOINT_FILE} was written by another crackle version "
             f"({getattr(checkpoint, 'crackle_version', 'unknown')}); rerun from the start"
+        )
+    if checkpoint.code != code_fingerprint():
+        raise CheckpointError(
+            f"--resume {run_dir}: {CHECKPOINT_FILE} was written by crackle {checkpoint.crackle_version} before its "
+            "sources changed (the saved state may not fit the code now); rerun from the start, or resume with "
+            "the code that wrote it"
         )
     return checkpoint
 
