@@ -9,6 +9,7 @@ import numpy as np
 
 from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
 from ..solver.integrator import support_constraints
+from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles
 from .material import J2Law
 from .particles import PlateParticles
@@ -26,17 +27,20 @@ class SetupError(ValueError):
 
 def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
-                              gravity=(0.0, 0.0, 0.0), velocity=None) -> MeshfreeSimulation:
+                              gravity=(0.0, 0.0, 0.0), velocity=None,
+                              fracture_stress: float = math.inf) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
-    (m/s^2) and an initial `velocity` (m/s, one for all or one per particle)."""
+    (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
+    (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py)."""
     X = np.ascontiguousarray(plate.X, dtype=float)
     n = len(X)
     radius = dilation * float(np.max(plate.spacing))
+    terms = basis_terms(plate.thickness_axis, plate.layers)
     start, neighbour, grad, condition, first_bad = smoothed_gradients(
-        X, plate.volume, plate.cell_lo, plate.cell_hi, radius, basis_terms(plate.thickness_axis, plate.layers))
+        X, plate.volume, plate.cell_lo, plate.cell_hi, radius, terms)
     if first_bad is not None:
         raise SetupError("particles.dilation", (
             f"the moment matrix at {first_bad.round(6).tolist()} m (a particle's cell face) is singular: the support "
@@ -74,8 +78,12 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     dt = stable_step(particles, links, row, dX, table, tool_k)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
+    breaking = None
+    if math.isfinite(fracture_stress):
+        breaking = LinkBreaking(X, plate.volume, plate.cell_lo, plate.cell_hi, radius, terms,
+                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links)
     return MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
-                              gravity, damping, plate)
+                              gravity, damping, plate, breaking)
 
 
 def stable_step(particles, links, row, dX, law_table, tool_k) -> float:

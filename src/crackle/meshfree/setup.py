@@ -2,8 +2,8 @@
 
 [specimen] a box (FDEM's keys; its thinnest side is the wall thickness) filled by [particles]
 (an in-plane spacing, particles through the thickness, the support's dilation factor and the
-stabilisation of nodal integration); [material] the elastic constants and the J2
-elasto-visco-plastic law of paper 000 eqs 14-15. Tools, supports, run control and outputs are
+stabilisation of nodal integration); [material] the elastic constants, the J2
+elasto-visco-plastic law of paper 000 eqs 14-15 and the fracture stress (section 3.3). Tools, supports, run control and outputs are
 the shared ones.
 """
 
@@ -68,7 +68,8 @@ class ParticlesSpec(Strict):
 
 
 class MeshfreeMaterial(ElasticSpec):
-    """[material]: density, elastic constants and the J2 elasto-visco-plastic law (paper 000 eqs 14-15):
+    """[material]: density, elastic constants, the fracture stress (fracture.py) and the J2
+    elasto-visco-plastic law (paper 000 eqs 14-15):
     flow stress yield_stress (1 + ep / reference_plastic_strain)^hardening_exponent
     (1 + rate / reference_strain_rate)^rate_exponent."""
 
@@ -82,6 +83,17 @@ class MeshfreeMaterial(ElasticSpec):
     """1/s, the reference plastic strain rate of eq. 15"""
     rate_exponent: Annotated[float, Field(ge=0.0)] = 0.0
     """1/m of eq. 15, the strain-rate sensitivity (0: rate independent)"""
+    tensile_strength: PositiveOrInf = math.inf
+    """Pa, sigma_t: a particle fails when its maximum principal (Cauchy) stress exceeds fracture_factor x
+    tensile_strength, and its links across the crack plane (normal = that principal direction) are removed
+    (inf: no fracture)"""
+    fracture_factor: Positive = 3.0
+    """the fracture stress over the tensile strength (paper 000 section 3.3: 3)"""
+
+    @property
+    def fracture_stress(self) -> float:
+        """Pa, the maximum principal stress that fails a particle (inf: no fracture)."""
+        return self.fracture_factor * self.tensile_strength
 
     def law(self) -> J2Law:
         return J2Law(self.youngs_modulus, self.poissons_ratio, self.yield_stress, self.reference_plastic_strain,
@@ -96,7 +108,7 @@ class Scenario(ScenarioBase):
     particles: ParticlesSpec
     """the particles and their shape functions"""
     material: MeshfreeMaterial
-    """elastic constants and the J2 law"""
+    """elastic constants, the J2 law and the fracture stress"""
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
@@ -113,7 +125,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         return build_meshfree_simulation(
             plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
-            velocity=spec.initial_velocity,
+            velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None

@@ -238,42 +238,80 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cell_lo: np.ndarray, c
     increasing order), grad (links, 3), and the largest moment-matrix condition number over the
     face centres with the first bad point (or None)."""
     n = len(X)
-    centre = 0.5 * (cell_lo + cell_hi)
+    link_row, link_col, grad, condition, points = cell_gradients(
+        X, volume, cell_lo, cell_hi, radius, terms, np.arange(n), cKDTree(X))
+    bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
+    first_bad = points[np.flatnonzero(bad)[0]] if bad.any() else None
+    link_start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(link_row, minlength=n), out=link_start[1:])
+    return link_start, link_col, grad, float(np.max(condition)), first_bad
+
+
+def cell_gradients(X, volume, cell_lo, cell_hi, radius, terms, owners, tree, blocked=None, linear_fallback=False):
+    """The smoothed gradients (smoothed_gradients) of the particles `owners` only, with the MLS
+    at their face centres summing over the particles within the support but for the pairs
+    (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
+    fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
+    with a contribution, sorted by row then column, the condition number of every face centre's
+    moment matrix and the face centres (6 per owner: -x, +x, -y, +y, -z, +z, each a block over
+    `owners`). With `linear_fallback`, a face centre whose moment matrix is singular with the
+    quadratic basis (a crack face: the particles it still sees lie on too few planes) uses the
+    linear basis 1, x, y, z instead (it still reproduces linear fields); its condition is then
+    the linear one."""
+    n = len(X)
+    owners = np.asarray(owners, dtype=np.int64)
+    k = len(owners)
+    lo, hi = cell_lo[owners], cell_hi[owners]
+    centre = 0.5 * (lo + hi)
+    vol = volume[owners]
     points, owner, weight = [], [], []
     for axis in range(3):
-        area = np.prod(np.delete(cell_hi - cell_lo, axis, axis=1), axis=1)
-        for side, bound in ((-1.0, cell_lo), (1.0, cell_hi)):
+        area = np.prod(np.delete(hi - lo, axis, axis=1), axis=1)
+        for side, bound in ((-1.0, lo), (1.0, hi)):
             face = centre.copy()
             face[:, axis] = bound[:, axis]
-            normal = np.zeros((n, 3))
-            normal[:, axis] = side * area / volume
+            normal = np.zeros((k, 3))
+            normal[:, axis] = side * area / vol
             points.append(face)
-            owner.append(np.arange(n))
+            owner.append(owners)
             weight.append(normal)
     points = np.concatenate(points)
     owner = np.concatenate(owner)
     weight = np.concatenate(weight)
-    tree = cKDTree(X)
     lists = tree.query_ball_point(points, radius * (1.0 - 1e-12))
     counts = np.array([len(r) for r in lists], dtype=np.int64)
+    neighbour = np.concatenate([np.sort(np.asarray(r, dtype=np.int64)) for r in lists])
+    point_of = np.repeat(np.arange(len(points)), counts)
+    if blocked is not None and len(blocked):
+        key = owner[point_of] * np.int64(n) + neighbour
+        at = np.minimum(np.searchsorted(blocked, key), len(blocked) - 1)
+        keep = blocked[at] != key
+        neighbour, point_of = neighbour[keep], point_of[keep]
+        counts = np.bincount(point_of, minlength=len(points))
     start = np.zeros(len(points) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    neighbour = np.concatenate([np.sort(np.asarray(r, dtype=np.int64)) for r in lists])
     value = np.zeros(len(neighbour))
     condition = np.zeros(len(points))
     _values_at(np.ascontiguousarray(points), np.ascontiguousarray(X, dtype=float), np.asarray(volume, dtype=float),
                start, neighbour, float(radius), terms, value, condition)
-    bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
-    first_bad = points[np.flatnonzero(bad)[0]] if bad.any() else None
+    bad = np.flatnonzero(~np.isfinite(condition) | (condition > MAX_CONDITION))
+    if linear_fallback and len(bad):
+        sub_counts = counts[bad]
+        sub_start = np.zeros(len(bad) + 1, dtype=np.int64)
+        np.cumsum(sub_counts, out=sub_start[1:])
+        pos = np.repeat(start[bad] - sub_start[:-1], sub_counts) + np.arange(sub_start[-1])
+        sub_value = np.zeros(len(pos))
+        sub_condition = np.zeros(len(bad))
+        _values_at(np.ascontiguousarray(points[bad]), np.ascontiguousarray(X, dtype=float),
+                   np.asarray(volume, dtype=float), sub_start, neighbour[pos], float(radius), terms[terms < 4],
+                   sub_value, sub_condition)
+        value[pos] = sub_value
+        condition[bad] = sub_condition
     # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
-    point_of = np.repeat(np.arange(len(points)), counts)
     rows = owner[point_of]
     parts = weight[point_of] * value[:, None]
     order = np.lexsort((neighbour, rows))
     rows, cols, parts = rows[order], neighbour[order], parts[order]
     first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
     grad = np.add.reduceat(parts, first, axis=0)
-    link_row, link_col = rows[first], cols[first]
-    link_start = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(link_row, minlength=n), out=link_start[1:])
-    return link_start, link_col, grad, float(np.max(condition)), first_bad
+    return rows[first], cols[first], grad, condition, points

@@ -6,7 +6,8 @@ import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
-from ..solver.failures import FailureRecorder
+from ..solver.failures import MODE_TENSION, FailureRecorder
+from .fracture import FRACTURE_CHECK
 from .kernels import advance, strain_energies
 
 
@@ -14,7 +15,7 @@ class MeshfreeSimulation:
     method = "meshfree"
 
     def __init__(self, particles, links, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate):
+                 damping, plate, breaking=None):
         self.particles, self.links, self.law, self.tools = particles, links, law, tools
         self._tool_names = list(tool_names)
         self.support_radius = float(support_radius)
@@ -23,6 +24,8 @@ class MeshfreeSimulation:
         self.gravity = np.asarray(gravity, dtype=float)
         self.damping = float(damping)
         self.plate = plate
+        # Link breaking (fracture.LinkBreaking), or None without a fracture stress.
+        self.breaking = breaking
         # The particles on the faces are on the specimen's surface: they meet the tools there.
         self.contact_radius = 0.0
         self.time = 0.0
@@ -30,17 +33,30 @@ class MeshfreeSimulation:
         self._radius = np.array([self.contact_radius])
         self._springs = ToolSprings(tools, tool_names)
         self.load_cell = LoadCell(tools)
-        # No link breaks yet (fracture is the next step of issue 14): the recorder sees none.
-        self._failures = FailureRecorder(0)
+        # One failure per particle (the particle where a crack plane was put).
+        self._failures = FailureRecorder(len(particles.x))
         self.warnings: list[str] = []
         # Energy present at t = 0 (an initial velocity) counts as work put in.
         self._initial_energy = self._kinetic()
 
     def advance(self, n_steps: int, dt: float) -> None:
-        advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.contact_radius,
-                self.gravity, self.damping)
-        self.steps += n_steps
-        self.time = self.steps * dt
+        if self.breaking is None:
+            advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.contact_radius,
+                    self.gravity, self.damping)
+            self.steps += n_steps
+            self.time = self.steps * dt
+            return
+        # Fracture checks at the step numbers that are multiples of FRACTURE_CHECK, however the
+        # run is split into calls.
+        end = self.steps + n_steps
+        while self.steps < end:
+            stop = min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK)
+            advance(stop - self.steps, self.steps, dt, self.particles, self.links, self.law, self.tools,
+                    self.contact_radius, self.gravity, self.damping)
+            self.steps = stop
+            self.time = self.steps * dt
+            if self.steps % FRACTURE_CHECK == 0:
+                self.breaking.check(self, dt)
 
     def state_is_finite(self) -> bool:
         p = self.particles
@@ -48,7 +64,8 @@ class MeshfreeSimulation:
 
     @property
     def broken(self) -> int:
-        return 0
+        """Links removed by fracture (pairs {I, J} of distinct particles)."""
+        return 0 if self.breaking is None else self.breaking.broken_links
 
     def _tool_springs(self) -> ToolSprings:
         p = self.particles
@@ -79,6 +96,7 @@ class MeshfreeSimulation:
             "energy.contact": float(np.sum(self._tool_springs().energy)),
             "energy.friction": float(np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
+            "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,
             "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
         }
 
@@ -87,8 +105,14 @@ class MeshfreeSimulation:
         return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
 
     def new_events(self):
-        return self._failures.new(np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0, dtype=np.int8),
-                                  lambda ids: np.zeros((len(ids), 3)))
+        """Particle failures (a crack plane through the particle, mode tension) not reported yet."""
+        n = len(self.particles.x)
+        b = self.breaking
+        if b is None:
+            return self._failures.new(np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n, dtype=np.int8),
+                                      lambda ids: self.particles.X[ids])
+        return self._failures.new(b.failed, b.fail_time, np.where(b.failed, MODE_TENSION, 0).astype(np.int8),
+                                  lambda ids: self.particles.X[ids])
 
     def cauchy_stress(self) -> np.ndarray:
         """Per particle, the Cauchy stress sigma = F S F^T / det F from the last step (n, 6), in the
@@ -103,13 +127,26 @@ class MeshfreeSimulation:
 
     def fields(self) -> dict:
         """The particles as points (vertex cells) with their displacement (of the nodal
-        parameters), velocity, Cauchy stress and equivalent plastic strain."""
+        parameters), velocity, Cauchy stress, equivalent plastic strain and the fracture state:
+        `failed` (1 where a crack plane passes through the particle), `crack_normal` (its normal
+        in the current configuration, F^-T N normalised; 0 elsewhere: glyphs show the crack) and
+        `detached` (1: a free particle, all its links removed)."""
         p = self.particles
         n = len(p.x)
+        b = self.breaking
+        failed = np.zeros(n) if b is None else b.failed.astype(float)
+        detached = np.zeros(n) if b is None else b.detached.astype(float)
+        normal = np.zeros((n, 3))
+        if b is not None and b.failed.any():
+            ids = np.flatnonzero(b.failed)
+            F = p.deformation[ids].reshape(-1, 3, 3)
+            current = np.linalg.solve(np.transpose(F, (0, 2, 1)), b.normal[ids][:, :, None])[:, :, 0]
+            normal[ids] = current / np.linalg.norm(current, axis=1)[:, None]
         return {
             "points": p.x,
             "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
-                           "plastic_strain": p.eq_plastic.copy()},
+                           "plastic_strain": p.eq_plastic.copy(), "failed": failed, "crack_normal": normal,
+                           "detached": detached},
             "component_names": {"stress": STRESS_COMPONENTS},
             "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
         }
@@ -130,7 +167,9 @@ class MeshfreeSimulation:
         return {
             "particles": n,
             "links": int(len(self.links.neighbour) - n),  # without each particle's link to itself
-            "broken_links": 0,
+            "broken_links": int(self.broken),
+            "failed_particles": 0 if self.breaking is None else int(self.breaking.failed.sum()),
+            "detached_particles": 0 if self.breaking is None else int(self.breaking.detached.sum()),
             "layers": int(self.plate.layers),
             "support_radius": self.support_radius,
             "max_plastic_strain": float(np.max(p.eq_plastic, initial=0.0)),

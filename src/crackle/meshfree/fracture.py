@@ -1,0 +1,222 @@
+"""Fracture by link breaking (paper 000 section 3.3): when the maximum principal Cauchy stress at
+a particle exceeds the fracture stress (`fracture_factor` x `tensile_strength`, 3 x in the
+paper), the particle fails, once: a crack plane passes through it with its normal along that
+principal direction. The links that cross the crack are removed, in both directions, and the
+shape-function gradients (the MLS at the face centres of each affected particle's cell, and
+the stabilisation stiffness of its links) are rebuilt without them: the crack hides each side
+from the other's interpolation (a visibility rule).
+
+Which links cross: the crack of a failed particle c is the disc of radius `crack_radius` (the
+largest grid step, so that the discs of adjacent failed particles overlap into one surface)
+centred on X_c in the plane with normal N_c, in material coordinates (N_c = F^T n, n the
+principal direction in the current configuration). A link (I, J) crosses it when I and J lie
+on different sides of the plane and the segment X_I X_J meets the plane within the disc. A
+particle on the plane (c itself among them) counts as on the side the normal points away from,
+so c keeps its links on that side and loses those to the side N_c points to.
+
+A face centre on a crack face sees particles on one side only: with the default dilation (2.5)
+they lie on two planes parallel to the crack, too few for the quadratic basis, so such a face
+centre falls back to the linear basis (shape.cell_gradients; linear fields are still exact). A
+particle whose cell is left with a singular moment matrix even so (too few visible neighbours
+for the linear basis) is detached: all its links are removed, it carries
+no stress and moves as a free particle (mass, tools, supports and gravity still act on it), and
+its neighbours are rebuilt without it (which may detach more, repeated until none is left).
+
+The stored energy that the removal releases (the jump of the elastic plus stabilisation energy
+at the rebuild, at the mid-step positions the audit uses) is booked as damage. Checks run on a
+fixed grid of step numbers (FRACTURE_CHECK), so the state does not depend on how a run is split
+into advance calls; the rebuild is sequential numpy and per-point compiled loops: the same
+whatever the thread count.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .shape import MAX_CONDITION, cell_gradients, quartic_spline_array
+
+# Steps between fracture checks: the criterion is evaluated and links removed at the step
+# numbers that are multiples of it (a fraction of the time a wave takes to cross a spacing at
+# the stable step, which is ~0.25 spacing / c).
+FRACTURE_CHECK = 10
+# A particle this close to a crack plane (relative to the support radius) is on it.
+_ON_PLANE = 1e-9
+
+
+class LinkBreaking:
+    """The crack state of a MeshfreeSimulation and the check that extends it."""
+
+    def __init__(self, X, volume, cell_lo, cell_hi, radius, terms, stab_scale, fracture_stress, crack_radius, links):
+        n = len(X)
+        self.X, self.volume, self.cell_lo, self.cell_hi = X, volume, cell_lo, cell_hi
+        self.radius, self.terms, self.stab_scale = float(radius), terms, float(stab_scale)
+        self.fracture_stress = float(fracture_stress)
+        self.crack_radius = float(crack_radius)
+        self.tree = cKDTree(X)
+        self.failed = np.zeros(n, dtype=bool)
+        self.detached = np.zeros(n, dtype=bool)
+        self.fail_time = np.zeros(n)
+        self.normal = np.zeros((n, 3))  # material crack normal of each failed particle
+        self.blocked = np.zeros(0, dtype=np.int64)  # sorted keys I * n + J of the removed links
+        self.damage = 0.0  # J, stored energy released by the removals
+        self.broken_links = 0  # removed pairs {I, J}, I != J, that were linked
+        self._step_warned = False
+        self.row = np.repeat(np.arange(n, dtype=np.int64), np.diff(links.start))
+        self.key = self.row * np.int64(n) + links.neighbour  # increasing (CSR rows sorted)
+        dX = X[links.neighbour] - X[self.row]
+        self.reach = float(np.sqrt(np.max(np.einsum("ij,ij->i", dX, dX))))
+
+    # -- the criterion ---------------------------------------------------------------------------
+    def newly_failed(self, cauchy: np.ndarray, deformation: np.ndarray):
+        """Particles (ids, increasing) whose maximum principal stress exceeds the fracture stress
+        and that have not failed yet, with their material crack normals."""
+        s = cauchy
+        sigma = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
+        values, vectors = np.linalg.eigh(sigma)
+        ids = np.flatnonzero((values[:, 2] > self.fracture_stress) & ~self.failed & ~self.detached)
+        n_current = vectors[ids, :, 2]
+        F = deformation[ids].reshape(-1, 3, 3)
+        N = np.einsum("kab,ka->kb", F, n_current)  # F^T n: the normal pulled back to the material
+        N /= np.linalg.norm(N, axis=1)[:, None]
+        # A fixed sign (largest component positive): which side a particle on the plane keeps.
+        big = np.argmax(np.abs(N), axis=1)
+        N *= np.sign(N[np.arange(len(ids)), big])[:, None]
+        return ids, N
+
+    # -- the crossing rule -----------------------------------------------------------------------
+    def crossing_links(self, c: int, normal: np.ndarray, start, neighbour) -> np.ndarray:
+        """Positions of the links (I, J) that cross the crack disc of particle c."""
+        X = self.X
+        near = np.sort(np.asarray(self.tree.query_ball_point(X[c], self.crack_radius + self.reach), dtype=np.int64))
+        counts = start[near + 1] - start[near]
+        pos = np.repeat(start[near] - np.cumsum(np.r_[0, counts[:-1]]), counts) + np.arange(counts.sum())
+        I, J = self.row[pos], neighbour[pos]
+        dI = (X[I] - X[c]) @ normal
+        dJ = (X[J] - X[c]) @ normal
+        tol = _ON_PLANE * self.radius
+        across = (dI > tol) != (dJ > tol)
+        t = np.where(across, dI / np.where(across, dI - dJ, 1.0), 0.0)
+        t = np.clip(t, 0.0, 1.0)
+        hit = X[I] + t[:, None] * (X[J] - X[I]) - X[c]
+        inside = np.einsum("ij,ij->i", hit, hit) <= (self.crack_radius * (1.0 + 1e-9)) ** 2
+        return pos[across & inside]
+
+    # -- the check -------------------------------------------------------------------------------
+    def check(self, sim, dt: float) -> bool:
+        """At a check step: fail the particles over the criterion, remove the links across their
+        cracks, rebuild the affected particles and book the released energy. True if links
+        changed."""
+        ids, normals = self.newly_failed(sim.cauchy_stress(), sim.particles.deformation)
+        if len(ids) == 0:
+            return False
+        self.fail(sim, ids, normals, dt)
+        return True
+
+    def fail(self, sim, ids, normals, dt: float) -> None:
+        """Fail the particles `ids` (increasing) with the material crack normals `normals`:
+        remove the links across their cracks, rebuild and book the released energy."""
+        p, links = sim.particles, sim.links
+        n = len(self.X)
+        x_mid = p.x - 0.5 * dt * p.v
+        before = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
+        strain_before = self._green_strains(p.x, links)
+        self.failed[ids] = True
+        self.fail_time[ids] = sim.time
+        self.normal[ids] = normals
+        new = [self.key[self.crossing_links(c, N, links.start, links.neighbour)] for c, N in zip(ids, normals)]
+        new = np.concatenate(new)
+        new = np.concatenate([new, (new % n) * n + new // n])  # both directions
+        self._block(new)
+        self._rebuild(sim, np.unique(self.row[np.isin(self.key, new)]))
+        # The rebuilt approximation changes F at the rebuilt particles although nothing moved:
+        # that change is no deformation, so their elastic strain carries over (the plastic strain,
+        # an eigenstrain for an elastic law, takes up the difference). Otherwise a yielded
+        # particle's trial stress jumps and one radial return dissipates work no step did.
+        strain_after = self._green_strains(p.x, links)
+        changed = np.flatnonzero(np.any(strain_after != strain_before, axis=1) & ~self.detached)
+        p.plastic[changed] += strain_after[changed] - strain_before[changed]
+        # A free particle carries no stress.
+        p.plastic[self.detached] = 0.0
+        p.stress[self.detached] = 0.0
+        after = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
+        self.damage += before - after
+        self._check_step(sim, dt)
+        present = np.isin(self.key, self.blocked) & (self.row != links.neighbour)
+        a, b = self.row[present], links.neighbour[present]
+        self.broken_links = len(np.unique(np.minimum(a, b) * n + np.maximum(a, b)))
+
+    def _check_step(self, sim, dt: float) -> None:
+        """Warn once if the stable-step bound of the rebuilt links (build.stable_step, tools left
+        out) fell below the step in use: one-sided gradients at crack faces can be stiffer."""
+        if self._step_warned or self.detached.all():
+            return
+        from .build import stable_step  # build imports this module
+
+        links = sim.links
+        dX = self.X[links.neighbour] - self.X[self.row]
+        bound = stable_step(sim.particles, links, self.row, dX, sim.law, 0.0)
+        if bound < dt:
+            self._step_warned = True
+            sim.warnings.append(f"link breaking at t = {sim.time:.4g} s left a stable-step bound of {bound:.3g} s, "
+                                f"below the step {dt:.3g} s: reduce run.safety if the run blows up")
+
+    def _green_strains(self, x, links) -> np.ndarray:
+        """Per particle, the Green-Lagrange strain (6, tensor components xx yy zz xy yz xz) of the
+        deformation gradient F = I + sum_J u_J (x) grad N_J that the links give at positions x."""
+        n = len(self.X)
+        u = (x - self.X)[links.neighbour]
+        F = np.empty((n, 3, 3))
+        for a in range(3):
+            for c in range(3):
+                F[:, a, c] = np.bincount(self.row, weights=u[:, a] * links.grad[:, c], minlength=n)
+        F += np.eye(3)
+        C = np.einsum("nab,nac->nbc", F, F)
+        return 0.5 * np.stack([C[:, 0, 0] - 1.0, C[:, 1, 1] - 1.0, C[:, 2, 2] - 1.0, C[:, 0, 1], C[:, 1, 2],
+                               C[:, 0, 2]], axis=1)
+
+    def _block(self, keys):
+        self.blocked = np.union1d(self.blocked, keys)
+
+    def _rebuild(self, sim, rows):
+        """New gradients and stabilisation stiffness for the particles `rows` with the blocked
+        links left out; detaches those left singular and rebuilds their neighbours in turn."""
+        links, n = sim.links, len(self.X)
+        rows = rows[~self.detached[rows]]
+        while len(rows):
+            in_rows = np.isin(self.row, rows)
+            links.grad[in_rows] = 0.0
+            r, col, grad, condition, _ = cell_gradients(self.X, self.volume, self.cell_lo, self.cell_hi, self.radius,
+                                                        self.terms, rows, self.tree, self.blocked,
+                                                        linear_fallback=True)
+            at = np.searchsorted(self.key, r * n + col)
+            if not np.array_equal(self.key[np.minimum(at, len(self.key) - 1)], r * n + col):
+                raise RuntimeError("a rebuilt gradient has no link: the face centres' supports grew")
+            links.grad[at] = grad
+            self._stiffness(links, in_rows)
+            bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
+            lost = np.unique(np.tile(rows, 6)[bad])
+            if len(lost) == 0:
+                return
+            self.detached[lost] = True
+            touching = np.isin(self.row, lost) | np.isin(links.neighbour, lost)
+            keys = self.key[touching]
+            self._block(np.concatenate([keys, (keys % n) * n + keys // n]))
+            gone = np.isin(self.row, lost)
+            links.grad[gone] = 0.0
+            links.stiffness[gone] = 0.0
+            rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
+            rows = rows[~self.detached[rows]]
+
+    def _stiffness(self, links, in_rows):
+        """k_IJ = alpha E V_I w_IJ / sum_J w_IJ |dX|^2 over the links still there (build.py)."""
+        n = len(self.X)
+        I, J = self.row[in_rows], links.neighbour[in_rows]
+        dX = self.X[J] - self.X[I]
+        dist2 = np.einsum("ij,ij->i", dX, dX)
+        at = np.minimum(np.searchsorted(self.blocked, self.key[in_rows]), max(len(self.blocked) - 1, 0))
+        kept = self.blocked[at] != self.key[in_rows] if len(self.blocked) else np.ones(len(I), dtype=bool)
+        weight = np.where(kept, quartic_spline_array(np.sqrt(dist2) / self.radius), 0.0)
+        spread = np.bincount(I, weights=weight * dist2, minlength=n)[I]
+        links.stiffness[in_rows] = np.where(spread > 0.0, self.stab_scale * self.volume[I] * weight
+                                            / np.where(spread > 0.0, spread, 1.0), 0.0)
