@@ -352,15 +352,15 @@ def test_plastic_impact_energy_audit(plate_file):
 def test_plate_impact_example_quick(tmp_path):
     """The shipped example plate-impact --quick (a rigid 40 mm sphere at 300 m/s on a clamped
     10 mm aluminium plate, 21 x 21 x 3 particles, 60 us, fracture at 3 x 150 MPa): the plate
-    yields under the sphere (measured max plastic strain 0.13) and breaks (measured 15 particles
-    failed, 950 links removed; each failure a row of events.csv, mode tension; the VTU carries
-    the failed flag and the crack normals) with the audit, damage included, within 3 %
-    (measured +0.56 %)."""
+    yields under the sphere (measured max plastic strain 0.051) and breaks (measured 15
+    particles failed, 24 detached, 1,260 links removed; each failure a row of events.csv, mode
+    tension; the VTU carries the failed flag and the crack normals) with the audit, damage
+    included, within 3 % (measured +0.37 %)."""
     out = tmp_path / "o"
     assert main(["run", "plate-impact", "--quick", "--out", str(out), "--set", "run.field_frames=1"]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "completed" and s["particles"] == 1323
-    assert 0.05 < s["max_plastic_strain"] < 1.0
+    assert 0.02 < s["max_plastic_strain"] < 1.0
     assert s["peak_force"] > 1e5
     assert s["broken_links"] > 100 and s["failed_particles"] > 0
     events = (out / "events.csv").read_text().splitlines()[1:]
@@ -374,7 +374,7 @@ def test_identical_for_1_and_2_threads(plate_file):
     """The plastic impact with links breaking: its state after 600 steps (positions, velocities,
     plastic strain, tool force, failed particles, removed links, damage energy) bit-identical
     with 1 and 2 numba threads (subprocesses, as tests/test_determinism.py); the compared run
-    yields and breaks, and detaches particles (measured: 15 failed, 4 detached, 1,289 links
+    yields and breaks, and detaches particles (measured: 13 failed, 7 detached, 1,491 links
     removed)."""
     script = (
         "import sys, hashlib, numpy as np; sys.path.insert(0, %r); import test_meshfree as t; "
@@ -479,10 +479,10 @@ def test_notched_plate_in_tension_cracks_from_the_notch():
     x = 0 from y = -20 to -10 mm (its 18 particles failed with normal x at t = 0): the nominal
     stress peaks below the fracture stress (the same plate without the notch breaks nothing),
     the notch tip's concentration fails the first particle within 5 mm ahead of the tip, the
-    crack runs across the plate (at least 8 mm past the tip; measured 12 mm in 18 us) with
-    normals within 30 deg of x (measured 11-16 deg for the first 12), and the energy audit, the
-    released stored energy booked as damage, closes within 3 % (measured -0.06 %). The particles
-    left isolated are detached (no links, no stress) and the run stays finite."""
+    crack runs across the plate (at least 8 mm past the tip; measured 14 mm in 18 us, 34
+    particles) with normals within 30 deg of x (measured 1-17 deg for the first 12) and in the
+    plate's plane (the crack cuts through the wall), and the energy audit, the released stored
+    energy booked as damage, closes within 3 % (measured -0.10 %)."""
     def run(notched):
         plate = plate_particles((-0.02, -0.02, 0.0), (0.04, 0.04, 0.002), 0.002, 3)
         X = plate.X
@@ -511,25 +511,18 @@ def test_notched_plate_in_tension_cracks_from_the_notch():
     assert abs(X[grown[0], 0]) <= 0.002 and -0.010 < X[grown[0], 1] <= -0.005
     assert X[grown, 1].max() >= -0.010 + 0.008
     assert np.all(np.abs(b.normal[grown[:12], 0]) > np.cos(np.radians(30.0)))
+    assert not np.any(b.normal[grown, 2])
     assert history["energy.damage"][-1] > 0.0
     assert abs(energy_error(history)) < 0.03
-    # Particles left with too few visible neighbours are detached: no links, no stress, and the
-    # run goes on (measured 15 detached).
-    gone = np.flatnonzero(b.detached)
-    row = np.repeat(np.arange(len(X)), np.diff(sim.links.start))
-    touching = np.isin(row, gone) | np.isin(sim.links.neighbour, gone)
-    assert len(gone) > 0 and sim.state_is_finite()
-    assert not np.any(sim.links.grad[touching]) and not np.any(sim.links.stiffness[touching])
-    assert not np.any(sim.cauchy_stress()[gone])
 
 
 def test_split_advance_calls_give_the_same_fracture(plate_file):
     """The plastic impact with links breaking: 600 steps in one advance call and in calls of
     7, 293 and 300 steps (not on the fracture-check grid) end in bit-identical states
     (positions, velocities, plastic strain, failed and detached particles, removed links,
-    gradients, damage); links did break and particles were detached (measured 1,289 and 4), and
-    the audit with plastic work and damage closes within 3 % of the work put in (measured
-    -0.07 %)."""
+    gradients, damage); links did break and particles were detached (measured 1,491 and 7): a
+    detached particle has no links and no stress, and the run stays finite; the audit with
+    plastic work and damage closes within 3 % of the work put in (measured -0.06 %)."""
     states = []
     for chunks in ((600,), (7, 293, 300)):
         sim, _ = _plastic_plate(plate_file, fracture=True)
@@ -540,7 +533,12 @@ def test_split_advance_calls_give_the_same_fracture(plate_file):
         states.append([p.x.copy(), p.v.copy(), p.eq_plastic.copy(), b.failed.copy(), b.detached.copy(),
                        b.blocked.copy(), sim.links.grad.copy(), np.array([b.damage])])
         assert sim.broken > 0 and b.detached.any()
-        # Plastic work and fracture together: the audit closes within 3 % (measured -0.07 %).
+        gone = np.flatnonzero(b.detached)
+        row = np.repeat(np.arange(len(p.x)), np.diff(sim.links.start))
+        touching = np.isin(row, gone) | np.isin(sim.links.neighbour, gone)
+        assert sim.state_is_finite() and not np.any(sim.cauchy_stress()[gone])
+        assert not np.any(sim.links.grad[touching]) and not np.any(sim.links.stiffness[touching])
+        # Plastic work and fracture together: the audit closes within 3 %.
         terms = sim.energies(dt)
         assert abs(relative_imbalance(terms)) < 0.03 and terms["energy.plastic"] > 0 and terms["energy.damage"] > 0
     for one, split in zip(*states):

@@ -81,7 +81,8 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
     breaking = None
     if math.isfinite(fracture_stress):
         breaking = LinkBreaking(X, plate.volume, plate.cell_lo, plate.cell_hi, radius, terms,
-                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links)
+                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
+                                plate.thickness_axis)
     return MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
                               gravity, damping, plate, breaking)
 
