@@ -84,10 +84,17 @@ class LinkBreaking:
         cuts through the wall; where the direction is through the wall, the largest in-plane
         principal direction of the second Piola-Kirchhoff stress `pk2`)."""
         s = cauchy
+        # Gershgorin's bound on the largest eigenvalue spares the eigen-solve where it cannot pass.
+        off = np.abs(s[:, 3:])
+        bound = np.max(s[:, :3] + np.stack([off[:, 0] + off[:, 2], off[:, 0] + off[:, 1], off[:, 1] + off[:, 2]],
+                                           axis=1), axis=1)
+        near = np.flatnonzero((bound > self.fracture_stress) & ~self.failed & ~self.detached)
+        s = s[near]
         sigma = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
         values, vectors = np.linalg.eigh(sigma)
-        ids = np.flatnonzero((values[:, 2] > self.fracture_stress) & ~self.failed & ~self.detached)
-        n_current = vectors[ids, :, 2]
+        over = values[:, 2] > self.fracture_stress
+        ids = near[over]
+        n_current = vectors[over, :, 2]
         F = deformation[ids].reshape(-1, 3, 3)
         N = np.einsum("kab,ka->kb", F, n_current)  # F^T n: the normal pulled back to the material
         N /= np.linalg.norm(N, axis=1)[:, None]
