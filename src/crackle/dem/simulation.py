@@ -15,6 +15,7 @@ from ..solver.failures import FailureRecorder
 from .kernels import BONDED, GONE, advance
 from .model import with_contacts
 
+
 @dataclass(frozen=True)
 class Platen:
     """The first moving tool: its force on the sample along its travel over the loaded area is
