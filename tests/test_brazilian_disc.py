@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from crackle.analysis.brazilian import loading_direction, splitting_angle
@@ -63,8 +64,6 @@ def test_rotated_platens_load_the_disc_as_unrotated_ones(quick_run, tmp_path):
     (an isotropic disc; measured 2316 N against 2347 N, -1.3 %: the faceted mesh meets the
     platens differently) and points along the rotated axis within 3 degrees (measured 1.9
     degrees; the platen friction of 0.1 would allow up to 5.7)."""
-    import numpy as np
-
     def top_force(out):
         h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
         early = h["time"] <= 4.0001e-4

@@ -5,6 +5,7 @@ finished one continued to a later end time; a resume that would not be the same 
 from __future__ import annotations
 
 import json
+import pickle
 import signal
 import subprocess
 import sys
@@ -95,8 +96,6 @@ def test_resume_refusals(tmp_path, capsys):
     ]
     history = (out / "history.csv").read_bytes()
     # A checkpoint written by other sources (a development install edited since).
-    import pickle
-
     other = tmp_path / "other-code"
     other.mkdir()
     checkpoint = pickle.loads((out / "checkpoint.pkl").read_bytes())

@@ -202,7 +202,7 @@ class DemSimulation:
         sym = 0.5 * (sigma + sigma.transpose(0, 2, 1))
         return np.stack([sym[:, 0, 0], sym[:, 1, 1], sym[:, 2, 2], sym[:, 0, 1], sym[:, 1, 2], sym[:, 0, 2]], axis=1)
 
-    def homogenised_stress(self, cell: float | None = None, lower=None, upper=None):
+    def homogenised_stress(self, cell: float | None = None, lower=None, upper=None, stress=None):
         """The particle stresses averaged on a grid of cubic cells (paper 003 appendix A, in 3D):
         per cell, the sum of Vp sigma_p of the particles whose centre lies in it over the cell's
         volume. `cell` (m): the cell size, default the mean particle diameter; one cell holding
@@ -215,7 +215,8 @@ class DemSimulation:
         shape = np.maximum(1, np.ceil((hi - lo) / cell - 1e-9).astype(int))
         index = np.clip(np.floor((p.x - lo) / cell).astype(int), 0, shape - 1)
         flat = np.ravel_multi_index(index.T, shape)
-        moment = self.particle_stress() * (4.0 / 3.0 * math.pi * p.radius**3)[:, None]
+        stress = self.particle_stress() if stress is None else stress  # given: particle_stress() of this state
+        moment = stress * (4.0 / 3.0 * math.pi * p.radius**3)[:, None]
         grid = np.zeros((int(np.prod(shape)), 6))
         np.add.at(grid, flat, moment)
         return lo, cell, grid.reshape(*shape, 6) / cell**3
@@ -233,7 +234,8 @@ class DemSimulation:
         points carry radius 0 and zero particle fields)."""
         p, s = self.particles, self.inter
         n = self.n_bonds
-        lo, cell, grid = self.homogenised_stress()
+        stress = self.particle_stress()
+        lo, cell, grid = self.homogenised_stress(stress=stress)
         corners, hexes = _grid_cells(lo, cell, grid.shape[:3])
         n_particles = len(p.x)
         hexes += n_particles
@@ -246,7 +248,7 @@ class DemSimulation:
             "points": np.concatenate([p.x, corners]),
             "point_data": {
                 "displacement": padded(p.x - self.x0), "velocity": padded(p.v), "spin": padded(p.spin),
-                "radius": padded(p.radius), "stress": padded(self.particle_stress()),
+                "radius": padded(p.radius), "stress": padded(stress),
             },
             "component_names": {"stress": STRESS_COMPONENTS, "homogenised_stress": STRESS_COMPONENTS},
             "blocks": [("line", np.stack([s.a[:n], s.b[:n]], axis=1),
