@@ -120,6 +120,12 @@ def thermo_elasticity(T, law):
     return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu)), theta
 
 
+def thermal_strain(T, law) -> np.ndarray:
+    """theta(T) of thermo_elasticity for an array of temperatures (0 for the J2 law, whose
+    expansion rows are 0)."""
+    return np.array([thermo_elasticity(t, law)[2] for t in np.asarray(T, dtype=float)])
+
+
 @njit(cache=True, inline="always")
 def thermo_flow(ep, T, law):
     """g(ep, T) of eq. 20 with sigma0(T) of eq. 22, and its derivatives with respect to ep and T.
