@@ -1,7 +1,7 @@
 """The meshfree EFG method (crackle.meshfree, paper 000): MLS shape functions, nodal integration
-with its stabilisation, the J2 elasto-visco-plastic point, the explicit step on the shared base,
-the energy audit and the scenario checks. Small particle counts: the whole file is meant to take
-seconds once the kernels are compiled."""
+with its stabilisation, the J2 and the thermo-elasto-viscoplastic material points, the explicit
+step on the shared base, the energy audit and the scenario checks. Small particle counts: the
+whole file is meant to take seconds once the kernels are compiled."""
 
 from __future__ import annotations
 

@@ -13,8 +13,7 @@ ep_rate0))^(1/m), solved by a safeguarded Newton iteration; the plastic strain g
 dep 3 s / (2 seq) and the plastic work per reference volume by seq dep. With 1/n = 1 the
 hardening is linear (modulus sigma0 / ep0), with 1/n = 0 perfectly plastic; 1/m = 0 is rate
 independent. Measured with these measures the model is objective (rigid rotations leave E and S
-unchanged) and is the small-strain J2 model for small strains; it is not the paper's
-Jaumann-rate update (eq. 16 onwards), which is for large plastic strains.
+unchanged) and is the small-strain J2 model for small strains.
 
 The thermo-elasto-viscoplastic law (`model = "thermo"`, paper 000 section 3.2, eqs 16-22, the
 model of Zhou, Ravichandran & Rosakis) in the same measures:
@@ -29,12 +28,14 @@ model of Zhou, Ravichandran & Rosakis) in the same measures:
 the Kirchhoff stress, updated in the paper by the rate-tangent method of Peirce, Shih &
 Needleman. crackle keeps its total-Lagrangian radial return instead: the St. Venant-Kirchhoff
 form is objective by construction (no rotation terms to integrate), its stored energy is a
-potential the audit can measure, and it needs nothing beyond the particle's F, which a Jaumann
-update (a spin and a stress history per particle) would. The price is the J2 law's: exact for
-small elastic strains, not the paper's hypoelastic response at large ones. The return is
-backward Euler in the plastic strain increment dep with the rate dep / dt and the temperature
-the increment's own work gives, seq_trial - 3 mu dep = g(ep + dep, T + heat (seq_trial - 3 mu
-dep) dep) (dep / (dt rate0))^(1/m), solved by the same safeguarded Newton iteration. The
+potential the audit can measure, and it needs nothing beyond the particle's F, where a Jaumann
+update would need the spin and an incrementally rotated stress per particle. The price is the
+J2 law's: exact for small elastic strains, not the paper's hypoelastic response at large ones.
+The return is backward Euler in the plastic strain increment dep with the rate dep / dt and the
+temperature the increment's own work gives, seq_trial - 3 mu dep = g(ep + dep, T + chi
+(seq_trial - 3 mu dep) dep / (rho c)) (dep / (dt rate0))^(1/m), solved by the same safeguarded
+Newton iteration; with no elastic range, a particle skips it where the explicit estimate of dep
+is negligible (NEGLIGIBLE_FLOW). The
 moduli and the thermal strain of the trial are those of the step's starting temperature (an
 explicit split of the thermo-mechanical coupling, first order in the step's temperature
 change); the stress returned is re-evaluated at the new temperature, so that it is the

@@ -138,7 +138,8 @@ class MeshfreeSimulation:
         parameters), velocity, Cauchy stress, equivalent plastic strain and the fracture state:
         `failed` (1 where a crack plane passes through the particle), `crack_normal` (its normal
         in the current configuration, F^-T N normalised; 0 elsewhere: glyphs show the crack) and
-        `detached` (1: a free particle, all its links removed)."""
+        `detached` (1: a free particle, all its links removed); with the thermo law the
+        `temperature` (K)."""
         p = self.particles
         n = len(p.x)
         b = self.breaking
