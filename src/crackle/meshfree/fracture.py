@@ -209,9 +209,9 @@ class LinkBreaking:
         changed = np.flatnonzero(np.any(strain_after != strain_before, axis=1) & ~self.detached)
         p.plastic[changed] += strain_after[changed] - strain_before[changed]
         # A free particle carries no stress: its plastic strain takes up its thermal strain (thermo
-        # law; F = I without links).
+        # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
         p.plastic[self.detached] = 0.0
-        p.plastic[self.detached, :3] = -thermal_strain(p.thermal[self.detached, 0], sim.law)[:, None]
+        p.plastic[self.detached, :3] = 0.0 - thermal_strain(p.thermal[self.detached, 0], sim.law)[:, None]
         p.stress[self.detached] = 0.0
         after = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
         self.damage += before - after
