@@ -730,6 +730,23 @@ def test_thermo_bad_input_exits_2_naming_the_field(plate_file, tmp_path, capsys,
     assert field in capsys.readouterr().err
 
 
+def test_thermo_scenario_defaults(plate_file):
+    """model = "thermo" through the schema: eps0 defaults to sigma0 / E (eq. 20; j2 keeps 1), the
+    law table carries chi / (rho c) = 0.9 / (2700 x 900) K m^3/J, and the particles start at T0."""
+    from crackle.meshfree.material import HEATING, MODEL, THERMO
+
+    scenario, _ = load_scenario(plate_file, ["material.model=thermo", "material.yield_stress=275e6",
+                                             "material.initial_temperature=300.0"])
+    law = scenario.material.law()
+    assert isinstance(law, ThermoLaw) and law.reference_plastic_strain == 275e6 / 71e9
+    table = law.table()
+    assert table[MODEL] == THERMO and table[HEATING] == pytest.approx(0.9 / (2700.0 * 900.0), rel=1e-15)
+    sim = build_simulation(scenario, None)
+    assert np.all(sim.particles.thermal[:, 0] == 300.0) and sim.thermo
+    j2, _ = load_scenario(plate_file, ["material.yield_stress=275e6"])
+    assert j2.material.law().reference_plastic_strain == 1.0 and not isinstance(j2.material.law(), ThermoLaw)
+
+
 def test_precrack_removes_the_links_across_it_and_hides_each_side():
     """A 20 x 20 x 2 mm plate (11 x 11 x 3 particles) with a pre-crack on the plane x = 10 mm in
     the box y < 10 mm (a notch from one edge to the middle): removed are exactly the links
