@@ -278,8 +278,8 @@ def test_stable_step_matches_the_dense_eigenvalue():
     against the largest eigenvalue of M^-1/2 K M^-1/2 from numpy's dense eigvalsh, K assembled
     from the links (_dense_stiffness), on a 9 x 8 x 3 steel plate (216 particles): at or above
     it (the Ritz value plus its residual bound, which ends the iteration at 1 % of it) and within
-    2 % (measured +0.69 % after 17 iterations; the Ritz value alone -0.04 %). The step is STEP_MARGIN x 2 / omega; Gershgorin's bound stays above the
-    eigenvalue (measured 13 x)."""
+    2 % (measured +0.69 % after 17 iterations; the Ritz value alone -0.04 %). The step is
+    STEP_MARGIN x 2 / omega; Gershgorin's bound stays above the eigenvalue (measured 13 x)."""
     plate = plate_particles((0.0, 0.0, 0.0), (0.016, 0.014, 0.004), 0.002, 3)
     sim = build_meshfree_simulation(plate, 7800.0, J2Law(200e9, 0.3))
     p, n = sim.particles, len(plate.X)

@@ -58,8 +58,10 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
     back_link = np.lexsort((row, neighbour))
     back_start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
-    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)), back_start, back_link,
-                  row[back_link])
+    to_back = np.empty_like(back_link)
+    to_back[back_link] = np.arange(len(back_link))
+    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)), back_start, to_back,
+                  row[back_link], np.ascontiguousarray(grad[back_link]))
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
     mass = density * plate.volume

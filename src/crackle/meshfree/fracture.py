@@ -231,7 +231,7 @@ class LinkBreaking:
             bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
             lost = np.unique(np.tile(rows, 6)[bad])
             if len(lost) == 0:
-                return
+                break
             self.detached[lost] = True
             touching = np.isin(self.row, lost) | np.isin(links.neighbour, lost)
             keys = self.key[touching]
@@ -241,6 +241,7 @@ class LinkBreaking:
             links.stiffness[gone] = 0.0
             rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
             rows = rows[~self.detached[rows]]
+        links.back_grad[links.to_back] = links.grad  # the gather's copy, in the transposed order (kernels.Links)
 
     def _stiffness(self, links, in_rows):
         """k_IJ = alpha E V_I w_IJ / sum_J w_IJ |dX|^2 over the links still there (build.py)."""
