@@ -17,10 +17,12 @@ Output: one line per size, then one JSON object on the last line:
 
     {"sizes": [{"particles", "links", "steps", "seconds_per_step", "particle_steps_per_s",
                 "bytes_per_particle", "peak_rss_mb", "threads", "dt", "build_s", "stable_step_s",
-                "repeat_seconds", "cpu_utilisation", "idle_percent_before",
+                "repeat_seconds", "cpu_utilisation", "cpu_seconds_per_step", "idle_percent_before",
                 "forces_seconds_per_step", "forces_fraction"}, ...]}
 
 bytes_per_particle: nbytes of every array of the particles and the links over the particle count.
+cpu_seconds_per_step: process CPU time per step (all threads; median of the repeats): on a shared
+machine, where the wall time counts the waits for a core, it is the steadier measure of the work.
 forces_seconds_per_step: the stress pass and the gather alone (kernels.internal_forces, the same
 passes the step runs; median of the same repeats), so the rest of the step (tool contact,
 supports, integrator) is the difference; forces_fraction its share of the step.
@@ -139,6 +141,7 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
         "stable_step_s": sum(step_time),
         "repeat_seconds": times,
         "cpu_utilisation": sum(cpu) / (sum(times) * steps * numba.get_num_threads()),
+        "cpu_seconds_per_step": statistics.median(cpu) / steps,
         "idle_percent_before": idle,
         "forces_seconds_per_step": statistics.median(force_times),
         "forces_fraction": statistics.median(force_times) / per_step,
@@ -176,7 +179,7 @@ def main() -> None:
               f"{row['particle_steps_per_s'] / 1e6:6.2f} M particle-steps/s, {row['bytes_per_particle']:6.0f} B/particle, "
               f"forces {100 * row['forces_fraction']:.0f} % of the step, peak RSS {row['peak_rss_mb']:.0f} MB, "
               f"{row['threads']} threads, build {row['build_s']:.1f} s (stable step {row['stable_step_s']:.1f} s), "
-              f"CPU utilisation {row['cpu_utilisation']:.2f}")
+              f"CPU utilisation {row['cpu_utilisation']:.2f} ({row['cpu_seconds_per_step'] * 1e3:.2f} CPU ms/step)")
         if (row["idle_percent_before"] or 100.0) < 90.0 or row["cpu_utilisation"] < 0.85:
             print(f"warning: {row['particles']} particles: the machine looked busy (idle "
                   f"{row['idle_percent_before']}, utilisation {row['cpu_utilisation']:.2f}); timings are unreliable",
