@@ -173,7 +173,7 @@ def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
     estimate of the new omega_max^2 (fracture.LinkBreaking)."""
     n = len(particles.mass)
-    start, neighbour, grad, k = links.start, links.neighbour, links.grad, links.stiffness
+    neighbour, grad, k = links.neighbour, links.grad, links.stiffness
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
     gn = np.linalg.norm(grad, axis=1)
     c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
