@@ -310,7 +310,7 @@ def test_stable_step_is_sharp(tmp_path):
     (= stable_dt / STEP_MARGIN), random velocities on a 16 x 9 x 3 plate stay bounded for 1,000
     steps at 0.98 x it (stored + kinetic energy within 30 % of the initial: at this step the
     audit's half-step energies differ from the scheme's conserved one in the highest modes;
-    measured +18 %) and blow up at 1.02 x it: the estimate is within 2 % of the true limit. Through
+    measured +15 %) and blow up at 1.02 x it: the estimate is within 2 % of the true limit. Through
     the driver at 1.5 x it, the run is stopped as unstable with its message. (The audit at the
     default step, 0.7 x stable_dt: test_plate_impact_run_and_energy_audit, < 1 %.)"""
     def run(factor):
