@@ -46,9 +46,12 @@ Particles = namedtuple(
 # thermal: per particle the temperature (K) and the stored energy per reference volume the
 # temperature changes released (J/m^3, energy.thermal); the thermo law's state (material.py).
 # start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
-# I (smoothed over I's cell); stiffness: k_IJ; stab_force: k eps; back_start, back_link,
-# back_row: the transpose, for particle L every link (I, L) and its I, in order of I.
-Links = namedtuple("Links", "start neighbour grad stiffness stab_force back_start back_link back_row")
+# I (smoothed over I's cell); stiffness: k_IJ; back_start, back_row: the transpose, for particle
+# L every link (I, L) and its I, in order of I; to_back: each link's position in it. Stored in
+# the transposed order, so that the gather reads them in sequence (an indirect read per link
+# made the gather 5 x slower): back_grad = grad (kept equal by build and fracture), stab_force =
+# k eps (written there by the stress pass).
+Links = namedtuple("Links", "start neighbour grad stiffness stab_force back_start to_back back_row back_grad")
 
 BLOCK = 128  # particles per parallel task
 
@@ -56,7 +59,7 @@ BLOCK = 128  # particles per parallel task
 @block_kernel
 def _stress_block(lo, hi, dt, p, links, law):
     x, X, start, neighbour, grad = p.x, p.X, links.start, links.neighbour, links.grad
-    k_link, stab_force = links.stiffness, links.stab_force
+    k_link, stab_force, to_back = links.stiffness, links.stab_force, links.to_back
     for i in range(lo, hi):
         f00 = 1.0
         f01 = 0.0
@@ -127,9 +130,10 @@ def _stress_block(lo, hi, dt, p, links, law):
             ex = k * (x[j, 0] - x[i, 0] - (f00 * dX0 + f01 * dX1 + f02 * dX2))
             ey = k * (x[j, 1] - x[i, 1] - (f10 * dX0 + f11 * dX1 + f12 * dX2))
             ez = k * (x[j, 2] - x[i, 2] - (f20 * dX0 + f21 * dX1 + f22 * dX2))
-            stab_force[r, 0] = ex
-            stab_force[r, 1] = ey
-            stab_force[r, 2] = ez
+            b = to_back[r]
+            stab_force[b, 0] = ex
+            stab_force[b, 1] = ey
+            stab_force[b, 2] = ez
             qx += ex
             qy += ey
             qz += ez
@@ -158,26 +162,32 @@ def _stress_block(lo, hi, dt, p, links, law):
         t[i, 8] = vol * (f20 * s5 + f21 * s4 + f22 * s2) - m22
 
 
+@njit(cache=True, inline="always")
+def _link_force(g, p, links):
+    """The internal force on particle g gathered from the links (i, g) towards it (after _stress_block)."""
+    back_start, back_row, grad, stab_force, t = (links.back_start, links.back_row, links.back_grad, links.stab_force,
+                                                 p.internal)
+    fx = p.stab_sum[g, 0]
+    fy = p.stab_sum[g, 1]
+    fz = p.stab_sum[g, 2]
+    for r in range(back_start[g], back_start[g + 1]):
+        i = back_row[r]  # the link (i, g): grad N_g at i and k eps of i towards g
+        g0 = grad[r, 0]
+        g1 = grad[r, 1]
+        g2 = grad[r, 2]
+        fx -= t[i, 0] * g0 + t[i, 1] * g1 + t[i, 2] * g2 + stab_force[r, 0]
+        fy -= t[i, 3] * g0 + t[i, 4] * g1 + t[i, 5] * g2 + stab_force[r, 1]
+        fz -= t[i, 6] * g0 + t[i, 7] * g1 + t[i, 8] * g2 + stab_force[r, 2]
+    return fx, fy, fz
+
+
 @block_kernel
 def _particle_block(lo, hi, slot, dt, p, links, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
     x, v, mass = p.x, p.v, p.mass
-    back_start, back_link, back_row, grad, stab_force, t = (links.back_start, links.back_link, links.back_row,
-                                                            links.grad, links.stab_force, p.internal)
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     for g in range(lo, hi):
-        fx = p.stab_sum[g, 0]
-        fy = p.stab_sum[g, 1]
-        fz = p.stab_sum[g, 2]
-        for r in range(back_start[g], back_start[g + 1]):
-            i = back_row[r]
-            back = back_link[r]  # the link (i, g): grad N_g at i and k eps of i towards g
-            g0 = grad[back, 0]
-            g1 = grad[back, 1]
-            g2 = grad[back, 2]
-            fx -= t[i, 0] * g0 + t[i, 1] * g1 + t[i, 2] * g2 + stab_force[back, 0]
-            fy -= t[i, 3] * g0 + t[i, 4] * g1 + t[i, 5] * g2 + stab_force[back, 1]
-            fz -= t[i, 6] * g0 + t[i, 7] * g1 + t[i, 8] * g2 + stab_force[back, 2]
+        fx, fy, fz = _link_force(g, p, links)
         m = mass[g]
         cx, cy, cz, tool_work = contact_with_tools(
             g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, p.area[g], dt, slot, tools, n_tool,
@@ -209,6 +219,22 @@ def advance(n_steps, first_step, dt, particles, links, law, tools, radius, gravi
                             radius, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
+
+
+@njit(parallel=True, cache=True)
+def internal_forces(dt, particles, links, law, force):
+    """The internal forces (n, 3) at particles.x into `force`, by the step's own two passes (its
+    stress pass updates the particles' stress state: call it on a copy); for the stable step."""
+    n = particles.x.shape[0]
+    n_block = (n + BLOCK - 1) // BLOCK
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _stress_block(lo, min(lo + BLOCK, n), dt, particles, links, law)
+    for g in prange(n):
+        fx, fy, fz = _link_force(g, particles, links)
+        force[g, 0] = fx
+        force[g, 1] = fy
+        force[g, 2] = fz
 
 
 @njit(parallel=True, cache=True)
