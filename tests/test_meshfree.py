@@ -337,6 +337,40 @@ def test_stable_step_is_sharp(tmp_path):
         run_simulation(sim, control, tmp_path / "unstable")
 
 
+
+def test_cantilever_plate_bends_at_the_thin_plate_frequency():
+    """Thin-wall bending: a steel plate strip 60 x 10 x 2 mm (31 x 6 x 3 particles, spacing 2 mm =
+    the thickness) clamped at x = 0 and held in cylindrical bending (rollers across the width on
+    every particle: plane strain), started in the shape of its first mode, v_z = 0.1 (x / L)^2:
+    the tip's period gives the first bending frequency of a thin plate, f = 1.875^2 / (2 pi L^2)
+    sqrt(E t^2 / (12 rho (1 - nu^2))) = 488.1 Hz, within 6 % (measured +4.2 %; 2 layers +6.6 %).
+    The link stabilisation resists curvature: at twice the spacing (4 mm) this strip is +31 %
+    (2.5 x at 5 mm spacing on a 0.8 mm wall), user guide "Nodal integration" says why."""
+    from crackle.loading import Selection, Support
+
+    E, nu, rho, L, t = 210e9, 0.3, 7800.0, 0.06, 0.002
+    plate = plate_particles((0.0, 0.0, 0.0), (L, 0.01, t), 0.002, 3)
+    X = plate.X
+    velocity = np.zeros_like(X)
+    velocity[:, 2] = 0.1 * (X[:, 0] / L) ** 2
+    supports = [Support("roller", Selection(box_min=(-1.0, -1.0, -1.0), box_max=(1.0, 1.0, 1.0)), (0.0, 1.0, 0.0)),
+                Support("fixed", Selection(box_min=(-1e-9, -1.0, -1.0), box_max=(1e-9, 1.0, 1.0)))]
+    sim = build_meshfree_simulation(plate, rho, J2Law(E, nu), supports=supports, velocity=velocity)
+    expected = 1.875**2 / (2.0 * np.pi * L**2) * np.sqrt(E * t**2 / (12.0 * rho * (1.0 - nu**2)))
+    dt = 0.9 * sim.stable_dt
+    tip = X[:, 0] > L - 1e-9
+    chunk = 20
+    deflection = []
+    for _ in range(int(1.6 / expected / (chunk * dt))):
+        sim.advance(chunk, dt)
+        deflection.append(np.mean(sim.particles.x[tip, 2] - X[tip, 2]))
+    z = np.array(deflection)
+    times = chunk * dt * (np.arange(len(z)) + 1)
+    k = np.flatnonzero((z[:-1] > 0.0) & (z[1:] <= 0.0))  # downward zero crossings, one per period
+    crossings = times[k] - z[k] * (times[k + 1] - times[k]) / (z[k + 1] - z[k])
+    assert len(crossings) >= 2
+    assert 1.0 / (crossings[1] - crossings[0]) == pytest.approx(expected, rel=0.06)
+
 def _uniaxial(law, strains, dt, thermal=None):
     """Uniaxial stress by a secant search on the lateral strain (S22 = S33 = 0) at each axial
     Green strain; returns the axial stresses and the plastic work density (and updates
