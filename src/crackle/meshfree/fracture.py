@@ -26,7 +26,8 @@ they lie on two planes parallel to the crack, too few for the quadratic basis, s
 centre falls back to the linear basis (shape.cell_gradients; linear fields are still exact). A
 particle whose cell is left with a singular moment matrix even so (too few visible neighbours
 for the linear basis) is detached: all its links are removed, it carries
-no stress and moves as a free particle (mass, tools, supports and gravity still act on it), and
+no stress and no pressure and moves as a free particle (mass, tools, supports and gravity still
+act on it), and
 its neighbours are rebuilt without it (which may detach more, repeated until none is left).
 
 The stored energy that the removal releases (the jump of the elastic plus stabilisation energy
@@ -236,6 +237,10 @@ class LinkBreaking:
             gone = np.isin(self.row, lost)
             links.grad[gone] = 0.0
             links.stiffness[gone] = 0.0
+            # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
+            # reference face would push a tumbling fragment in a fixed direction).
+            faces = sim.pressures.start
+            sim.pressures.area[np.isin(np.repeat(np.arange(n), np.diff(faces)), lost)] = 0.0
             rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
             rows = rows[~self.detached[rows]]
 
