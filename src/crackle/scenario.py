@@ -354,8 +354,9 @@ class PressureSpec(Strict):
     """its time and speed columns read as s and Pa"""
     profile: Literal["history", "taylor"] = "history"
     """history: rate, value or table as given; taylor: the Taylor wave behind a detonation (Beltman and Shepherd
-    2002): value at the front, then plateau x value + (1 - plateau) x value x exp(-t / decay_time), a fixed
-    decay time (their T ~ x / (3 D) grows with the distance x the detonation has run: give T at the specimen)"""
+    2002): value x (plateau + (1 - plateau) exp(-tau / decay_time)), tau the time since the front passed (since
+    t = 0 without a front); a fixed decay time is a choice (their T ~ x / (3 D) grows with the distance x the
+    detonation has run from the ignition: give T at the specimen)"""
     decay_time: Positive | None = None
     """s, profile = "taylor": the exponential decay time T behind the front"""
     plateau: Annotated[float, Field(ge=0.0, le=1.0)] = 0.4
