@@ -554,3 +554,53 @@ def test_split_advance_calls_give_the_same_fracture(plate_file):
 def test_bad_input_exits_2_naming_the_field(plate_file, tmp_path, capsys, override, field):
     assert main(["run", str(plate_file), "--out", str(tmp_path / "o"), "--set", override]) == 2
     assert field in capsys.readouterr().err
+
+
+def test_precrack_removes_the_links_across_it_and_hides_each_side():
+    """A 20 x 20 x 2 mm plate (11 x 11 x 3 particles) with a pre-crack on the plane x = 10 mm in
+    the box y < 10 mm (a notch from one edge to the middle): removed are exactly the links
+    (I, J), both directions, with one end behind the plane (or on it) and the other in front
+    whose segment meets the plane at y <= 10 mm (checked link by link); no particle fails and
+    no link counts as broken; linear fields stay exact (1e-10). Then the plate is cut right
+    across: given the particles behind the cut 5 m/s along -x, the particles in front never
+    move (their velocities stay exactly 0 for 200 steps: nothing interpolates across the cut)
+    and the moving part translates rigidly (kinetic energy kept to 1e-12)."""
+    from crackle.loading import Precrack
+
+    plate = plate_particles((0.0, 0.0, 0.0), (0.02, 0.02, 0.002), 0.002, 3)
+    notch = Precrack((0.01, 0.0, 0.0), (1.0, 0.0, 0.0), box_max=(np.inf, 0.01, np.inf))
+    sim = build_meshfree_simulation(plate, RHO_AL, J2Law(E_AL, NU), precracks=[notch])
+    X, links, b = sim.particles.X, sim.links, sim.breaking
+    n = len(X)
+    row = np.repeat(np.arange(n), np.diff(links.start))
+    col = links.neighbour
+    expected = set()
+    for i, j in zip(row.tolist(), col.tolist()):
+        da, dz = X[i, 0] - 0.01, X[j, 0] - 0.01
+        if (da <= 1e-12) != (dz <= 1e-12):
+            hit = X[i] + (-da / (dz - da)) * (X[j] - X[i])
+            if hit[1] <= 0.01 + 1e-9:
+                expected.add(i * n + j)
+    removed = set(b.blocked.tolist()) & set((row * n + col).tolist())
+    assert removed == expected and len(removed) > 0
+    assert not b.failed.any() and b.broken_links == 0 and sim.summary()["precrack_links"] == len({(min(k // n, k % n), max(k // n, k % n)) for k in removed})
+    A = np.array([[1e-3, 2e-4, 0.0], [3e-4, -5e-4, 1e-4], [0.0, 2e-4, 7e-4]])
+    F = np.zeros((n, 3, 3))
+    np.add.at(F, row, (X @ A.T)[col][:, :, None] * links.grad[:, None, :])
+    assert np.abs(F - A).max() < 1e-10
+
+    cut = Precrack((0.01, 0.0, 0.0), (1.0, 0.0, 0.0))
+    behind = X[:, 0] <= 0.01 + 1e-12
+    velocity = np.where(behind[:, None], [-5.0, 0.0, 0.0], 0.0)
+    sim = build_meshfree_simulation(plate, RHO_AL, J2Law(E_AL, NU), velocity=velocity, precracks=[cut])
+    kinetic = sim.energies(0.0)["energy.kinetic"]
+    sim.advance(200, 0.7 * sim.stable_dt)
+    assert np.all(sim.particles.v[~behind] == 0.0) and np.all(sim.particles.x[~behind] == X[~behind])
+    assert abs(sim.energies(0.0)["energy.kinetic"] / kinetic - 1.0) < 1e-12
+
+
+def test_precrack_off_the_specimen_exits_2(tmp_path, capsys):
+    path = tmp_path / "notched.toml"
+    path.write_text(PLATE + '\n[[precracks]]\npoint = [0.5, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n')
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "precracks.0" in capsys.readouterr().err

@@ -12,8 +12,7 @@ from pydantic import Discriminator, Tag, model_validator
 from ..analysis import CrackSettings, FracturePlane
 from ..geometry import MeshError
 from ..geometry.specimens import specimen_mesh
-from ..loading import Precrack
-from ..loading.build import build_loading, touch_specimen
+from ..loading.build import build_loading, build_precracks, touch_specimen
 from ..materials import Material
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from .laws import LAWS
@@ -130,7 +129,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 tools=tools,
                 supports=supports,
                 pressures=pressures,
-                precracks=[Precrack(c.point, c.normal, c.box_min or Precrack.box_min, c.box_max or Precrack.box_max, c.tol) for c in scenario.precracks],
+                precracks=build_precracks(scenario.precracks),
                 gravity=scenario.run.gravity,
                 damping=scenario.run.damping,
                 initial_velocity=scenario.specimen.initial_velocity,

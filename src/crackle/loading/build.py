@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenario import ScenarioError, resolve_path
-from . import History, Pressure, Selection, Support, Tool, load_surface
+from . import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 
 
 def _history_of(spec) -> History:
@@ -126,3 +126,9 @@ def build_loading(scenario, base: Path | None):
     scenario."""
     tools = build_tools(scenario.all_tools(), base, scenario.loading)
     return tools, build_supports(scenario.supports), build_pressures(scenario.pressures, scenario.run.end_time)
+
+
+def build_precracks(specs) -> list[Precrack]:
+    """[[precracks]] as loading.Precrack (an unset box corner: unbounded)."""
+    return [Precrack(c.point, c.normal, c.box_min or Precrack.box_min, c.box_max or Precrack.box_max, c.tol)
+            for c in specs]

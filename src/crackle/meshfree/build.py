@@ -28,14 +28,15 @@ class SetupError(ValueError):
 def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None,
-                              fracture_stress: float = math.inf, pressures=()) -> MeshfreeSimulation:
+                              fracture_stress: float = math.inf, precracks=(), pressures=()) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py) and
-    the pressures on the wall faces (loading.Pressure, pressure_arrays)."""
+    the pre-cracks (loading.Precrack: the links across them removed at the start) and the pressures
+    on the wall faces (loading.Pressure, pressure_arrays)."""
     X = np.ascontiguousarray(plate.X, dtype=float)
     n = len(X)
     radius = dilation * float(np.max(plate.spacing))
@@ -80,12 +81,20 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     dt = stable_step(particles, links, row, dX, table, tool_k)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
-    if math.isfinite(fracture_stress):
+    if math.isfinite(fracture_stress) or precracks:
         breaking = LinkBreaking(X, plate.volume, plate.cells, radius, terms,
                                 stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
                                 plate.wall_frame)
-    return MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
-                              gravity, damping, plate, breaking, loads)
+    sim = MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
+                             gravity, damping, plate, breaking, loads)
+    if precracks:
+        try:
+            breaking.cut(sim, precracks, scale)
+        except ValueError as err:
+            raise SetupError(str(err).split(":")[0], str(err)) from None
+        # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
+        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, dX, table, tool_k))
+    return sim
 
 
 def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:

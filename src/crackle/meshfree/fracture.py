@@ -72,6 +72,8 @@ class LinkBreaking:
         self.blocked = np.zeros(0, dtype=np.int64)  # sorted keys I * n + J of the removed links
         self.damage = 0.0  # J, stored energy released by the removals
         self.broken_links = 0  # removed pairs {I, J}, I != J, that were linked
+        self.precut = np.zeros(0, dtype=np.int64)  # sorted keys of the links the pre-cracks removed
+        self.precut_pairs = 0  # pairs {I, J} of linked particles the pre-cracks separated
         self._step_warned = False
         self.row = np.repeat(np.arange(n, dtype=np.int64), np.diff(links.start))
         self.key = self.row * np.int64(n) + links.neighbour  # increasing (CSR rows sorted)
@@ -134,11 +136,53 @@ class LinkBreaking:
         inside = np.einsum("ij,ij->i", hit, hit) <= (self.crack_radius * (1.0 + 1e-9)) ** 2
         return pos[across & inside]
 
+    def precut_links(self, crack, scale: float, neighbour) -> np.ndarray:
+        """Positions of the links (I, J) that cross a pre-crack (loading.Precrack): I and J on
+        different sides of its plane (a particle on the plane, within `tol`, counts as on the side
+        the normal points away from, as for a failed particle's crack) and the segment meets the
+        plane inside its box (widened by tol)."""
+        X = self.X
+        normal = np.asarray(crack.normal, dtype=float)
+        normal = normal / np.linalg.norm(normal)
+        tol = crack.tol if crack.tol is not None else 1e-6 * scale
+        I, J = self.row, neighbour
+        dI = (X[I] - np.asarray(crack.point)) @ normal
+        dJ = (X[J] - np.asarray(crack.point)) @ normal
+        across = (dI > tol) != (dJ > tol)
+        t = np.clip(np.where(across, dI / np.where(across, dI - dJ, 1.0), 0.0), 0.0, 1.0)
+        hit = X[I] + t[:, None] * (X[J] - X[I])
+        inside = np.all((hit >= np.asarray(crack.box_min) - tol) & (hit <= np.asarray(crack.box_max) + tol), axis=1)
+        return np.flatnonzero(across & inside)
+
+    def cut(self, sim, precracks, scale: float) -> None:
+        """Remove the links that cross the pre-cracks (a notch or a slit present from the start)
+        and rebuild the particles that lost some: the same visibility rule as a grown crack,
+        but no particle fails and no energy is released (nothing is strained yet). Raises
+        ValueError when a pre-crack cuts no link."""
+        links, n = sim.links, len(self.X)
+        keys = []
+        for i, crack in enumerate(precracks):
+            hit = self.key[self.precut_links(crack, scale, links.neighbour)]
+            if len(hit) == 0:
+                raise ValueError(f"precracks.{i}: its plane cuts no link between particles inside its box; check "
+                                 "point, normal, box_min and box_max against the specimen")
+            keys.append(hit)
+        if not keys:
+            return
+        new = np.concatenate(keys)
+        new = np.concatenate([new, (new % n) * n + new // n])
+        self.precut = np.unique(new)
+        self._block(self.precut)
+        self.precut_pairs = self._pairs(np.isin(self.key, self.precut) & (self.row != links.neighbour), links)
+        self._rebuild(sim, np.unique(self.row[np.isin(self.key, self.precut)]))
+
     # -- the check -------------------------------------------------------------------------------
     def check(self, sim, dt: float) -> bool:
         """At a check step: fail the particles over the criterion, remove the links across their
         cracks, rebuild the affected particles and book the released energy. True if links
         changed."""
+        if not np.isfinite(self.fracture_stress):  # pre-cracks only
+            return False
         ids, normals = self.newly_failed(sim.cauchy_stress(), sim.particles.deformation, sim.particles.stress)
         if len(ids) == 0:
             return False
@@ -174,9 +218,13 @@ class LinkBreaking:
         after = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
         self.damage += before - after
         self._check_step(sim, dt)
-        present = np.isin(self.key, self.blocked) & (self.row != links.neighbour)
-        a, b = self.row[present], links.neighbour[present]
-        self.broken_links = len(np.unique(np.minimum(a, b) * n + np.maximum(a, b)))
+        present = np.isin(self.key, self.blocked) & ~np.isin(self.key, self.precut) & (self.row != links.neighbour)
+        self.broken_links = self._pairs(present, links)
+
+    def _pairs(self, mask, links) -> int:
+        """The number of pairs {I, J} among the links `mask` selects."""
+        a, b = self.row[mask], links.neighbour[mask]
+        return len(np.unique(np.minimum(a, b) * len(self.X) + np.maximum(a, b)))
 
     def _check_step(self, sim, dt: float) -> None:
         """Warn once if the stable-step bound of the rebuilt links (build.stable_step, tools left

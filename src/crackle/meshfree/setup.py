@@ -15,8 +15,8 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from ..loading.build import build_loading
-from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Specimen
+from ..loading.build import build_loading, build_precracks
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import SetupError, build_meshfree_simulation
 from .material import J2Law
@@ -130,6 +130,9 @@ class Scenario(ScenarioBase):
     """the particles and their shape functions"""
     material: MeshfreeMaterial
     """elastic constants, the J2 law and the fracture stress"""
+    precracks: list[PrecrackSpec] = []
+    """notches and slits present from the start: the links between particles that cross the plane inside the
+    box are removed (the same visibility rule as a grown crack, fracture.py)"""
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
@@ -148,7 +151,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         return build_meshfree_simulation(
             plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
-            velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress, pressures=pressures,
+            velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
+            precracks=build_precracks(scenario.precracks), pressures=pressures,
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None

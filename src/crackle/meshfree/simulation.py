@@ -174,6 +174,7 @@ class MeshfreeSimulation:
             "particles": n,
             "links": int(len(self.links.neighbour) - n),  # without each particle's link to itself
             "broken_links": int(self.broken),
+            "precrack_links": 0 if self.breaking is None else self.breaking.precut_pairs,
             "failed_particles": 0 if self.breaking is None else int(self.breaking.failed.sum()),
             "detached_particles": 0 if self.breaking is None else int(self.breaking.detached.sum()),
             "layers": int(self.plate.layers),
