@@ -321,15 +321,16 @@ def test_tube_scenario_runs_with_the_detonation(tmp_path):
 
 def test_tube_detonation_example_quick(tmp_path):
     """The shipped example tube-detonation --quick (paper 000 section 4.3's tube: ri 19.75 mm,
-    wall 0.89 mm, 3 layers, 4 mm spacing, 60 mm long, clamped ends; a Taylor wave of p_CJ =
-    6.1 MPa at D = 2350 m/s on the inner wall, 30 us): it completes with the audit within 3 %
-    (measured -0.006 %); the front's step load overshoots the static hoop stress p r / t =
-    138 MPa about twice, so the wall just yields at 275 MPa (measured plastic strain 3.6e-4),
-    and nothing breaks: the perfectly plastic J2 law caps the maximum principal stress of the
-    thin wall near the yield stress, far below the fracture stress 3 x 275 MPa."""
+    wall 0.89 mm, 3 layers, 4 mm spacing, 60 mm long, clamped ends, shot 1's 25.4 mm axial notch
+    at mid-length; a Taylor wave of p_CJ = 6.1 MPa at D = 2350 m/s on the inner wall, 30 us): the
+    notch cuts links (measured 990 pairs), the run completes with the audit within 3 % (measured
+    -0.002 %), and the wall yields (the front's step load overshoots the static hoop stress
+    p r / t = 138 MPa about twice; the notch tips concentrate it: measured peak plastic strain
+    0.016 there, below 0.1)."""
     out = tmp_path / "o"
     assert main(["run", "tube-detonation", "--quick", "--out", str(out), "--set", "run.field_frames=1"]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "completed" and s["particles"] == 32 * 16 * 3
+    assert s["precrack_links"] > 100
     assert abs(s["energy_error"]) < 0.03
-    assert 0.0 < s["max_plastic_strain"] < 0.01 and s["failed_particles"] == 0
+    assert 0.0 < s["max_plastic_strain"] < 0.1
