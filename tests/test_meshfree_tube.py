@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -334,3 +337,26 @@ def test_tube_detonation_example_quick(tmp_path):
     assert s["precrack_links"] > 100
     assert abs(s["energy_error"]) < 0.03
     assert 0.0 < s["max_plastic_strain"] < 0.1
+
+
+def test_pressurised_tube_identical_for_1_and_2_threads():
+    """The detonation on the tube (follower pressure behind a travelling front, gathered per
+    particle): its state after 200 steps (positions, velocities, external work per particle)
+    bit-identical with 1 and 2 numba threads (subprocesses, as tests/test_determinism.py)."""
+    script = (
+        "import sys, hashlib, numpy as np; sys.path.insert(0, %r); import test_meshfree_tube as t; "
+        "from crackle.loading import History, Pressure; "
+        "from crackle.meshfree.build import build_meshfree_simulation; from crackle.meshfree.material import J2Law; "
+        "load = Pressure(History.taylor_wave(6.1e6, 0.4, 2e-5), t.EVERYWHERE, wall='inner', front_speed=2350.0); "
+        "sim = build_meshfree_simulation(t._tube(), t.RHO_AL, J2Law(t.E_AL, t.NU), pressures=[load]); "
+        "dt = 0.7 * sim.stable_dt; sim.advance(200, dt); p = sim.particles; h = hashlib.sha256(); "
+        "[h.update(np.ascontiguousarray(a).tobytes()) for a in (p.x, p.v, p.w_external)]; "
+        "print(h.hexdigest(), float(np.abs(p.w_external).sum()))"
+    ) % os.path.dirname(__file__)
+    digests = []
+    for threads in (1, 2):
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+        done = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
+        digests.append(done.stdout.split())
+    assert digests[0][0] == digests[1][0]
+    assert float(digests[0][1]) > 0.0, "the pressure must have worked"
