@@ -11,7 +11,7 @@ from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
 from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures
-from .material import J2Law
+from .material import T_REF, J2Law
 from .particles import WALL_SIDES, WallParticles
 from .shape import basis_terms, quartic_spline_array, smoothed_gradients
 from .simulation import MeshfreeSimulation
@@ -73,6 +73,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
         plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
         deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_sum=np.zeros((n, 3)),
+        thermal=np.column_stack([np.full(n, table[T_REF]), np.zeros(n)]),
     )
     h = float(np.min(plate.spacing))
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h

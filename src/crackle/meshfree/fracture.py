@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, quartic_spline_array
 
 # Steps between fracture checks: the criterion is evaluated and links removed at the step
@@ -212,8 +213,10 @@ class LinkBreaking:
         strain_after = self._green_strains(p.x, links)
         changed = np.flatnonzero(np.any(strain_after != strain_before, axis=1) & ~self.detached)
         p.plastic[changed] += strain_after[changed] - strain_before[changed]
-        # A free particle carries no stress.
+        # A free particle carries no stress: its plastic strain takes up its thermal strain (thermo
+        # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
         p.plastic[self.detached] = 0.0
+        p.plastic[self.detached, :3] = 0.0 - thermal_strain(p.thermal[self.detached, 0], sim.law)[:, None]
         p.stress[self.detached] = 0.0
         after = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
         self.damage += before - after

@@ -36,13 +36,15 @@ from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
-from .material import stress_update
+from .material import elastic_energy, stress_update
 
 Particles = namedtuple(
     "Particles",
     "x v X mass volume area constraint projection tool tool_offset friction d_friction w_external w_damping "
-    "plastic eq_plastic w_plastic stress deformation internal stab_sum",
+    "plastic eq_plastic w_plastic stress deformation internal stab_sum thermal",
 )
+# thermal: per particle the temperature (K) and the stored energy per reference volume the
+# temperature changes released (J/m^3, energy.thermal); the thermo law's state (material.py).
 # start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
 # I (smoothed over I's cell); stiffness: k_IJ; stab_force: k eps; back_start, back_link,
 # back_row: the transpose, for particle L every link (I, L) and its I, in order of I.
@@ -94,7 +96,8 @@ def _stress_block(lo, hi, dt, p, links, law):
         e3 = 0.5 * (f00 * f01 + f10 * f11 + f20 * f21)
         e4 = 0.5 * (f01 * f02 + f11 * f12 + f21 * f22)
         e5 = 0.5 * (f00 * f02 + f10 * f12 + f20 * f22)
-        s0, s1, s2, s3, s4, s5, work = stress_update(i, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, dt, law)
+        s0, s1, s2, s3, s4, s5, work = stress_update(i, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, p.thermal,
+                                                     dt, law)
         vol = p.volume[i]
         if work != 0.0:
             p.w_plastic[i] += vol * work
@@ -259,10 +262,10 @@ def advance(n_steps, first_step, dt, particles, links, law, tools, pressures, ra
 
 
 @njit(parallel=True, cache=True)
-def strain_energies(x, X, volume, plastic, start, neighbour, grad, stiffness, law, elastic, stabilisation):
+def strain_energies(x, X, volume, plastic, thermal, start, neighbour, grad, stiffness, law, elastic, stabilisation):
     """Per particle, at positions x: the elastic energy V (E - Ep) : C : (E - Ep) / 2 with its
-    current plastic strain, and its links' stabilisation energy sum_J k |eps|^2 / 2 (J)."""
-    lam, mu = law[0], law[1]
+    current plastic strain (and temperature), and its links' stabilisation energy
+    sum_J k |eps|^2 / 2 (J)."""
     for i in prange(x.shape[0]):
         F = np.eye(3)
         for r in range(start[i], start[i + 1]):
@@ -277,9 +280,7 @@ def strain_energies(x, X, volume, plastic, start, neighbour, grad, stiffness, la
         e3 = 0.5 * C[0, 1] - plastic[i, 3]
         e4 = 0.5 * C[1, 2] - plastic[i, 4]
         e5 = 0.5 * C[0, 2] - plastic[i, 5]
-        tr = e0 + e1 + e2
-        elastic[i] = volume[i] * (0.5 * lam * tr * tr + mu * (e0 * e0 + e1 * e1 + e2 * e2
-                                                              + 2.0 * (e3 * e3 + e4 * e4 + e5 * e5)))
+        elastic[i] = volume[i] * elastic_energy(i, e0, e1, e2, e3, e4, e5, thermal, law)
         acc = 0.0
         for r in range(start[i], start[i + 1]):
             j = neighbour[r]

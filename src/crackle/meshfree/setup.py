@@ -2,9 +2,10 @@
 
 [specimen] a box (FDEM's keys; its thinnest side is the wall thickness) filled by [particles]
 (an in-plane spacing, particles through the thickness, the support's dilation factor and the
-stabilisation of nodal integration); [material] the elastic constants, the J2
-elasto-visco-plastic law of paper 000 eqs 14-15 and the fracture stress (section 3.3). Tools, supports, run control and outputs are
-the shared ones.
+stabilisation of nodal integration); [material] the elastic constants, the law (`model`: the J2
+elasto-visco-plastic law of paper 000 eqs 14-15, or the thermo-elasto-viscoplastic law of eqs
+16-22) and the fracture stress (section 3.3). Tools, supports, run control and outputs are the
+shared ones.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from ..loading.build import build_loading, build_precracks
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import SetupError, build_meshfree_simulation
-from .material import J2Law
+from .material import J2Law, ThermoLaw
 from .particles import plate_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
@@ -88,22 +89,61 @@ class ParticlesSpec(Strict):
         return n
 
 
-class MeshfreeMaterial(ElasticSpec):
-    """[material]: density, elastic constants, the fracture stress (fracture.py) and the J2
-    elasto-visco-plastic law (paper 000 eqs 14-15):
-    flow stress yield_stress (1 + ep / reference_plastic_strain)^hardening_exponent
-    (1 + rate / reference_strain_rate)^rate_exponent."""
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+# Keys of the thermo law only (refused with model = "j2").
+THERMO_KEYS = ("initial_temperature", "specific_heat", "taylor_quinney", "thermal_softening", "softening_temperature",
+               "youngs_modulus_temperature", "poissons_ratio_temperature", "yield_stress_temperature",
+               "thermal_expansion", "thermal_expansion_temperature")
 
+
+class MeshfreeMaterial(ElasticSpec):
+    """[material]: density, elastic constants, the fracture stress (fracture.py) and the law:
+    model = "j2" (paper 000 eqs 14-15), flow stress yield_stress (1 + ep /
+    reference_plastic_strain)^hardening_exponent (1 + rate / reference_strain_rate)^rate_exponent;
+    model = "thermo" (eqs 16-22), plastic rate reference_strain_rate (seq / g)^(1 / rate_exponent)
+    with g = yield_stress(T) (1 + ep / reference_plastic_strain)^hardening_exponent (1 -
+    thermal_softening (exp((T - T0) / softening_temperature) - 1)) and adiabatic heating."""
+
+    model: Literal["j2", "thermo"] = "j2"
+    """the law: j2 (paper 000 eqs 14-15, J2 elasto-visco-plasticity) or thermo (eqs 16-22: the
+    thermo-elasto-viscoplastic power law with thermal softening, temperature-dependent elastic constants, thermal
+    expansion and adiabatic heating by the plastic work)"""
     yield_stress: PositiveOrInf = math.inf
-    """Pa, sigma0: the initial yield stress (inf: elastic)"""
-    reference_plastic_strain: Positive = 1.0
-    """ep0 of eq. 14; with hardening_exponent 1 the hardening modulus is yield_stress / it"""
+    """Pa, sigma0: the initial yield stress (inf: elastic; the thermo law needs a finite one)"""
+    reference_plastic_strain: Positive | None = None
+    """ep0 of eq. 14 (eps0 of eq. 20); with hardening_exponent 1 the hardening modulus is yield_stress / it; unset:
+    1 for j2, yield_stress / youngs_modulus for thermo (the paper's eps0)"""
     hardening_exponent: Annotated[float, Field(ge=0.0)] = 0.0
-    """1/n of eq. 14 (0: perfectly plastic, 1: linear hardening)"""
+    """1/n of eq. 14, N of eq. 20 (0: perfectly plastic, 1: linear hardening)"""
     reference_strain_rate: Positive = 1.0
-    """1/s, the reference plastic strain rate of eq. 15"""
+    """1/s, the reference plastic strain rate of eq. 15 (j2), of eq. 19 (thermo: the rate at which the flow stress is
+    g)"""
     rate_exponent: Annotated[float, Field(ge=0.0)] = 0.0
-    """1/m of eq. 15, the strain-rate sensitivity (0: rate independent)"""
+    """1/m of eq. 15 (j2) or of eq. 19 (thermo: the stress is g (rate / reference_strain_rate)^(1/m)), the
+    strain-rate sensitivity (0: rate independent)"""
+    initial_temperature: Positive = 293.0
+    """K, T0 (thermo): the temperature at the start and the reference of eqs 20 and 22"""
+    specific_heat: Positive = 900.0
+    """J/(kg K), c (thermo): density x specific_heat x the temperature rise = taylor_quinney x the plastic work
+    (adiabatic; aluminium ~900, steel ~450)"""
+    taylor_quinney: Annotated[float, Field(ge=0.0, le=1.0)] = 0.9
+    """chi (thermo): the share of the plastic work that heats (Taylor-Quinney; 0: no heating)"""
+    thermal_softening: NonNegative = 0.0
+    """delta of eq. 20 (thermo): the flow stress falls by the factor 1 - delta (exp((T - T0) / kappa) - 1), and
+    is 0 where that factor is (0: no thermal softening)"""
+    softening_temperature: Positive = 500.0
+    """K, kappa of eq. 20 (thermo): the temperature scale of the thermal softening"""
+    youngs_modulus_temperature: tuple[Finite, Finite] = (0.0, 0.0)
+    """Pa/K, Pa/K^2 (thermo, eq. 22): E(T) = youngs_modulus + a (T - T0) + b (T - T0)^2"""
+    poissons_ratio_temperature: tuple[Finite, Finite] = (0.0, 0.0)
+    """1/K, 1/K^2 (thermo, eq. 22): nu(T) = poissons_ratio + a (T - T0) + b (T - T0)^2"""
+    yield_stress_temperature: tuple[Finite, Finite] = (0.0, 0.0)
+    """Pa/K, Pa/K^2 (thermo, eq. 22): sigma0(T) = yield_stress + a (T - T0) + b (T - T0)^2"""
+    thermal_expansion: Finite = 0.0
+    """1/K, alpha at T0 (thermo, eq. 22): the thermal strain int_T0^T alpha dT on the diagonal of the elastic
+    strain (0: none)"""
+    thermal_expansion_temperature: tuple[Finite, Finite] = (0.0, 0.0)
+    """1/K^2, 1/K^3 (thermo, eq. 22): alpha(T) = thermal_expansion + a (T - T0) + b (T - T0)^2"""
     tensile_strength: PositiveOrInf = math.inf
     """Pa, sigma_t: a particle fails when its maximum principal (Cauchy) stress exceeds fracture_factor x
     tensile_strength, and its links across the crack plane (normal = that principal direction) are removed
@@ -111,14 +151,30 @@ class MeshfreeMaterial(ElasticSpec):
     fracture_factor: Positive = 3.0
     """the fracture stress over the tensile strength (paper 000 section 3.3: 3)"""
 
+    @model_validator(mode="after")
+    def _keys_of_the_model(self):
+        if self.model == "j2":
+            for key in THERMO_KEYS:
+                if key in self.model_fields_set:
+                    raise ValueError(f'{key}: a key of the thermo law; set model = "thermo" or remove it')
+        elif not math.isfinite(self.yield_stress):
+            raise ValueError('yield_stress: model = "thermo" needs a finite yield stress (sigma0 of eq. 20)')
+        return self
+
     @property
     def fracture_stress(self) -> float:
         """Pa, the maximum principal stress that fails a particle (inf: no fracture)."""
         return self.fracture_factor * self.tensile_strength
 
     def law(self) -> J2Law:
-        return J2Law(self.youngs_modulus, self.poissons_ratio, self.yield_stress, self.reference_plastic_strain,
-                     self.hardening_exponent, self.reference_strain_rate, self.rate_exponent)
+        if self.model == "j2":
+            ep0 = 1.0 if self.reference_plastic_strain is None else self.reference_plastic_strain
+            return J2Law(self.youngs_modulus, self.poissons_ratio, self.yield_stress, ep0, self.hardening_exponent,
+                         self.reference_strain_rate, self.rate_exponent)
+        ep0 = self.reference_plastic_strain or self.yield_stress / self.youngs_modulus
+        return ThermoLaw(self.youngs_modulus, self.poissons_ratio, self.yield_stress, ep0, self.hardening_exponent,
+                         self.reference_strain_rate, self.rate_exponent, **{k: getattr(self, k) for k in THERMO_KEYS},
+                         density=self.density)
 
 
 class Scenario(ScenarioBase):
@@ -129,7 +185,7 @@ class Scenario(ScenarioBase):
     particles: ParticlesSpec
     """the particles and their shape functions"""
     material: MeshfreeMaterial
-    """elastic constants, the J2 law and the fracture stress"""
+    """elastic constants, the J2 or thermo law and the fracture stress"""
     precracks: list[PrecrackSpec] = []
     """notches and slits present from the start: the links between particles that cross the plane inside the
     box are removed (the same visibility rule as a grown crack, fracture.py)"""

@@ -9,6 +9,7 @@ from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_TENSION, FailureRecorder
 from .fracture import FRACTURE_CHECK
 from .kernels import advance, strain_energies
+from .material import MODEL, THERMO
 
 
 class MeshfreeSimulation:
@@ -86,14 +87,20 @@ class MeshfreeSimulation:
         p, s = self.particles, self.links
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
-        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, s.start, s.neighbour, s.grad, s.stiffness,
-                        self.law, elastic, stab)
+        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, s.start, s.neighbour, s.grad,
+                        s.stiffness, self.law, elastic, stab)
         return elastic, stab
 
     def energies(self, dt: float) -> dict[str, float]:
         p = self.particles
         # Potentials at the mid-step positions pair with the half-step velocities.
         elastic, stab = self.strain_energies(p.x - 0.5 * dt * p.v)
+        thermal = {}
+        if self.thermo:
+            # The stored energy the temperature changes released at fixed strain (thermal
+            # expansion against the stress, the moduli's softening): mechanical work that left
+            # the elastic store, booked as its own term.
+            thermal = {"energy.thermal": float(np.sum(p.volume * p.thermal[:, 1]))}
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(elastic)),
@@ -103,6 +110,7 @@ class MeshfreeSimulation:
             "energy.friction": float(np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
             "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,
+            **thermal,
             "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
         }
 
@@ -136,7 +144,8 @@ class MeshfreeSimulation:
         parameters), velocity, Cauchy stress, equivalent plastic strain and the fracture state:
         `failed` (1 where a crack plane passes through the particle), `crack_normal` (its normal
         in the current configuration, F^-T N normalised; 0 elsewhere: glyphs show the crack) and
-        `detached` (1: a free particle, all its links removed)."""
+        `detached` (1: a free particle, all its links removed); with the thermo law the
+        `temperature` (K)."""
         p = self.particles
         n = len(p.x)
         b = self.breaking
@@ -152,10 +161,19 @@ class MeshfreeSimulation:
             "points": p.x,
             "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
                            "plastic_strain": p.eq_plastic.copy(), "failed": failed, "crack_normal": normal,
-                           "detached": detached},
+                           "detached": detached, **self._temperature()},
             "component_names": {"stress": STRESS_COMPONENTS},
             "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
         }
+
+    @property
+    def thermo(self) -> bool:
+        """The thermo-visco-plastic law (material.py): particles carry a temperature."""
+        return bool(self.law[MODEL] == THERMO)
+
+    def _temperature(self) -> dict:
+        """The VTU's `temperature` (K) for the thermo law; nothing for J2 (no temperature)."""
+        return {"temperature": self.particles.thermal[:, 0].copy()} if self.thermo else {}
 
     def describe(self) -> str:
         n = len(self.particles.x)
@@ -180,6 +198,7 @@ class MeshfreeSimulation:
             "layers": int(self.plate.layers),
             "support_radius": self.support_radius,
             "max_plastic_strain": float(np.max(p.eq_plastic, initial=0.0)),
+            **({"max_temperature": float(np.max(p.thermal[:, 0]))} if self.thermo else {}),
             "warnings": list(self.warnings),
         }
 
