@@ -1,7 +1,9 @@
 """The compiled step of the meshfree (EFG) method: a pass over the particles that computes each
 one's deformation gradient from its links, its stress (material.stress_update) and its
 stabilisation, then a pass over the particles that gathers their forces from the links of their
-neighbours and calls the shared tool contact (loading.tools) and node update (solver.integrator).
+neighbours, adds the follower pressure on their wall faces (Nanson's formula with their own F,
+behind a travelling front where one is given) and calls the shared tool contact (loading.tools)
+and node update (solver.integrator).
 No races: the first pass writes only the particle's own rows and the rows of its own links, the
 second reads them in the fixed CSR order.
 

@@ -1,11 +1,12 @@
 """The meshfree method's scenario sections and the build of a scenario into a MeshfreeSimulation.
 
-[specimen] a box (FDEM's keys; its thinnest side is the wall thickness) filled by [particles]
+[specimen] a box (FDEM's keys; its thinnest side is the wall thickness) or a tube (inner
+radius, wall thickness, length, axis, origin) filled by [particles]
 (an in-plane spacing, particles through the thickness, the support's dilation factor and the
 stabilisation of nodal integration); [material] the elastic constants, the law (`model`: the J2
 elasto-visco-plastic law of paper 000 eqs 14-15, or the thermo-elasto-viscoplastic law of eqs
-16-22) and the fracture stress (section 3.3). Tools, supports, run control and outputs are the
-shared ones.
+16-22) and the fracture stress (section 3.3); [[pressures]] on the wall faces, optionally behind
+a front travelling along a tube. Tools, supports, run control and outputs are the shared ones.
 """
 
 from __future__ import annotations
