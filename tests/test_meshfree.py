@@ -126,7 +126,7 @@ def test_patch_smoothed_gradients(layers):
     for a linear field at every particle: error below 1e-10 of |A| (measured ~1e-13)."""
     plate = plate_particles((0.0, 0.0, 0.0), (0.02, 0.016, 0.004), 0.002, layers)
     start, neighbour, grad, condition, bad = smoothed_gradients(
-        plate.X, plate.volume, plate.cell_lo, plate.cell_hi, 2.5 * float(np.max(plate.spacing)),
+        plate.X, plate.volume, plate.cells, 2.5 * float(np.max(plate.spacing)),
         basis_terms(plate.thickness_axis, layers))
     assert bad is None and condition < 1e4
     A = np.array([[0.3, -0.1, 0.2], [0.05, 0.1, -0.4], [0.7, 0.2, 0.1]])

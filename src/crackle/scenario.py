@@ -333,20 +333,43 @@ class PrecrackSpec(Strict):
 
 
 class PressureSpec(Strict):
-    """[[pressures]]: a pressure history (positive pushes into the solid) on faces."""
+    """[[pressures]]: a pressure history (positive pushes into the solid) on faces, optionally
+    behind a front travelling along a tube (a detonation)."""
 
     faces: Literal["precrack", "where"] = "precrack"
-    """precrack: both faces of every pre-crack; where: the boundary faces `where` selects"""
+    """precrack: both faces of every pre-crack; where: the boundary faces `where` selects (meshfree: the wall
+    faces of the surface particles it selects)"""
     where: Where | None = None
-    """faces = "where": a face is selected when its three corners are"""
+    """faces = "where": a face is selected when its three corners are (meshfree: when its particle is)"""
+    wall: Literal["inner", "outer"] | None = None
+    """meshfree: only the faces on this wall surface: a tube's inner or outer wall, a plate's face on its origin
+    side (inner) or the other (outer) along the thickness; unset: both"""
     rate: float | None = None
     """Pa/s from t = 0 (one of rate, value, table)"""
     value: float | None = None
-    """Pa, constant, or the plateau after ramp_time"""
+    """Pa, constant, or the plateau after ramp_time; profile = "taylor": the peak (Chapman-Jouguet) pressure"""
     ramp_time: NonNegative = 0.0
     """s, with value: linear ramp from 0"""
     table: VelocityTable | None = None
     """its time and speed columns read as s and Pa"""
+    profile: Literal["history", "taylor"] = "history"
+    """history: rate, value or table as given; taylor: the Taylor wave behind a detonation (Beltman and Shepherd
+    2002): value x (plateau + (1 - plateau) exp(-tau / decay_time)), tau the time since the front passed (since
+    t = 0 without a front); a fixed decay time is a choice (their T ~ x / (3 D) grows with the distance x the
+    detonation has run from the ignition: give T at the specimen)"""
+    decay_time: Positive | None = None
+    """s, profile = "taylor": the exponential decay time T behind the front"""
+    plateau: Annotated[float, Field(ge=0.0, le=1.0)] = 0.4
+    """profile = "taylor": p3 / p_CJ, the pressure the wave decays to over the peak (about 0.4 for gaseous
+    detonations)"""
+    front_speed: Positive | None = None
+    """m/s, a front travelling along front_direction: a face at s = (X - front_origin) . front_direction (X its
+    reference centre) feels the history at t - s / front_speed and nothing before (meshfree tubes; a detonation:
+    2300-2400 m/s in paper 000); unset: everywhere at once"""
+    front_origin: Vec3 = (0.0, 0.0, 0.0)
+    """m, where the front is at t = 0"""
+    front_direction: Vec3 | None = None
+    """the front's direction of travel; default the tube's axis"""
 
     @model_validator(mode="after")
     def _one_history(self):
@@ -355,6 +378,15 @@ class PressureSpec(Strict):
             raise ValueError("give exactly one of rate, value (with optional ramp_time) or table")
         if self.faces == "where" and self.where is None:
             raise ValueError("faces = 'where' needs a [pressures.where] selection")
+        if self.profile == "taylor" and (self.value is None or self.decay_time is None or self.ramp_time):
+            raise ValueError("profile = 'taylor' needs value (the peak pressure, Pa) and decay_time (s), no ramp_time")
+        if self.profile != "taylor" and (self.decay_time is not None or "plateau" in self.model_fields_set):
+            raise ValueError("decay_time and plateau: only with profile = 'taylor'")
+        front = sorted({"front_origin", "front_direction"} & self.model_fields_set)
+        if self.front_speed is None and front:
+            raise ValueError(f"{', '.join(front)}: only with front_speed (m/s)")
+        if self.front_direction is not None and all(c == 0 for c in self.front_direction):
+            raise ValueError("front_direction must be a non-zero vector")
         return self
 
 

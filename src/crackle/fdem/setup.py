@@ -63,6 +63,11 @@ class Scenario(ScenarioBase):
             raise ValueError(f"[suture] is for specimen shapes 'walnut' and 'shell' (this one is '{self.specimen.shape}')")
         if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
             raise ValueError("a pressure on faces = 'precrack' needs a [[precracks]] entry")
+        for i, p in enumerate(self.pressures):
+            for key in ("front_speed", "wall"):
+                if getattr(p, key) is not None:
+                    raise ValueError(f"pressures.{i}.{key}: not available for the FDEM method (a travelling front and "
+                                     "wall faces are the meshfree method's, on a tube); remove it")
         cracks = self.analysis.cracks
         if cracks is not None and cracks.wall is None and self.specimen.shape not in ("walnut", "shell"):
             raise ValueError("analysis.cracks.wall: give the shell's wall thickness in m (only walnut and shell specimens know their own)")

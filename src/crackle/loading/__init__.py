@@ -43,6 +43,16 @@ class History:
         """Linear growth at `rate` per second from 0 at t = 0 (extended to `end_time`)."""
         return cls((0.0, float(end_time)), (0.0, float(rate) * float(end_time)))
 
+    @classmethod
+    def taylor_wave(cls, peak: float, plateau: float, decay_time: float, samples: int = 256) -> "History":
+        """The pressure behind a detonation front (the Taylor wave, after Beltman and Shepherd
+        2002): `peak` at t = 0, decaying as plateau x peak + (1 - plateau) x peak x exp(-t /
+        decay_time), sampled on `samples` points to 10 decay times (linear between them: within
+        2e-4 of the peak; beyond, the value at 10 T, within 5e-5 of the plateau)."""
+        t = np.linspace(0.0, 10.0 * decay_time, samples)
+        p = peak * (plateau + (1.0 - plateau) * np.exp(-t / decay_time))
+        return cls(tuple(float(x) for x in t), tuple(float(x) for x in p))
+
     def __call__(self, t):
         return np.interp(t, self.times, self.values)
 
@@ -174,11 +184,19 @@ class Pressure:
     """A pressure history (Pa, positive pushes into the solid) on a set of faces.
 
     `faces` is "precrack" (both faces of every pre-crack) or a Selection of boundary faces (a
-    face is selected when its three corners are).
+    face is selected when its three corners are). `wall` ("inner", "outer" or None: both)
+    narrows the faces to one wall surface of a shell-like specimen. With a `front_speed` (m/s)
+    the history travels: a face whose reference centre X lies at s = (X - front_origin) .
+    front_direction feels history(t - s / front_speed), and nothing before (front_direction
+    None: the specimen's axis).
     """
 
     history: History
     faces: str | Selection = "precrack"
+    wall: str | None = None
+    front_speed: float | None = None
+    front_origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    front_direction: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -104,13 +104,16 @@ def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
 def build_pressures(specs, end_time: float) -> list[Pressure]:
     out = []
     for p in specs:
-        if p.rate is not None:
+        if p.profile == "taylor":
+            history = History.taylor_wave(p.value, p.plateau, p.decay_time)
+        elif p.rate is not None:
             history = History.rate(p.rate, end_time)
         elif p.table is not None:
             history = History(tuple(p.table.time), tuple(p.table.speed))
         else:
             history = History.ramp(p.value, p.ramp_time)
-        out.append(Pressure(history, "precrack" if p.faces == "precrack" else selection(p.where)))
+        out.append(Pressure(history, "precrack" if p.faces == "precrack" else selection(p.where), p.wall,
+                            p.front_speed, p.front_origin, p.front_direction))
     return out
 
 

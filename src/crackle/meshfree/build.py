@@ -8,12 +8,12 @@ import math
 import numpy as np
 from scipy.linalg import eigh_tridiagonal
 
-from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
 from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
-from .kernels import BLOCK, Links, Particles, internal_forces
+from .kernels import BLOCK, Links, Particles, Pressures, internal_forces
 from .material import T_REF, YIELD, J2Law
-from .particles import PlateParticles
+from .particles import WALL_SIDES, WallParticles
 from .shape import basis_terms, quartic_spline_array, smoothed_gradients
 from .simulation import MeshfreeSimulation
 
@@ -26,23 +26,23 @@ class SetupError(ValueError):
         self.field = field
 
 
-def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law, dilation: float = 2.5,
+def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None,
-                              fracture_stress: float = math.inf, precracks=()) -> MeshfreeSimulation:
+                              fracture_stress: float = math.inf, precracks=(), pressures=()) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py) and
-    the pre-cracks (loading.Precrack: the links across them removed at the start)."""
+    the pre-cracks (loading.Precrack: the links across them removed at the start) and the pressures
+    on the wall faces (loading.Pressure, pressure_arrays)."""
     X = np.ascontiguousarray(plate.X, dtype=float)
     n = len(X)
     radius = dilation * float(np.max(plate.spacing))
     terms = basis_terms(plate.thickness_axis, plate.layers)
-    start, neighbour, grad, condition, first_bad = smoothed_gradients(
-        X, plate.volume, plate.cell_lo, plate.cell_hi, radius, terms)
+    start, neighbour, grad, condition, first_bad = smoothed_gradients(X, plate.volume, plate.cells, radius, terms)
     if first_bad is not None:
         raise SetupError("particles.dilation", (
             f"the moment matrix at {first_bad.round(6).tolist()} m (a particle's cell face) is singular: the support "
@@ -65,6 +65,7 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
                   row[back_link], np.ascontiguousarray(grad[back_link]))
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
+    loads = pressure_arrays(plate, pressures, scale)
     mass = density * plate.volume
     v = np.zeros((n, 3))
     if velocity is not None:
@@ -85,11 +86,11 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
     if math.isfinite(fracture_stress) or precracks:
-        breaking = LinkBreaking(X, plate.volume, plate.cell_lo, plate.cell_hi, radius, terms,
+        breaking = LinkBreaking(X, plate.volume, plate.cells, radius, terms,
                                 stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
-                                plate.thickness_axis, tool_k, step_ratio)
+                                plate.wall_frame, tool_k, step_ratio)
     sim = MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
-                             gravity, damping, plate, breaking)
+                             gravity, damping, plate, breaking, loads)
     if precracks:
         try:
             breaking.cut(sim, precracks, scale)
@@ -98,6 +99,45 @@ def build_meshfree_simulation(plate: PlateParticles, density: float, law: J2Law,
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
         sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, dX, table, tool_k, h)[0])
     return sim
+
+
+def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
+    """The wall faces (particles.WallFaces) that each pressure loads, gathered per particle: the
+    faces of the particles its `where` selects (on its `wall` only, when given), with the delay
+    s / front_speed of a travelling front (s the distance of the face's reference centre from
+    front_origin along front_direction, default the tube's axis). Raises SetupError naming the
+    pressure's key that selects nothing or asks for what this specimen does not have."""
+    surface, n = plate.surface, len(plate.X)
+    rows = []
+    for q, load in enumerate(pressures):
+        if isinstance(load.faces, str):
+            raise SetupError(f"pressures.{q}.faces", "the meshfree method loads the walls' faces only: "
+                             "set faces = \"where\" with a [pressures.where] selection")
+        chosen = load.faces.mask(plate.X, scale)[surface.particle]
+        if load.wall is not None:
+            chosen &= surface.side == WALL_SIDES[load.wall]
+        if not chosen.any():
+            raise SetupError(f"pressures.{q}.where", "selects no particle on the wall surfaces (a tube's inner "
+                             "and outer walls, a plate's two faces across its thickness); check the plane or box")
+        ids = np.flatnonzero(chosen)
+        delay = np.zeros(len(ids))
+        if load.front_speed is not None:
+            if plate.axis is None:
+                raise SetupError(f"pressures.{q}.front_speed", f"a travelling front runs along a tube, this "
+                                 f"specimen is a {plate.shape}: remove front_speed or set specimen.shape = \"tube\"")
+            direction = plate.axis if load.front_direction is None else np.asarray(load.front_direction, float)
+            direction = direction / np.linalg.norm(direction)
+            delay = (surface.centre[ids] - np.asarray(load.front_origin, float)) @ direction / load.front_speed
+        rows.append((surface.particle[ids], surface.area[ids], np.full(len(ids), q, dtype=np.int64), delay))
+    if rows:
+        particle, area, which, delay = (np.concatenate(parts) for parts in zip(*rows))
+    else:
+        particle, area, which, delay = np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0)
+    order = np.lexsort((which, particle))  # by particle, then by pressure
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(particle, minlength=n), out=start[1:])
+    times, values, counts = history_tables([p.history for p in pressures])
+    return Pressures(start, np.ascontiguousarray(area[order]), which[order], delay[order], times, values, counts)
 
 
 # The step is STEP_MARGIN x 2 / omega. Lanczos approaches omega_max from below; the value used,

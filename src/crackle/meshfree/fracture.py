@@ -26,7 +26,8 @@ they lie on two planes parallel to the crack, too few for the quadratic basis, s
 centre falls back to the linear basis (shape.cell_gradients; linear fields are still exact). A
 particle whose cell is left with a singular moment matrix even so (too few visible neighbours
 for the linear basis) is detached: all its links are removed, it carries
-no stress and moves as a free particle (mass, tools, supports and gravity still act on it), and
+no stress and no pressure and moves as a free particle (mass, tools, supports and gravity still
+act on it), and
 its neighbours are rebuilt without it (which may detach more, repeated until none is left).
 
 The stored energy that the removal releases (the jump of the elastic plus stabilisation energy
@@ -56,11 +57,12 @@ _ON_PLANE = 1e-9
 class LinkBreaking:
     """The crack state of a MeshfreeSimulation and the check that extends it."""
 
-    def __init__(self, X, volume, cell_lo, cell_hi, radius, terms, stab_scale, fracture_stress, crack_radius, links,
-                 thickness_axis, tool_k=0.0, step_ratio=1.0):
+    def __init__(self, X, volume, cells, radius, terms, stab_scale, fracture_stress, crack_radius, links,
+                 wall_frame, tool_k=0.0, step_ratio=1.0):
         n = len(X)
-        self.thickness_axis = int(thickness_axis)
-        self.X, self.volume, self.cell_lo, self.cell_hi = X, volume, cell_lo, cell_hi
+        # Per particle: two unit tangents of the wall and its normal (particles.WallParticles).
+        self.wall_frame = wall_frame
+        self.X, self.volume, self.cells = X, volume, cells
         self.radius, self.terms, self.stab_scale = float(radius), terms, float(stab_scale)
         self.fracture_stress = float(fracture_stress)
         self.crack_radius = float(crack_radius)
@@ -105,13 +107,16 @@ class LinkBreaking:
         F = deformation[ids].reshape(-1, 3, 3)
         N = np.einsum("kab,ka->kb", F, n_current)  # F^T n: the normal pulled back to the material
         N /= np.linalg.norm(N, axis=1)[:, None]
-        N[:, self.thickness_axis] = 0.0
-        in_plane = [a for a in range(3) if a != self.thickness_axis]
+        wall = self.wall_frame[ids, 2]
+        N -= np.einsum("ka,ka->k", N, wall)[:, None] * wall
         through = np.flatnonzero(np.linalg.norm(N, axis=1) < 1e-6)
         if len(through):
             S = pk2[ids[through]]
-            S = np.stack([S[:, [0, 3, 5]], S[:, [3, 1, 4]], S[:, [5, 4, 2]]], axis=1)[:, in_plane][:, :, in_plane]
-            N[np.ix_(through, in_plane)] = np.linalg.eigh(S)[1][:, :, 1]
+            S = np.stack([S[:, [0, 3, 5]], S[:, [3, 1, 4]], S[:, [5, 4, 2]]], axis=1)
+            tangents = self.wall_frame[ids[through], :2]  # (k, 2, 3)
+            in_wall = np.einsum("kpa,kab,kqb->kpq", tangents, S, tangents)
+            v = np.linalg.eigh(in_wall)[1][:, :, 1]
+            N[through] = v[:, 0, None] * tangents[:, 0] + v[:, 1, None] * tangents[:, 1]
         N /= np.linalg.norm(N, axis=1)[:, None]
         # A fixed sign (largest component positive): which side a particle on the plane keeps.
         big = np.argmax(np.abs(N), axis=1)
@@ -271,16 +276,16 @@ class LinkBreaking:
         while len(rows):
             in_rows = np.isin(self.row, rows)
             links.grad[in_rows] = 0.0
-            r, col, grad, condition, _ = cell_gradients(self.X, self.volume, self.cell_lo, self.cell_hi, self.radius,
-                                                        self.terms, rows, self.tree, self.blocked,
-                                                        linear_fallback=True)
+            r, col, grad, condition, _, owner = cell_gradients(self.X, self.volume, self.cells, self.radius,
+                                                               self.terms, rows, self.tree, self.blocked,
+                                                               linear_fallback=True)
             at = np.searchsorted(self.key, r * n + col)
             if not np.array_equal(self.key[np.minimum(at, len(self.key) - 1)], r * n + col):
                 raise RuntimeError("a rebuilt gradient has no link: the face centres' supports grew")
             links.grad[at] = grad
             self._stiffness(links, in_rows)
             bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
-            lost = np.unique(np.tile(rows, 6)[bad])
+            lost = np.unique(owner[bad])
             if len(lost) == 0:
                 break
             self.detached[lost] = True
@@ -290,6 +295,10 @@ class LinkBreaking:
             gone = np.isin(self.row, lost)
             links.grad[gone] = 0.0
             links.stiffness[gone] = 0.0
+            # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
+            # reference face would push a tumbling fragment in a fixed direction).
+            faces = sim.pressures.start
+            sim.pressures.area[np.isin(np.repeat(np.arange(n), np.diff(faces)), lost)] = 0.0
             rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
             rows = rows[~self.detached[rows]]
         links.back_grad[links.to_back] = links.grad  # the gather's copy, in the transposed order (kernels.Links)

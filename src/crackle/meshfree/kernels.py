@@ -1,7 +1,9 @@
 """The compiled step of the meshfree (EFG) method: a pass over the particles that computes each
 one's deformation gradient from its links, its stress (material.stress_update) and its
 stabilisation, then a pass over the particles that gathers their forces from the links of their
-neighbours and calls the shared tool contact (loading.tools) and node update (solver.integrator).
+neighbours, adds the follower pressure on their wall faces (Nanson's formula with their own F,
+behind a travelling front where one is given) and calls the shared tool contact (loading.tools)
+and node update (solver.integrator).
 No races: the first pass writes only the particle's own rows and the rows of its own links, the
 second reads them in the fixed CSR order.
 
@@ -34,7 +36,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 from .material import elastic_energy, stress_update
 
@@ -52,6 +54,11 @@ Particles = namedtuple(
 # made the gather 5 x slower): back_grad = grad (kept equal by build and fracture), stab_force =
 # k eps (written there by the stress pass).
 Links = namedtuple("Links", "start neighbour grad stiffness stab_force back_start to_back back_row back_grad")
+# Pressures on the wall faces of the surface particles: the faces of particle g are rows
+# start[g]:start[g + 1]; area: A0 N (reference area vector, out of the solid); load: the row of
+# the history tables (times, values, n: loading.arrays.history_tables); delay: s / front speed
+# (0 without a front), the time the front reaches the face.
+Pressures = namedtuple("Pressures", "start area load delay times values n")
 
 BLOCK = 128  # particles per parallel task
 
@@ -182,24 +189,69 @@ def _link_force(g, p, links):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, dt, p, links, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
+def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, tool_v_prev, tool_v_next, radius, gravity,
+                    alpha):
     x, v, mass = p.x, p.v, p.mass
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     for g in range(lo, hi):
         fx, fy, fz = _link_force(g, p, links)
         m = mass[g]
+        ex = m * gravity[0]
+        ey = m * gravity[1]
+        ez = m * gravity[2]
+        if pressures.start[g + 1] > pressures.start[g]:
+            px, py, pz = _pressure_force(g, t_now, p.deformation, pressures)
+            ex += px
+            ey += py
+            ez += pz
         cx, cy, cz, tool_work = contact_with_tools(
             g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, p.area[g], dt, slot, tools, n_tool,
             force_slots, tool_v_prev, tool_v_next, p.tool, p.tool_offset, p.friction, p.d_friction,
         )
-        update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
+        update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work,
                         m, alpha, dt, p.constraint, p.projection, p.w_external, p.w_damping)
         move(g, x, v, dt)
 
 
+@njit(cache=True, inline="always")
+def _pressure_force(g, t, deformation, pressures):
+    """The follower pressure force on particle g at time t: -p(t - delay) J F^-T A0 N summed over
+    its wall faces (Nanson's formula with the particle's F of this step: the face's current area
+    vector), nothing on a face the front has not reached."""
+    d = deformation
+    f00, f01, f02 = d[g, 0], d[g, 1], d[g, 2]
+    f10, f11, f12 = d[g, 3], d[g, 4], d[g, 5]
+    f20, f21, f22 = d[g, 6], d[g, 7], d[g, 8]
+    # cof(F) = J F^-T
+    c00 = f11 * f22 - f12 * f21
+    c01 = f12 * f20 - f10 * f22
+    c02 = f10 * f21 - f11 * f20
+    c10 = f02 * f21 - f01 * f22
+    c11 = f00 * f22 - f02 * f20
+    c12 = f01 * f20 - f00 * f21
+    c20 = f01 * f12 - f02 * f11
+    c21 = f02 * f10 - f00 * f12
+    c22 = f00 * f11 - f01 * f10
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    area = pressures.area
+    for r in range(pressures.start[g], pressures.start[g + 1]):
+        tau = t - pressures.delay[r]
+        if tau < 0.0:
+            continue
+        q = pressures.load[r]
+        pr = interp_history(tau, pressures.times[q], pressures.values[q], pressures.n[q])
+        a0, a1, a2 = area[r, 0], area[r, 1], area[r, 2]
+        fx -= pr * (c00 * a0 + c01 * a1 + c02 * a2)
+        fy -= pr * (c10 * a0 + c11 * a1 + c12 * a2)
+        fz -= pr * (c20 * a0 + c21 * a1 + c22 * a2)
+    return fx, fy, fz
+
+
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, law, tools, radius, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, law, tools, pressures, radius, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place."""
     n_tool = tools.kind.shape[0]
@@ -215,8 +267,8 @@ def advance(n_steps, first_step, dt, particles, links, law, tools, radius, gravi
             _stress_block(lo, min(lo + BLOCK, n), dt, particles, links, law)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), blk, dt, particles, links, tools, tool_v_prev, tool_v_next,
-                            radius, gravity, alpha)
+            _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, tool_v_prev,
+                            tool_v_next, radius, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

@@ -1,9 +1,24 @@
-"""Particles of a plate: a box whose thinnest side is the wall thickness, filled with a grid of
-particles, `layers` of them through the thickness (on both faces and evenly between) and a
-spacing as close as fits to the asked one along the two in-plane sides (on the edges and evenly
-between). Each particle owns the cell of the grid around it (half a cell on a face or edge):
-that is its nodal volume (the quadrature weight of nodal integration, and mass = density x
-volume) and its contact area is that cell's in-plane area."""
+"""Particles through the wall of a thin structure and their integration cells.
+
+Plate: a box whose thinnest side is the wall thickness, filled with a grid of particles,
+`layers` of them through the thickness (on both faces and evenly between) and a spacing as close
+as fits to the asked one along the two in-plane sides (on the edges and evenly between). Each
+particle owns the cuboid of the grid around it (half a cell on a face or edge).
+
+Tube: a circular tube (inner radius, wall thickness, length along an axis from the centre of
+its first end), particles on a structured grid circumferential x axial x `layers` radial: the
+circumferential count is the one whose arc step at the mean radius is closest to the spacing
+(closed around), the axial step as close as fits (both ends included), the layers on both walls
+and evenly between. Each particle owns the hexahedron between the mid-points to its neighbours
+(clipped at the walls and ends), with straight edges and planar quadrilateral faces.
+
+Every cell is a closed list of planar faces (`Cells`): centre and area vector (outward normal x
+area) of each, what stabilised conforming nodal integration (shape.smoothed_gradients) needs.
+A face between two cells is computed once and used by both with opposite signs, so the area
+vectors of neighbours cancel exactly (the integration constraint). The cell volume is the
+particle's nodal volume (the quadrature weight, and mass = density x volume); the contact area
+against tools is the cell's extent along the wall (volume / extent through the wall). The faces
+on the wall's two surfaces (`WallFaces`) are where pressures act."""
 
 from __future__ import annotations
 
@@ -11,20 +26,48 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# Wall surfaces: the inner one (a tube's inside, a plate's face at its origin side along the
+# thickness) and the outer one.
+INNER, OUTER = 0, 1
+WALL_SIDES = {"inner": INNER, "outer": OUTER}
+
 
 @dataclass
-class PlateParticles:
+class Cells:
+    """Each particle's integration cell as a closed polyhedron: the faces of particle I are rows
+    start[I]:start[I + 1]."""
+
+    start: np.ndarray  # (n + 1,) int64
+    centre: np.ndarray  # (k, 3) m, each face's centroid
+    area: np.ndarray  # (k, 3) m^2, outward normal x area
+
+
+@dataclass
+class WallFaces:
+    """The cell faces on the wall's two surfaces, in the reference configuration."""
+
+    particle: np.ndarray  # (k,) int64, the cell's particle
+    centre: np.ndarray  # (k, 3) m
+    area: np.ndarray  # (k, 3) m^2, A0 N: outward (out of the solid) normal x area
+    side: np.ndarray  # (k,) int8, INNER or OUTER
+
+
+@dataclass
+class WallParticles:
+    shape: str  # "plate" or "tube"
     X: np.ndarray  # (n, 3) m, material (reference) positions
-    volume: np.ndarray  # (n,) m^3
-    area: np.ndarray  # (n,) m^2, in-plane cell area (contact area against tools)
-    thickness_axis: int  # 0, 1 or 2: the box's thinnest side
-    spacing: np.ndarray  # (3,) m, grid step along x, y, z as used
+    volume: np.ndarray  # (n,) m^3, the cells' volumes
+    area: np.ndarray  # (n,) m^2, the cell's extent along the wall (contact area against tools)
+    spacing: np.ndarray  # (3,) m, the grid steps (plate: along x, y, z; tube: arc at the outer wall, axial, radial)
     layers: int
-    cell_lo: np.ndarray  # (n, 3) m, lower corner of each particle's cell (its nodal integration domain)
-    cell_hi: np.ndarray  # (n, 3) m, upper corner
+    cells: Cells
+    wall_frame: np.ndarray  # (n, 3, 3): rows two unit tangents of the wall and its unit normal (outward)
+    surface: WallFaces
+    thickness_axis: int | None = None  # plate: 0, 1 or 2, its thinnest side; tube: None
+    axis: np.ndarray | None = None  # tube: the unit vector along it; plate: None
 
 
-def plate_particles(origin, size, spacing: float, layers: int) -> PlateParticles:
+def plate_particles(origin, size, spacing: float, layers: int) -> WallParticles:
     """The particle grid of the box [origin, origin + size]; raises ValueError naming what is
     too coarse."""
     size = np.asarray(size, dtype=float)
@@ -51,4 +94,136 @@ def plate_particles(origin, size, spacing: float, layers: int) -> PlateParticles
     area = volume / cell[:, axis]
     cell_lo = np.maximum(X - 0.5 * steps, origin)
     cell_hi = np.minimum(X + 0.5 * steps, origin + size)
-    return PlateParticles(X, volume, area, axis, steps, layers, cell_lo, cell_hi)
+    cells = _cuboid_cells(cell_lo, cell_hi)
+    n = len(X)
+    in_plane = [a for a in range(3) if a != axis]
+    frame = np.zeros((n, 3, 3))
+    frame[:, 0, in_plane[0]] = frame[:, 1, in_plane[1]] = frame[:, 2, axis] = 1.0
+    # The wall's surfaces: the -axis face of the first layer, the +axis face of the last.
+    layer = np.rint((X[:, axis] - origin[axis]) / steps[axis]).astype(np.int64)
+    faces = []
+    for side, at, face in ((INNER, 0, 2 * axis), (OUTER, layers - 1, 2 * axis + 1)):
+        ids = np.flatnonzero(layer == at)
+        rows = cells.start[ids] + face
+        faces.append((ids, cells.centre[rows], cells.area[rows], np.full(len(ids), side, dtype=np.int8)))
+    surface = WallFaces(*(np.concatenate(parts) for parts in zip(*faces)))
+    return WallParticles("plate", X, volume, area, steps, layers, cells, frame, surface, axis)
+
+
+def _cuboid_cells(lo: np.ndarray, hi: np.ndarray) -> Cells:
+    """The 6 faces of each box [lo, hi], in the order -x, +x, -y, +y, -z, +z."""
+    n = len(lo)
+    centre = 0.5 * (lo + hi)
+    face_centre = np.empty((n, 6, 3))
+    face_area = np.zeros((n, 6, 3))
+    for axis in range(3):
+        area = np.prod(np.delete(hi - lo, axis, axis=1), axis=1)
+        for k, (side, bound) in enumerate(((-1.0, lo), (1.0, hi))):
+            face = centre.copy()
+            face[:, axis] = bound[:, axis]
+            face_centre[:, 2 * axis + k] = face
+            face_area[:, 2 * axis + k, axis] = side * area
+    return Cells(np.arange(0, 6 * n + 1, 6, dtype=np.int64), face_centre.reshape(-1, 3), face_area.reshape(-1, 3))
+
+
+def tube_frame(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit vectors (e1, e2, e3) of a tube along `axis`: e3 the axis, e1 the coordinate axis least
+    aligned with it (the first such; x for a tube along z) made normal to it, e2 = e3 x e1.
+    The angle around the tube counts from e1 towards e2."""
+    e3 = np.asarray(axis, dtype=float)
+    e3 = e3 / np.linalg.norm(e3)
+    e1 = np.eye(3)[int(np.argmin(np.abs(e3)))]
+    e1 = e1 - (e1 @ e3) * e3
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(e3, e1), e3
+
+
+def tube_particles(origin, axis, inner_radius: float, thickness: float, length: float, spacing: float,
+                   layers: int) -> WallParticles:
+    """The particle grid of the tube (see the module docstring); raises ValueError naming the key
+    that is too coarse."""
+    if layers < 3:
+        raise ValueError(f"layers = {layers}: a tube needs 3 or more particles through the wall (on two "
+                         "cylinders the quadratic basis is nearly singular)")
+    origin = np.asarray(origin, dtype=float)
+    e1, e2, e3 = tube_frame(axis)
+    r_mean = inner_radius + 0.5 * thickness
+    n_theta = int(round(2.0 * np.pi * r_mean / spacing))
+    n_axial = int(round(length / spacing)) + 1
+    if n_theta < 12:
+        raise ValueError(f"spacing: {n_theta} particles around the tube; 12 or more are needed, make it smaller")
+    if n_axial < 3:
+        raise ValueError("spacing: fewer than 3 particles along the tube; make it smaller")
+    d_theta = 2.0 * np.pi / n_theta
+    radii = inner_radius + thickness * np.arange(layers) / (layers - 1)
+    axial = length * np.arange(n_axial) / (n_axial - 1)
+    r_bound = np.concatenate(([inner_radius], 0.5 * (radii[1:] + radii[:-1]), [inner_radius + thickness]))
+    z_bound = np.concatenate(([0.0], 0.5 * (axial[1:] + axial[:-1]), [length]))
+    theta = d_theta * np.arange(n_theta)
+    theta_bound = theta - 0.5 * d_theta  # bound j lies before particle j; bound n_theta is bound 0 again
+
+    def points(r, angle, z):  # (len(r), len(angle), len(z), 3)
+        radial = np.cos(angle)[:, None] * e1 + np.sin(angle)[:, None] * e2
+        return (origin + r[:, None, None, None] * radial[None, :, None, :]
+                + z[None, None, :, None] * e3[None, None, None, :])
+
+    corner = points(r_bound, theta_bound, z_bound)  # (layers + 1, n_theta, n_axial + 1, 3)
+    X_grid = points(radii, theta, axial)  # (layers, n_theta, n_axial, 3)
+    nr, nt, nz = layers, n_theta, n_axial
+    k, j, i = np.meshgrid(np.arange(nr), np.arange(nt), np.arange(nz), indexing="ij")
+    jn = (j + 1) % nt
+    # Each face once, as 4 corners in the order that makes its area vector point towards +r,
+    # +theta or +axis; index arrays of the same shape as the particle grid.
+    radial_faces = _quads(corner, (k, j, i), (k, jn, i), (k, jn, i + 1), (k, j, i + 1))
+    radial_outer = _quads(corner, (k + 1, j, i), (k + 1, jn, i), (k + 1, jn, i + 1), (k + 1, j, i + 1))
+    angular_faces = _quads(corner, (k, j, i), (k, j, i + 1), (k + 1, j, i + 1), (k + 1, j, i))
+    axial_faces = _quads(corner, (k, j, i), (k + 1, j, i), (k + 1, jn, i), (k, jn, i))
+    axial_last = _quads(corner, (k, j, i + 1), (k + 1, j, i + 1), (k + 1, jn, i + 1), (k, jn, i + 1))
+    # The +r face of layer k is the -r face of layer k + 1 (computed once: bit-identical).
+    outer_c = np.concatenate([radial_faces[0][1:], radial_outer[0][-1:]], axis=0)
+    outer_a = np.concatenate([radial_faces[1][1:], radial_outer[1][-1:]], axis=0)
+    up_c = np.concatenate([axial_faces[0][:, :, 1:], axial_last[0][:, :, -1:]], axis=2)
+    up_a = np.concatenate([axial_faces[1][:, :, 1:], axial_last[1][:, :, -1:]], axis=2)
+    next_c = np.roll(angular_faces[0], -1, axis=1)
+    next_a = np.roll(angular_faces[1], -1, axis=1)
+    # Particle order: layers fastest, then around, then along the tube (neighbours close in memory).
+    def by_particle(a):  # (nr, nt, nz, ...) -> (nz * nt * nr, ...)
+        return np.transpose(a, (2, 1, 0) + tuple(range(3, a.ndim))).reshape((nr * nt * nz,) + a.shape[3:])
+
+    centres = np.stack([by_particle(c) for c in (radial_faces[0], outer_c, angular_faces[0], next_c, axial_faces[0],
+                                                  up_c)], axis=1)
+    areas = np.stack([by_particle(a) for a in (-radial_faces[1], outer_a, -angular_faces[1], next_a,
+                                               -axial_faces[1], up_a)], axis=1)
+    X = by_particle(X_grid)
+    n = len(X)
+    # The volume of a polyhedron with planar faces, by the divergence theorem (relative to the
+    # particle: no cancellation of large coordinates).
+    volume = np.einsum("nfa,nfa->n", areas, centres - X[:, None, :]) / 3.0
+    extent = by_particle(np.broadcast_to((r_bound[1:] - r_bound[:-1])[:, None, None], (nr, nt, nz)))
+    radial_dir = (X - origin) - ((X - origin) @ e3)[:, None] * e3
+    radial_dir /= np.linalg.norm(radial_dir, axis=1)[:, None]
+    frame = np.stack([np.cross(e3, radial_dir), np.broadcast_to(e3, (n, 3)), radial_dir], axis=1)
+    cells = Cells(np.arange(0, 6 * n + 1, 6, dtype=np.int64), centres.reshape(-1, 3), areas.reshape(-1, 3))
+    layer = by_particle(k)
+    faces = []
+    for side, at, face in ((INNER, 0, 0), (OUTER, nr - 1, 1)):
+        ids = np.flatnonzero(layer == at)
+        faces.append((ids, centres[ids, face], areas[ids, face], np.full(len(ids), side, dtype=np.int8)))
+    surface = WallFaces(*(np.concatenate(parts) for parts in zip(*faces)))
+    steps = np.array([(inner_radius + thickness) * d_theta, axial[1] - axial[0], radii[1] - radii[0]])
+    return WallParticles("tube", X, volume, volume / extent, steps, layers, cells, frame, surface, None, e3)
+
+
+def _quads(corner, c0, c1, c2, c3):
+    """Centroids and area vectors of the planar quadrilaterals with corners corner[c0], ...,
+    corner[c3] (each an index triple, wrapping around in the second index is the caller's):
+    area vector (c2 - c0) x (c3 - c1) / 2, centroid the area-weighted mean of the two triangles'
+    (the mean of the corners is not the centroid of a trapezoid, and linear fields are exact only
+    with the centroid)."""
+    p0, p1, p2, p3 = (corner[c] for c in (c0, c1, c2, c3))
+    area = 0.5 * np.cross(p2 - p0, p3 - p1)
+    unit = area / np.linalg.norm(area, axis=-1)[..., None]
+    a1 = 0.5 * np.einsum("...a,...a->...", np.cross(p1 - p0, p2 - p0), unit)
+    a2 = 0.5 * np.einsum("...a,...a->...", np.cross(p2 - p0, p3 - p0), unit)
+    centre = (a1[..., None] * (p0 + p1 + p2) + a2[..., None] * (p0 + p2 + p3)) / (3.0 * (a1 + a2)[..., None])
+    return centre, area

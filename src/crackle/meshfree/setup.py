@@ -1,11 +1,12 @@
 """The meshfree method's scenario sections and the build of a scenario into a MeshfreeSimulation.
 
-[specimen] a box (FDEM's keys; its thinnest side is the wall thickness) filled by [particles]
+[specimen] a box (FDEM's keys; its thinnest side is the wall thickness) or a tube (inner
+radius, wall thickness, length, axis, origin) filled by [particles]
 (an in-plane spacing, particles through the thickness, the support's dilation factor and the
 stabilisation of nodal integration); [material] the elastic constants, the law (`model`: the J2
 elasto-visco-plastic law of paper 000 eqs 14-15, or the thermo-elasto-viscoplastic law of eqs
-16-22) and the fracture stress (section 3.3). Tools, supports, run control and outputs are the
-shared ones.
+16-22) and the fracture stress (section 3.3); [[pressures]] on the wall faces, optionally behind
+a front travelling along a tube. Tools, supports, run control and outputs are the shared ones.
 """
 
 from __future__ import annotations
@@ -18,23 +19,44 @@ from pydantic import Field, field_validator, model_validator
 
 from ..loading.build import build_loading, build_precracks
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
-from ..schema import NonNegative, Positive, PositiveOrInf, Strict
+from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
-from .particles import plate_particles
+from .particles import plate_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
 
 class MeshfreeSpecimen(Specimen):
-    """[specimen]: the plate the particles fill (FDEM's box keys; no element size)."""
+    """[specimen]: the plate or tube the particles fill (FDEM's box keys, or a tube's; no element size)."""
 
-    shape: Literal["box", "beam"]
-    """box and beam: size, origin; the thinnest side is the wall thickness"""
+    shape: Literal["box", "beam", "tube"]
+    """box and beam: size, origin (the thinnest side is the wall thickness); tube: inner_radius, thickness,
+    length, axis, origin"""
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    """m, box and beam: the lower corner; tube: the centre of its first end (the axis starts there)"""
+    inner_radius: Positive | None = None
+    """m, tube: the radius of its inner wall"""
+    thickness: Positive | None = None
+    """m, tube: the wall thickness"""
+    length: Positive | None = None
+    """m, tube: along the axis from origin"""
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    """tube: its axis (any non-zero vector); the angle around it counts from the coordinate axis least aligned with
+    it (x for a tube along z)"""
 
     @model_validator(mode="after")
     def _needs(self):
-        if self.size is None:
-            raise ValueError(f"shape '{self.shape}' needs size")
+        need = ("inner_radius", "thickness", "length") if self.shape == "tube" else ("size",)
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        if self.shape == "tube" and all(c == 0 for c in self.axis):
+            raise ValueError("axis must be a non-zero vector")
+        tube_only = sorted({"inner_radius", "thickness", "length", "axis"} & self.model_fields_set)
+        if self.shape != "tube" and tube_only:
+            raise ValueError(f"{', '.join(tube_only)}: only for shape = \"tube\" (a box's sides are size)")
+        if self.shape == "tube" and self.size is not None:
+            raise ValueError("size: not used by a tube (inner_radius, thickness, length)")
         if self.element_size is not None:
             raise ValueError("element_size is not used by the meshfree method: the particle spacing is particles.spacing")
         if "layers" in self.model_fields_set:
@@ -172,11 +194,13 @@ class Scenario(ScenarioBase):
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
     tools, supports, pressures = build_loading(scenario, base)
-    if pressures:
-        raise ScenarioError("pressures: not available for the meshfree method yet; remove [[pressures]]")
     spec, particles = scenario.specimen, scenario.particles
     try:
-        plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
+        if spec.shape == "tube":
+            plate = tube_particles(spec.origin, spec.axis, spec.inner_radius, spec.thickness, spec.length,
+                                   particles.spacing, particles.layers)
+        else:
+            plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
     except ValueError as err:
         raise ScenarioError(f"particles.{err}") from None
     mat = scenario.material
@@ -185,7 +209,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
             velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
-            precracks=build_precracks(scenario.precracks),
+            precracks=build_precracks(scenario.precracks), pressures=pressures,
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None

@@ -226,20 +226,20 @@ def _values_at(points, X, volume, start, neighbour, radius, terms, value, condit
             value[r] = volume[j] * w * pg
 
 
-def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cell_lo: np.ndarray, cell_hi: np.ndarray, radius: float,
-                       terms: np.ndarray):
+def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, terms: np.ndarray):
     """Stabilised conforming nodal integration (Chen et al. 2001): the gradient of N_J at the
-    particle I is the mean over I's cell (the box [cell_lo, cell_hi], volume V_I) by the
-    divergence theorem, grad N_J(I) = (1 / V_I) sum_faces n A N_J(face centre), one point per
-    face (exact for linear fields). Neighbouring cells share their faces, so under a uniform
-    stress the particle forces are exactly the boundary's traction term: the integration
-    constraint that direct nodal integration misses. Returns the CSR links of the particles
-    (start, neighbour: every J that is nonzero at one of I's face centres, itself included, in
-    increasing order), grad (links, 3), and the largest moment-matrix condition number over the
-    face centres with the first bad point (or None)."""
+    particle I is the mean over I's cell (a closed polyhedron of planar faces, particles.Cells,
+    volume V_I) by the divergence theorem, grad N_J(I) = (1 / V_I) sum_faces A N_J(face centre),
+    A the face's area vector (outward normal x area), one point per face (exact for linear
+    fields when the centre is the face's centroid). Neighbouring cells share their faces, so
+    under a uniform stress the particle forces are exactly the boundary's traction term: the
+    integration constraint that direct nodal integration misses. Returns the CSR links of the
+    particles (start, neighbour: every J that is nonzero at one of I's face centres, itself
+    included, in increasing order), grad (links, 3), and the largest moment-matrix condition
+    number over the face centres with the first bad point (or None)."""
     n = len(X)
-    link_row, link_col, grad, condition, points = cell_gradients(
-        X, volume, cell_lo, cell_hi, radius, terms, np.arange(n), cKDTree(X))
+    link_row, link_col, grad, condition, points, _ = cell_gradients(
+        X, volume, cells, radius, terms, np.arange(n), cKDTree(X))
     bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
     first_bad = points[np.flatnonzero(bad)[0]] if bad.any() else None
     link_start = np.zeros(n + 1, dtype=np.int64)
@@ -247,37 +247,26 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cell_lo: np.ndarray, c
     return link_start, link_col, grad, float(np.max(condition)), first_bad
 
 
-def cell_gradients(X, volume, cell_lo, cell_hi, radius, terms, owners, tree, blocked=None, linear_fallback=False):
+def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, linear_fallback=False):
     """The smoothed gradients (smoothed_gradients) of the particles `owners` only, with the MLS
     at their face centres summing over the particles within the support but for the pairs
     (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
     fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
     with a contribution, sorted by row then column, the condition number of every face centre's
-    moment matrix and the face centres (6 per owner: -x, +x, -y, +y, -z, +z, each a block over
-    `owners`). With `linear_fallback`, a face centre whose moment matrix is singular with the
-    quadratic basis (a crack face: the particles it still sees lie on too few planes) uses the
-    linear basis 1, x, y, z instead (it still reproduces linear fields); its condition is then
-    the linear one."""
+    moment matrix, the face centres and their owners (the owners' faces in turn, each cell's in
+    its own order). With `linear_fallback`, a face centre whose moment matrix is singular with
+    the quadratic basis (a crack face: the particles it still sees lie on too few planes) uses
+    the linear basis 1, x, y, z instead (it still reproduces linear fields); its condition is
+    then the linear one."""
     n = len(X)
     owners = np.asarray(owners, dtype=np.int64)
-    k = len(owners)
-    lo, hi = cell_lo[owners], cell_hi[owners]
-    centre = 0.5 * (lo + hi)
-    vol = volume[owners]
-    points, owner, weight = [], [], []
-    for axis in range(3):
-        area = np.prod(np.delete(hi - lo, axis, axis=1), axis=1)
-        for side, bound in ((-1.0, lo), (1.0, hi)):
-            face = centre.copy()
-            face[:, axis] = bound[:, axis]
-            normal = np.zeros((k, 3))
-            normal[:, axis] = side * area / vol
-            points.append(face)
-            owner.append(owners)
-            weight.append(normal)
-    points = np.concatenate(points)
-    owner = np.concatenate(owner)
-    weight = np.concatenate(weight)
+    face_counts = cells.start[owners + 1] - cells.start[owners]
+    face_first = np.zeros(len(owners) + 1, dtype=np.int64)
+    np.cumsum(face_counts, out=face_first[1:])
+    rows_of_faces = np.repeat(cells.start[owners] - face_first[:-1], face_counts) + np.arange(face_first[-1])
+    points = cells.centre[rows_of_faces]
+    owner = np.repeat(owners, face_counts)
+    weight = cells.area[rows_of_faces] / volume[owner][:, None]
     lists = tree.query_ball_point(points, radius * (1.0 - 1e-12))
     counts = np.array([len(r) for r in lists], dtype=np.int64)
     neighbour = np.concatenate([np.sort(np.asarray(r, dtype=np.int64)) for r in lists])
@@ -314,4 +303,4 @@ def cell_gradients(X, volume, cell_lo, cell_hi, radius, terms, owners, tree, blo
     rows, cols, parts = rows[order], neighbour[order], parts[order]
     first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
     grad = np.add.reduceat(parts, first, axis=0)
-    return rows[first], cols[first], grad, condition, points
+    return rows[first], cols[first], grad, condition, points, owner

@@ -16,7 +16,7 @@ class MeshfreeSimulation:
     method = "meshfree"
 
     def __init__(self, particles, links, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate, breaking=None):
+                 damping, plate, breaking=None, pressures=None):
         self.particles, self.links, self.law, self.tools = particles, links, law, tools
         self._tool_names = list(tool_names)
         self.support_radius = float(support_radius)
@@ -27,6 +27,12 @@ class MeshfreeSimulation:
         self.plate = plate
         # Link breaking (fracture.LinkBreaking), or None without a fracture stress.
         self.breaking = breaking
+        # The pressures on the wall faces (kernels.Pressures; build.pressure_arrays).
+        if pressures is None:
+            from .build import pressure_arrays  # build imports this module
+
+            pressures = pressure_arrays(plate, (), 1.0)
+        self.pressures = pressures
         # The particles on the faces are on the specimen's surface: they meet the tools there.
         self.contact_radius = 0.0
         self.time = 0.0
@@ -42,8 +48,8 @@ class MeshfreeSimulation:
 
     def advance(self, n_steps: int, dt: float) -> None:
         if self.breaking is None:
-            advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.contact_radius,
-                    self.gravity, self.damping)
+            advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.pressures,
+                    self.contact_radius, self.gravity, self.damping)
             self.steps += n_steps
             self.time = self.steps * dt
             return
@@ -53,7 +59,7 @@ class MeshfreeSimulation:
         while self.steps < end:
             stop = min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK)
             advance(stop - self.steps, self.steps, dt, self.particles, self.links, self.law, self.tools,
-                    self.contact_radius, self.gravity, self.damping)
+                    self.pressures, self.contact_radius, self.gravity, self.damping)
             self.steps = stop
             self.time = self.steps * dt
             if self.steps % FRACTURE_CHECK == 0:
