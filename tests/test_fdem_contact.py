@@ -16,9 +16,15 @@ from crackle.fdem.laws import GuoMunjizaLaw
 from crackle.materials import Material
 
 
-def _elastic(friction=0.3):
+def _elastic(friction=0.3, youngs_modulus=26e9):
     """Rock elasticity (paper 001 Table 1) with interfaces too strong to break: pure contact."""
-    return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e9, 15e9, 30.0, 1e6, friction=friction), name="elastic rock")
+    return Material(2340.0, youngs_modulus, 0.2, GuoMunjizaLaw(3e9, 15e9, 30.0, 1e6, friction=friction),
+                    name="elastic rock")
+
+
+# Friction and rest on a rigid plane do not depend on the block's stiffness: a 10 x softer block
+# takes a ~3 x larger step (these tests ran 3 x longer with the rock's own modulus).
+SOFT_ROCK = 2.6e9
 
 
 def _two_blocks(gap=1e-4, offset_y=0.005, h=0.01):
@@ -77,7 +83,8 @@ def _block_on_incline(theta_deg, mu, t_slide=4e-3):
     g = 9.81
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -g * math.cos(th)), damping=2000.0, contact=True)
+        model = build_fdem_model(mesh, _elastic(youngs_modulus=SOFT_ROCK), tools=[tool],
+                                 gravity=(0.0, 0.0, -g * math.cos(th)), damping=2000.0, contact=True)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     sim.advance(int(2e-3 / dt), dt)
@@ -93,8 +100,9 @@ def _block_on_incline(theta_deg, mu, t_slide=4e-3):
 def test_block_slides_on_incline_iff_tan_theta_exceeds_mu(delta):
     """Coulomb: at theta = atan(mu) - 2 deg the block sticks (speed below 1 % of the free-slide
     speed g (sin - mu cos) t at +2 deg); at atan(mu) + 2 deg it slides, at between 0.5 and 2
-    times that speed (the measured 1.55x means an effective friction 5 % below mu: the block's
-    vibration tilts the slip direction of its nodes; the acceleration, 8 % of g sin, magnifies it)."""
+    times that speed (measured: 1.3e-4 sticking; 1.42x sliding, an effective friction ~4 % below
+    mu: the block's vibration tilts the slip direction of its nodes; the acceleration, 8 % of
+    g sin, magnifies it)."""
     mu = 0.5
     theta = math.degrees(math.atan(mu)) + delta
     v, t = _block_on_incline(theta, mu)
@@ -114,7 +122,8 @@ def test_fragment_resting_on_platen_does_not_drift():
     tool = Tool("platen", "plane", direction=(0, 0, 1), speed=History.constant(0.0), friction=0.3, center=(0, 0, 0), normal=(0, 0, 1))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, _elastic(), tools=[tool], gravity=(0.0, 0.0, -9.81), damping=500.0, contact=True)
+        model = build_fdem_model(mesh, _elastic(youngs_modulus=SOFT_ROCK), tools=[tool], gravity=(0.0, 0.0, -9.81),
+                                 damping=500.0, contact=True)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     nodes = model.nodes
