@@ -185,6 +185,24 @@ def flow_stress(ep, dep, dt, law):
 
 
 @njit(cache=True, inline="always")
+def svk_stress(lam, mu, ee0, ee1, ee2, ee3, ee4, ee5):
+    """St. Venant-Kirchhoff: the second Piola-Kirchhoff stress of the elastic strain ee0..ee5."""
+    tr = ee0 + ee1 + ee2
+    return (lam * tr + 2.0 * mu * ee0, lam * tr + 2.0 * mu * ee1, lam * tr + 2.0 * mu * ee2, 2.0 * mu * ee3,
+            2.0 * mu * ee4, 2.0 * mu * ee5)
+
+
+@njit(cache=True, inline="always")
+def deviator(s0, s1, s2, s3, s4, s5):
+    """The normal components of the stress deviator and the von Mises stress sqrt(3/2 s:s)."""
+    mean = (s0 + s1 + s2) / 3.0
+    d0 = s0 - mean
+    d1 = s1 - mean
+    d2 = s2 - mean
+    return d0, d1, d2, math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * (s3 * s3 + s4 * s4 + s5 * s5)))
+
+
+@njit(cache=True, inline="always")
 def stress_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, law):
     """Second Piola-Kirchhoff stress (s0..s5) of particle g at the Green-Lagrange strain e0..e5,
     with the radial return updating plastic[g] (6) and eq_plastic[g] (and for the thermo law
@@ -194,23 +212,11 @@ def stress_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
     if law[MODEL] == THERMO:
         return thermo_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, law)
     lam, mu = law[LAMBDA], law[MU]
-    ee0 = e0 - plastic[g, 0]
-    ee1 = e1 - plastic[g, 1]
-    ee2 = e2 - plastic[g, 2]
-    tr = ee0 + ee1 + ee2
-    s0 = lam * tr + 2.0 * mu * ee0
-    s1 = lam * tr + 2.0 * mu * ee1
-    s2 = lam * tr + 2.0 * mu * ee2
-    s3 = 2.0 * mu * (e3 - plastic[g, 3])
-    s4 = 2.0 * mu * (e4 - plastic[g, 4])
-    s5 = 2.0 * mu * (e5 - plastic[g, 5])
+    s0, s1, s2, s3, s4, s5 = svk_stress(lam, mu, e0 - plastic[g, 0], e1 - plastic[g, 1], e2 - plastic[g, 2],
+                                        e3 - plastic[g, 3], e4 - plastic[g, 4], e5 - plastic[g, 5])
     if law[YIELD] == math.inf:
         return s0, s1, s2, s3, s4, s5, 0.0
-    mean = (s0 + s1 + s2) / 3.0
-    d0 = s0 - mean
-    d1 = s1 - mean
-    d2 = s2 - mean
-    seq = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * (s3 * s3 + s4 * s4 + s5 * s5)))
+    d0, d1, d2, seq = deviator(s0, s1, s2, s3, s4, s5)
     ep = eq_plastic[g]
     g0, _ = flow_stress(ep, 0.0, dt, law)
     if seq <= g0:
@@ -263,18 +269,8 @@ def thermo_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
     ee3 = e3 - plastic[g, 3]
     ee4 = e4 - plastic[g, 4]
     ee5 = e5 - plastic[g, 5]
-    tr = ee0 + ee1 + ee2
-    s0 = lam * tr + 2.0 * mu * ee0
-    s1 = lam * tr + 2.0 * mu * ee1
-    s2 = lam * tr + 2.0 * mu * ee2
-    s3 = 2.0 * mu * ee3
-    s4 = 2.0 * mu * ee4
-    s5 = 2.0 * mu * ee5
-    mean = (s0 + s1 + s2) / 3.0
-    d0 = s0 - mean
-    d1 = s1 - mean
-    d2 = s2 - mean
-    seq = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * (s3 * s3 + s4 * s4 + s5 * s5)))
+    s0, s1, s2, s3, s4, s5 = svk_stress(lam, mu, ee0, ee1, ee2, ee3, ee4, ee5)
+    d0, d1, d2, seq = deviator(s0, s1, s2, s3, s4, s5)
     if seq == 0.0:
         return s0, s1, s2, s3, s4, s5, 0.0
     ep = eq_plastic[g]
@@ -337,9 +333,8 @@ def thermo_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
     ee1 -= theta1
     ee2 -= theta1
     thermal[g, 1] += before - energy_density(ee0, ee1, ee2, ee3, ee4, ee5, lam1, mu1)
-    tr = ee0 + ee1 + ee2
-    return (lam1 * tr + 2.0 * mu1 * ee0, lam1 * tr + 2.0 * mu1 * ee1, lam1 * tr + 2.0 * mu1 * ee2, 2.0 * mu1 * ee3,
-            2.0 * mu1 * ee4, 2.0 * mu1 * ee5, q * dep)
+    s0, s1, s2, s3, s4, s5 = svk_stress(lam1, mu1, ee0, ee1, ee2, ee3, ee4, ee5)
+    return s0, s1, s2, s3, s4, s5, q * dep
 
 
 @njit(cache=True)
