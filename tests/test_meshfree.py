@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -26,6 +24,7 @@ from crackle.scenario import load_scenario
 from crackle.solver import RunControl, UnstableRunError
 from crackle.solver import run as run_simulation
 from crackle.solver.energy import energy_error, relative_imbalance
+from threads import outputs_with_1_and_2_threads
 
 E_AL, NU, RHO_AL = 71e9, 0.3, 2700.0
 
@@ -606,11 +605,7 @@ def test_thermo_identical_for_1_and_2_threads(plate_file):
         "print(h.hexdigest(), float(p.eq_plastic.max()), float(p.thermal[:, 0].max()), len(gone), "
         "float(np.abs(sim.cauchy_stress()[gone]).max(initial=0.0)), float(p.thermal[gone, 0].max(initial=0.0)))"
     ) % (os.path.dirname(__file__), str(plate_file))
-    digests = []
-    for threads in (1, 2):
-        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-        done = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
-        digests.append(done.stdout.split())
+    digests = outputs_with_1_and_2_threads(script)
     assert digests[0][0] == digests[1][0]
     _, ep, T, detached, stress, T_detached = digests[0]
     assert float(ep) > 0.0 and float(T) > 293.0 + 5.0, "the compared run must yield and heat"
@@ -652,11 +647,7 @@ def test_identical_for_1_and_2_threads(plate_file):
         "sim.tools.cell_state, b.failed, b.blocked, sim.links.grad, np.array([b.damage]))]; "
         "print(h.hexdigest(), float(p.eq_plastic.max()), sim.broken, int(b.detached.sum()))"
     ) % (os.path.dirname(__file__), str(plate_file))
-    digests = []
-    for threads in (1, 2):
-        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-        done = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
-        digests.append(done.stdout.split())
+    digests = outputs_with_1_and_2_threads(script)
     assert digests[0][0] == digests[1][0]
     assert float(digests[0][1]) > 0.0, "the compared run must yield"
     assert int(digests[0][2]) > 0 and int(digests[0][3]) > 0, "the compared run must break links and detach"

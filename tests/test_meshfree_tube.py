@@ -8,8 +8,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -20,6 +18,7 @@ from crackle.meshfree.build import build_meshfree_simulation
 from crackle.meshfree.material import J2Law
 from crackle.meshfree.particles import plate_particles, tube_particles
 from crackle.meshfree.shape import FULL_BASIS, neighbour_links, shape_functions, smoothed_gradients
+from threads import outputs_with_1_and_2_threads
 
 E_AL, NU, RHO_AL = 70e9, 0.3, 2700.0
 EVERYWHERE = Selection(box_min=(-1.0, -1.0, -1.0), box_max=(1.0, 1.0, 1.0))
@@ -353,10 +352,6 @@ def test_pressurised_tube_identical_for_1_and_2_threads():
         "[h.update(np.ascontiguousarray(a).tobytes()) for a in (p.x, p.v, p.w_external)]; "
         "print(h.hexdigest(), float(np.abs(p.w_external).sum()))"
     ) % os.path.dirname(__file__)
-    digests = []
-    for threads in (1, 2):
-        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-        done = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
-        digests.append(done.stdout.split())
+    digests = outputs_with_1_and_2_threads(script)
     assert digests[0][0] == digests[1][0]
     assert float(digests[0][1]) > 0.0, "the pressure must have worked"
