@@ -16,7 +16,7 @@ class MeshfreeSimulation:
     method = "meshfree"
 
     def __init__(self, particles, links, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate, breaking=None, pressures=None):
+                 damping, plate, breaking, pressures):
         self.particles, self.links, self.law, self.tools = particles, links, law, tools
         self._tool_names = list(tool_names)
         self.support_radius = float(support_radius)
@@ -27,11 +27,7 @@ class MeshfreeSimulation:
         self.plate = plate
         # Link breaking (fracture.LinkBreaking), or None without a fracture stress.
         self.breaking = breaking
-        # The pressures on the wall faces (kernels.Pressures; build.pressure_arrays).
-        if pressures is None:
-            from .build import pressure_arrays  # build imports this module
-
-            pressures = pressure_arrays(plate, (), 1.0)
+        # The pressures on the wall faces (kernels.Pressures; build.pressure_arrays, empty without).
         self.pressures = pressures
         # The particles on the faces are on the specimen's surface: they meet the tools there.
         self.contact_radius = 0.0
