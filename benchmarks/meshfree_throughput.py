@@ -116,8 +116,8 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
     # The stress pass and the gather alone, on a copy of the state (the stress pass writes it).
     p = sim.particles._replace(**{k: getattr(sim.particles, k).copy() for k in
                                   ("plastic", "eq_plastic", "w_plastic", "stress", "deformation", "internal",
-                                   "stab_sum")})
-    links = sim.links._replace(stab_force=sim.links.stab_force.copy())
+                                   "stab_force")})
+    links = sim.links
     force = np.zeros_like(p.x)
     internal_forces(dt, p, links, sim.law, force)
     force_times = []

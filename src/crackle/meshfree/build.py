@@ -7,14 +7,15 @@ import math
 
 import numpy as np
 from scipy.linalg import eigh_tridiagonal
+from scipy.spatial import cKDTree
 
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
 from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
-from .kernels import BLOCK, Links, Particles, Pressures, internal_forces
+from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
 from .material import T_REF, YIELD, J2Law
 from .particles import WALL_SIDES, WallParticles
-from .shape import basis_terms, quartic_spline_array, smoothed_gradients
+from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients
 from .simulation import MeshfreeSimulation
 
 
@@ -49,20 +50,17 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
             f"radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles for the quadratic basis; "
             f"increase particles.dilation (2.5 or more)"))
     row = np.repeat(np.arange(n), np.diff(start))
-    dX = X[neighbour] - X[row]
-    dist2 = np.einsum("ij,ij->i", dX, dX)
-    weight = quartic_spline_array(np.sqrt(dist2) / radius)
-    spread = np.bincount(row, weights=weight * dist2, minlength=n)
+    value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row,
+                                        stabilisation * law.youngs_modulus)
     table = law.table()
-    stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
     # The transpose of the links, for the gather: for particle L, every link (I, L) in order of I.
     back_link = np.lexsort((row, neighbour))
     back_start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
     to_back = np.empty_like(back_link)
     to_back[back_link] = np.arange(len(back_link))
-    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)), back_start, to_back,
-                  row[back_link], np.ascontiguousarray(grad[back_link]))
+    links = Links(start, neighbour, grad, value, back_start, to_back, row[back_link],
+                  np.ascontiguousarray(grad[back_link]), value[back_link])
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
     loads = pressure_arrays(plate, pressures, scale)
@@ -75,14 +73,15 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
         plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
-        deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_sum=np.zeros((n, 3)),
+        deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_k=stab_k,
+        stab_force=np.zeros((n, 3)),
         thermal=np.column_stack([np.full(n, table[T_REF]), np.zeros(n)]),
     )
     h = float(np.min(plate.spacing))
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
-    dt, step_ratio = stable_step(particles, links, row, dX, table, tool_k, h)
+    dt, step_ratio = stable_step(particles, links, row, table, tool_k, h)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
     if math.isfinite(fracture_stress) or precracks:
@@ -97,8 +96,24 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         except ValueError as err:
             raise SetupError(str(err).split(":")[0], str(err)) from None
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
-        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, dX, table, tool_k, h)[0])
+        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, table, tool_k, h)[0])
     return sim
+
+
+def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
+    """The stabilisation's values N_K(X_J) (per link) and stiffness k_J (per particle; kernels
+    docstring) at set-up; k_J = 0 where the moment matrix at X_J is singular even with the linear
+    basis (no approximation to compare with)."""
+    n = len(X)
+    # The links of J must hold J's own support (shape.nodal_values): check, the cells are the caller's.
+    in_support = np.einsum("ij,ij->i", X[neighbour] - X[row], X[neighbour] - X[row]) < (radius * (1.0 - 1e-12)) ** 2
+    if not np.array_equal(np.bincount(row, weights=in_support, minlength=n),
+                          cKDTree(X).query_ball_point(X, radius * (1.0 - 1e-12), return_length=True)):
+        raise RuntimeError("a particle's links miss part of its own support: its cell's face centres lie too far out")
+    _, value, condition = nodal_values(X, volume, radius, terms, start, neighbour, np.arange(n))
+    stab_k = stabilisation_stiffness(X, volume, row, neighbour, np.ones(len(row), dtype=bool), radius, scale)
+    stab_k[~np.isfinite(condition) | (condition > MAX_CONDITION)] = 0.0
+    return value, stab_k
 
 
 def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
@@ -158,13 +173,13 @@ LANCZOS_SEED = 0  # the start vector: seeded normal numbers (every mode present,
 _PROBE = 1e-4
 
 
-def stable_step(particles, links, row, dX, law_table, tool_k, spacing) -> tuple[float, float]:
+def stable_step(particles, links, row, law_table, tool_k, spacing) -> tuple[float, float]:
     """STEP_MARGIN x 2 / omega_max, omega_max^2 the largest eigenvalue of M^-1 K of the
     linearised step estimated by Lanczos (highest_frequency2), and its ratio to Gershgorin's
     bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds."""
     omega2, _, _ = highest_frequency2(particles, links, law_table, tool_k, spacing)
-    return STEP_MARGIN * 2.0 / math.sqrt(omega2), omega2 / gershgorin_frequency2(particles, links, row, dX,
-                                                                               law_table, tool_k)
+    return STEP_MARGIN * 2.0 / math.sqrt(omega2), omega2 / gershgorin_frequency2(particles, links, row, law_table,
+                                                                               tool_k)
 
 
 def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[float, float, int]:
@@ -182,8 +197,7 @@ def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[fl
     law[YIELD] = math.inf
     p = particles._replace(x=particles.X.copy(), plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n),
                            w_plastic=np.zeros(n), stress=np.zeros((n, 6)), deformation=np.zeros((n, 9)),
-                           internal=np.zeros((n, 9)), stab_sum=np.zeros((n, 3)), thermal=particles.thermal.copy())
-    scratch = links._replace(stab_force=np.zeros_like(links.stab_force))
+                           internal=np.zeros((n, 9)), stab_force=np.zeros((n, 3)), thermal=particles.thermal.copy())
     inv_sqrt_m = (1.0 / np.sqrt(particles.mass))[:, None]
     diagonal = (tool_k / particles.mass)[:, None]
     plus, minus = np.zeros((n, 3)), np.zeros((n, 3))
@@ -192,9 +206,9 @@ def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[fl
         u = q * inv_sqrt_m
         s = _PROBE * spacing / np.max(np.abs(u))
         np.add(particles.X, s * u, out=p.x)
-        internal_forces(0.0, p, scratch, law, plus)
+        internal_forces(0.0, p, links, law, plus)
         np.subtract(particles.X, s * u, out=p.x)
-        internal_forces(0.0, p, scratch, law, minus)
+        internal_forces(0.0, p, links, law, minus)
         return (minus - plus) / (2.0 * s) * inv_sqrt_m + diagonal * q
 
     q = np.random.default_rng(LANCZOS_SEED).standard_normal((n, 3))
@@ -217,7 +231,7 @@ def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[fl
     return theta + residual, residual, k + 1
 
 
-def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float:
+def gershgorin_frequency2(particles, links, row, law_table, tool_k) -> float:
     """A bound on omega_max^2 (1/s^2) by Gershgorin's theorem on the mass-scaled stiffness of the
     linearised step (block norms): the nodal-integration stiffness
     sum_I V_I C grad N_L(X_I) grad N_M(X_I) (|C| <= 3 lambda + 2 mu), the stabilisation's
@@ -227,18 +241,17 @@ def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
     estimate of the new omega_max^2 (fracture.LinkBreaking)."""
     n = len(particles.mass)
-    neighbour, grad, k = links.neighbour, links.grad, links.stiffness
+    neighbour, grad = links.neighbour, links.grad
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
     gn = np.linalg.norm(grad, axis=1)
     c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
     G = np.bincount(row, weights=gn * inv_sqrt_m[neighbour], minlength=n)
     elastic = c_norm * np.bincount(neighbour, weights=particles.volume[row] * gn * G[row], minlength=n)
-    # Stabilisation: d eps_IJ / d x_M = delta_JM - delta_IM - grad N_M(X_I) . dX_IJ, bounded row by row.
-    dlen = np.linalg.norm(dX, axis=1)
-    s = inv_sqrt_m[neighbour] + inv_sqrt_m[row] + dlen * G[row]
-    Z = np.bincount(row, weights=k * s * dlen, minlength=n)
-    stab = (np.bincount(neighbour, weights=k * s, minlength=n) + np.bincount(row, weights=k * s, minlength=n)
-            + np.bincount(neighbour, weights=gn * Z[row], minlength=n))
+    # Stabilisation: Hessian sum_J k_J D_JL D_JM with D_JM = d eps_J / d u_M = delta_JM - N_M(X_J):
+    # row L bounded by sum_J k_J |D_JL| S_J, S_J = sum_M |D_JM| / sqrt(m_M).
+    D = np.abs((row == neighbour) - links.value)
+    S = np.bincount(row, weights=D * inv_sqrt_m[neighbour], minlength=n)
+    stab = np.bincount(neighbour, weights=particles.stab_k[row] * D * S[row], minlength=n)
     omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
     return float(np.max(omega2))

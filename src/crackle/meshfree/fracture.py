@@ -3,7 +3,7 @@ a particle exceeds the fracture stress (`fracture_factor` x `tensile_strength`, 
 paper), the particle fails, once: a crack plane passes through it with its normal along that
 principal direction. The links that cross the crack are removed, in both directions, and the
 shape-function gradients (the MLS at the face centres of each affected particle's cell, and
-the stabilisation stiffness of its links) are rebuilt without them: the crack hides each side
+the stabilisation's values and stiffness at the particle) are rebuilt without them: the crack hides each side
 from the other's interpolation (a visibility rule).
 
 The crack cuts through the wall, as in the paper's shells: with 2-3 particles through the
@@ -43,7 +43,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .material import thermal_strain
-from .shape import MAX_CONDITION, cell_gradients, quartic_spline_array
+from .kernels import stabilisation_stiffness
+from .shape import MAX_CONDITION, cell_gradients, nodal_values
 
 # Steps between fracture checks: the criterion is evaluated and links removed at the step
 # numbers that are multiples of it. The lag it allows is ~1.8 spacing / c at the default step
@@ -243,8 +244,7 @@ class LinkBreaking:
         from .build import STEP_MARGIN, gershgorin_frequency2  # build imports this module
 
         links = sim.links
-        dX = self.X[links.neighbour] - self.X[self.row]
-        omega2 = self.step_ratio * gershgorin_frequency2(sim.particles, links, self.row, dX, sim.law, self.tool_k)
+        omega2 = self.step_ratio * gershgorin_frequency2(sim.particles, links, self.row, sim.law, self.tool_k)
         estimate = STEP_MARGIN * 2.0 / np.sqrt(omega2)
         if estimate < dt:
             self._step_warned = True
@@ -269,9 +269,9 @@ class LinkBreaking:
         self.blocked = np.union1d(self.blocked, keys)
 
     def _rebuild(self, sim, rows):
-        """New gradients and stabilisation stiffness for the particles `rows` with the blocked
-        links left out; detaches those left singular and rebuilds their neighbours in turn."""
-        links, n = sim.links, len(self.X)
+        """New gradients and stabilisation (values and stiffness) for the particles `rows` with the
+        blocked links left out; detaches those left singular and rebuilds their neighbours in turn."""
+        links, p, n = sim.links, sim.particles, len(self.X)
         rows = rows[~self.detached[rows]]
         while len(rows):
             in_rows = np.isin(self.row, rows)
@@ -283,7 +283,7 @@ class LinkBreaking:
             if not np.array_equal(self.key[np.minimum(at, len(self.key) - 1)], r * n + col):
                 raise RuntimeError("a rebuilt gradient has no link: the face centres' supports grew")
             links.grad[at] = grad
-            self._stiffness(links, in_rows)
+            self._stabilisation(links, p, rows)
             bad = ~np.isfinite(condition) | (condition > MAX_CONDITION)
             lost = np.unique(owner[bad])
             if len(lost) == 0:
@@ -294,24 +294,31 @@ class LinkBreaking:
             self._block(np.concatenate([keys, (keys % n) * n + keys // n]))
             gone = np.isin(self.row, lost)
             links.grad[gone] = 0.0
-            links.stiffness[gone] = 0.0
+            links.value[gone] = 0.0
+            p.stab_k[lost] = 0.0
             # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
             # reference face would push a tumbling fragment in a fixed direction).
             faces = sim.pressures.start
             sim.pressures.area[np.isin(np.repeat(np.arange(n), np.diff(faces)), lost)] = 0.0
             rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
             rows = rows[~self.detached[rows]]
-        links.back_grad[links.to_back] = links.grad  # the gather's copy, in the transposed order (kernels.Links)
+        # The gather's copies, in the transposed order (kernels.Links).
+        links.back_grad[links.to_back] = links.grad
+        links.back_value[links.to_back] = links.value
 
-    def _stiffness(self, links, in_rows):
-        """k_IJ = alpha E V_I w_IJ / sum_J w_IJ |dX|^2 over the links still there (build.py)."""
-        n = len(self.X)
-        I, J = self.row[in_rows], links.neighbour[in_rows]
-        dX = self.X[J] - self.X[I]
-        dist2 = np.einsum("ij,ij->i", dX, dX)
-        at = np.minimum(np.searchsorted(self.blocked, self.key[in_rows]), max(len(self.blocked) - 1, 0))
-        kept = self.blocked[at] != self.key[in_rows] if len(self.blocked) else np.ones(len(I), dtype=bool)
-        weight = np.where(kept, quartic_spline_array(np.sqrt(dist2) / self.radius), 0.0)
-        spread = np.bincount(I, weights=weight * dist2, minlength=n)[I]
-        links.stiffness[in_rows] = np.where(spread > 0.0, self.stab_scale * self.volume[I] * weight
-                                            / np.where(spread > 0.0, spread, 1.0), 0.0)
+    def _stabilisation(self, links, particles, rows):
+        """The values N_K(X_J) and the stiffness k_J of the particles `rows` over the links still
+        there (build.nodal_stabilisation); k_J = 0 where even the linear basis is singular at X_J."""
+        hidden = self._is_blocked(self.key)
+        pos, value, condition = nodal_values(self.X, self.volume, self.radius, self.terms, links.start,
+                                             links.neighbour, rows, hidden)
+        links.value[pos] = value
+        k = stabilisation_stiffness(self.X, self.volume, self.row[pos], links.neighbour[pos], ~hidden[pos],
+                                    self.radius, self.stab_scale)[rows]
+        k[~np.isfinite(condition) | (condition > MAX_CONDITION)] = 0.0
+        particles.stab_k[rows] = k
+
+    def _is_blocked(self, keys) -> np.ndarray:
+        if len(self.blocked) == 0:
+            return np.zeros(len(keys), dtype=bool)
+        return self.blocked[np.minimum(np.searchsorted(self.blocked, keys), len(self.blocked) - 1)] == keys

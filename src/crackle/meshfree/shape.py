@@ -226,6 +226,56 @@ def _values_at(points, X, volume, start, neighbour, radius, terms, value, condit
             value[r] = volume[j] * w * pg
 
 
+def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback=False):
+    """(value (links,), condition (points,)): N_J(points[q]) for the links (q, J) of the CSR
+    (start, neighbour), the MLS centred on each point (_values_at). With `linear_fallback`, a
+    point whose moment matrix is singular with the quadratic basis (near a crack face: the
+    particles it still sees lie on too few planes) uses the linear basis 1, x, y, z instead (it
+    still reproduces linear fields); its condition is then the linear one."""
+    X = np.ascontiguousarray(X, dtype=float)
+    volume = np.asarray(volume, dtype=float)
+    value = np.zeros(len(neighbour))
+    condition = np.zeros(len(points))
+    _values_at(np.ascontiguousarray(points, dtype=float), X, volume, start, neighbour, float(radius), terms, value,
+               condition)
+    bad = np.flatnonzero(~np.isfinite(condition) | (condition > MAX_CONDITION))
+    if linear_fallback and len(bad):
+        counts = start[bad + 1] - start[bad]
+        sub_start = np.zeros(len(bad) + 1, dtype=np.int64)
+        np.cumsum(counts, out=sub_start[1:])
+        pos = np.repeat(start[bad] - sub_start[:-1], counts) + np.arange(sub_start[-1])
+        sub_value = np.zeros(len(pos))
+        sub_condition = np.zeros(len(bad))
+        _values_at(np.ascontiguousarray(points[bad], dtype=float), X, volume, sub_start, neighbour[pos], float(radius),
+                   terms[terms < 4], sub_value, sub_condition)
+        value[pos] = sub_value
+        condition[bad] = sub_condition
+    return value, condition
+
+
+def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None):
+    """The MLS values N_K(X_J) at the particles J = `rows` themselves, over their links (J, K)
+    but for the `hidden` ones (a boolean per link: removed by fracture), with the linear
+    fallback at a crack face (mls_values): what the link stabilisation compares each particle's
+    value with (kernels docstring). The links of J cover its own support: they are every
+    particle within the support radius of one of its cell's face centres, which surround X_J
+    closer than the radius. Returns (the positions of the rows' links, their values (0 on a hidden
+    link), the condition number of each row's moment matrix)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    counts = start[rows + 1] - start[rows]
+    first = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(counts, out=first[1:])
+    pos = np.repeat(start[rows] - first[:-1], counts) + np.arange(first[-1])
+    keep = np.ones(len(pos), dtype=bool) if hidden is None else ~hidden[pos]
+    kept_start = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(np.repeat(np.arange(len(rows)), counts)[keep], minlength=len(rows)), out=kept_start[1:])
+    kept_value, condition = mls_values(X[rows], X, volume, kept_start, neighbour[pos[keep]], radius, terms,
+                                       linear_fallback=True)
+    value = np.zeros(len(pos))
+    value[keep] = kept_value
+    return pos, value, condition
+
+
 def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, terms: np.ndarray):
     """Stabilised conforming nodal integration (Chen et al. 2001): the gradient of N_J at the
     particle I is the mean over I's cell (a closed polyhedron of planar faces, particles.Cells,
@@ -254,10 +304,7 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
     with a contribution, sorted by row then column, the condition number of every face centre's
     moment matrix, the face centres and their owners (the owners' faces in turn, each cell's in
-    its own order). With `linear_fallback`, a face centre whose moment matrix is singular with
-    the quadratic basis (a crack face: the particles it still sees lie on too few planes) uses
-    the linear basis 1, x, y, z instead (it still reproduces linear fields); its condition is
-    then the linear one."""
+    its own order). `linear_fallback`: at a crack face (mls_values)."""
     n = len(X)
     owners = np.asarray(owners, dtype=np.int64)
     face_counts = cells.start[owners + 1] - cells.start[owners]
@@ -279,23 +326,7 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
         counts = np.bincount(point_of, minlength=len(points))
     start = np.zeros(len(points) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    value = np.zeros(len(neighbour))
-    condition = np.zeros(len(points))
-    _values_at(np.ascontiguousarray(points), np.ascontiguousarray(X, dtype=float), np.asarray(volume, dtype=float),
-               start, neighbour, float(radius), terms, value, condition)
-    bad = np.flatnonzero(~np.isfinite(condition) | (condition > MAX_CONDITION))
-    if linear_fallback and len(bad):
-        sub_counts = counts[bad]
-        sub_start = np.zeros(len(bad) + 1, dtype=np.int64)
-        np.cumsum(sub_counts, out=sub_start[1:])
-        pos = np.repeat(start[bad] - sub_start[:-1], sub_counts) + np.arange(sub_start[-1])
-        sub_value = np.zeros(len(pos))
-        sub_condition = np.zeros(len(bad))
-        _values_at(np.ascontiguousarray(points[bad]), np.ascontiguousarray(X, dtype=float),
-                   np.asarray(volume, dtype=float), sub_start, neighbour[pos], float(radius), terms[terms < 4],
-                   sub_value, sub_condition)
-        value[pos] = sub_value
-        condition[bad] = sub_condition
+    value, condition = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback)
     # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
     rows = owner[point_of]
     parts = weight[point_of] * value[:, None]

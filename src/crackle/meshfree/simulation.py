@@ -83,8 +83,8 @@ class MeshfreeSimulation:
         p, s = self.particles, self.links
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
-        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, s.start, s.neighbour, s.grad,
-                        s.stiffness, self.law, elastic, stab)
+        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start, s.neighbour,
+                        s.grad, s.value, self.law, elastic, stab)
         return elastic, stab
 
     def energies(self, dt: float) -> dict[str, float]:
