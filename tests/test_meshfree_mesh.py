@@ -328,6 +328,7 @@ def test_mesh_and_shell_scenarios_run(scenario_dir, tmp_path, name):
     ("shell", ['specimen.file="missing.stl"'], "specimen.file"),
     ("shell", ["specimen.origin=[0.0, 0.0, 0.0]"], "origin"),
     ("shell", ["specimen.suture_wall=0.002"], "suture_wall"),
+    ("shell", ["specimen.wall=0.03"], "specimen.wall"),
 ])
 def test_bad_mesh_and_shell_input_exits_2(scenario_dir, tmp_path, capsys, name, overrides, field):
     folder, _ = scenario_dir
@@ -338,11 +339,11 @@ def test_bad_mesh_and_shell_input_exits_2(scenario_dir, tmp_path, capsys, name, 
     assert field in capsys.readouterr().err
 
 
-def test_shell_needs_its_wall(scenario_dir, tmp_path, capsys):
-    """shape = "shell" without wall exits 2 naming it (FDEM's walnut default is not taken)."""
+@pytest.mark.parametrize("remove, field", [("wall = 0.0025\n", "wall"), ('file = "sphere.stl"\n', "file")])
+def test_shell_needs_its_wall_and_file(scenario_dir, tmp_path, capsys, remove, field):
+    """shape = "shell" without wall or file exits 2 naming it (FDEM's walnut wall is not taken)."""
     folder, _ = scenario_dir
-    path = tmp_path / "nowall.toml"
-    path.write_text(SHELL.replace("wall = 0.0025\n", "").replace("file = \"sphere.stl\"",
-                                                                   f"file = \"{folder / 'sphere.stl'}\""))
+    path = folder / f"no-{field}.toml"
+    path.write_text(SHELL.replace(remove, ""))
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
-    assert "wall" in capsys.readouterr().err
+    assert field in capsys.readouterr().err

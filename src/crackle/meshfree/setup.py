@@ -48,6 +48,12 @@ class MeshfreeSpecimen(Specimen):
     axis: Vec3 = (0.0, 0.0, 1.0)
     """tube: its axis (any non-zero vector); the angle around it counts from the coordinate axis least aligned with
     it (x for a tube along z)"""
+    file: str | None = None
+    """mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...), a particle at each node; shell: a closed or open
+    triangle surface (STL or any meshio format), the wall's outer side; relative to the scenario file's folder"""
+    wall: Positive | None = None
+    """m, shell: the wall thickness (needed), walled inwards from the surface along its vertex normals (an open
+    surface: against its triangles' right-hand normals)"""
 
     @model_validator(mode="after")
     def _needs(self):
@@ -80,12 +86,14 @@ class MeshfreeSpecimen(Specimen):
 
     def _mesh_keys(self):
         """mesh and shell: only their keys (MESH_KEYS); a shell's wall given."""
+        if self.file is None:
+            raise ValueError(f"shape '{self.shape}' needs file")
         self._common_keys()
         other = sorted(self.model_fields_set - MESH_KEYS[self.shape])
         if other:
             raise ValueError(f"{', '.join(other)}: not used by shape = \"{self.shape}\" (its keys: "
                              f"{', '.join(sorted(MESH_KEYS[self.shape] - {'shape'}))})")
-        if self.shape == "shell" and "wall" not in self.model_fields_set:
+        if self.shape == "shell" and self.wall is None:
             raise ValueError("wall: shape = \"shell\" needs the wall thickness (m)")
         return self
 
@@ -252,7 +260,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         else:
             plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
     except MeshError as err:
-        raise ScenarioError(f"specimen.file: {err}") from None
+        key = "specimen.wall" if str(err).startswith("the wall") else "specimen.file"  # shell_from_surface's
+        raise ScenarioError(f"{key}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"particles.{err}") from None
     mat = scenario.material
