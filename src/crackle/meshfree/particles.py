@@ -12,6 +12,12 @@ circumferential count is the one whose arc step at the mean radius is closest to
 and evenly between. Each particle owns the hexahedron between the mid-points to its neighbours
 (clipped at the walls and ends), with straight edges and planar quadrilateral faces.
 
+Tet mesh (tet_node_particles): a particle at each node of any tet mesh, owning its median-dual
+cell (median_dual_cells: a quarter of each tet, bounded by two planar triangles per tet edge and
+a quadrilateral per boundary triangle and node; ~80 faces a cell); a solid, no wall. Shell
+(shell_particles): the same on the wall FDEM's shell_from_surface builds inwards from a closed
+or open triangle surface, `layers` particles on each surface node's line through the wall.
+
 Every cell is a closed list of planar faces (`Cells`): centre and area vector (outward normal x
 area) of each, what stabilised conforming nodal integration (shape.smoothed_gradients) needs.
 A face between two cells is computed once and used by both with opposite signs, so the area
