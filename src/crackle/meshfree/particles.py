@@ -255,11 +255,19 @@ def tet_node_particles(points, tets) -> WallParticles:
     layers 0, the full quadratic basis; the contact area against tools is volume^(2/3) and every
     boundary face is on the OUTER surface. spacing: the 90th percentile, the median and the
     shortest tet edge (mesh_spacing). Raises ValueError naming what is wrong with the mesh."""
+    particles, _ = _tet_node_particles(points, tets)
+    return particles
+
+
+def _tet_node_particles(points, tets) -> tuple[WallParticles, tuple]:
+    """tet_node_particles and the boundary faces of median_dual_cells (with their triangles)."""
     X, tets = _checked_tets(points, tets)
     cells, volume, boundary = median_dual_cells(X, tets)
     owner, centre, area, _ = boundary
     surface = WallFaces(owner, centre, area, np.full(len(owner), OUTER, dtype=np.int8))
-    return WallParticles("mesh", X, volume, volume ** (2.0 / 3.0), mesh_spacing(X, tets), 0, cells, None, surface)
+    particles = WallParticles("mesh", X, volume, volume ** (2.0 / 3.0), mesh_spacing(X, tets), 0, cells, None,
+                              surface)
+    return particles, boundary
 
 
 def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0),
@@ -286,22 +294,18 @@ def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(
     new = i * layers + k
     X = np.empty_like(mesh.points)
     X[new] = mesh.points
-    particles = tet_node_particles(X, new[mesh.tets])
+    particles, boundary = _tet_node_particles(X, new[mesh.tets])
     layer = np.arange(len(X)) % layers
     outward = X[layer == 0] - X[layer == 1]  # along the vertex normal the walling used
     normal = np.repeat(outward / np.linalg.norm(outward, axis=1)[:, None], layers, axis=0)
     extent = np.where((layer == 0) | (layer == layers - 1), 0.5, 1.0) * wall / (layers - 1)
-    surface = particles.surface
-    owner_layer = layer[surface.particle]
-    # A boundary face lies on one surface when its particle does and the face's normal is along
-    # the wall's (a rim face of an open surface is normal to it).
-    along = np.einsum("ka,ka->k", surface.area, normal[surface.particle])
-    norm = np.linalg.norm(surface.area, axis=1)
-    outer = (owner_layer == 0) & (along > 0.5 * norm)
-    inner = (owner_layer == layers - 1) & (along < -0.5 * norm)
+    # A boundary face is on a surface when its triangle's three nodes are (an open surface's
+    # rim triangles span the layers).
+    owner, centre, area, triangle = boundary
+    outer = np.all(layer[triangle] == 0, axis=1)
+    inner = np.all(layer[triangle] == layers - 1, axis=1)
     keep = outer | inner
-    faces = WallFaces(surface.particle[keep], surface.centre[keep], surface.area[keep],
-                      np.where(outer[keep], OUTER, INNER).astype(np.int8))
+    faces = WallFaces(owner[keep], centre[keep], area[keep], np.where(outer[keep], OUTER, INNER).astype(np.int8))
     return WallParticles("shell", X, particles.volume, particles.volume / extent, particles.spacing, layers,
                          particles.cells, _frame_of_normals(normal), faces)
 
@@ -362,8 +366,8 @@ def median_dual_cells(X: np.ndarray, tets: np.ndarray):
     triangle's centroid): a third of its area vector, centroid (2 node + both midpoints + 2
     centroid) / 6 (the medians cut the triangle into 6 triangles of equal area). Returns (Cells,
     volume = the sum of a quarter of each tet's volume (the divergence theorem's volume of the
-    cell), the boundary faces (particle, centre, area, boundary triangle's row in
-    internal_faces(tets).boundary_faces))."""
+    cell), the boundary faces (particle, centre, area, the nodes (k, 3) of the boundary triangle
+    each lies on))."""
     from ..geometry.meshes import LOCAL_FACE_VERTICES, internal_faces, tet_volumes
 
     n, m = len(X), len(tets)
@@ -407,6 +411,6 @@ def median_dual_cells(X: np.ndarray, tets: np.ndarray):
     start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner, minlength=n), out=start[1:])
     volume = np.bincount(tets.ravel(), weights=np.repeat(tet_volumes(X, tets) / 4.0, 4), minlength=n)
-    b_rows = np.flatnonzero(order >= 2 * n_inner)  # the boundary rows, in the cells' order
-    faces = (owner[order[b_rows]], centre[order[b_rows]], area[order[b_rows]], (order[b_rows] - 2 * n_inner) // 3)
+    b_rows = order[order >= 2 * n_inner]  # the boundary rows, in the cells' order
+    faces = (owner[b_rows], centre[b_rows], area[b_rows], tri[(b_rows - 2 * n_inner) // 3])
     return Cells(start, centre[order], area[order]), volume, faces
