@@ -539,13 +539,15 @@ def surface_arrays(vertices, triangles, source: str) -> tuple[np.ndarray, np.nda
 
 def surface_closure(triangles: np.ndarray) -> tuple[bool, bool]:
     """(closed, consistently wound): every edge shared by exactly two triangles, and each
-    directed edge used once (neighbours traverse their common edge in opposite directions)."""
+    directed edge used once (neighbours traverse their common edge in opposite directions; an
+    open surface too, where no edge is in more than two triangles)."""
     e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
     _, counts = np.unique(np.sort(e, axis=1), axis=0, return_counts=True)
-    if not np.all(counts == 2):
-        return False, False
+    closed = bool(np.all(counts == 2))
+    if np.any(counts > 2):
+        return closed, False
     _, counts = np.unique(e, axis=0, return_counts=True)
-    return True, bool(np.all(counts == 1))
+    return closed, bool(np.all(counts == 1))
 
 
 def _surface_to_stl(src: Path, dst: Path) -> None:

@@ -152,6 +152,7 @@ def shell_from_surface(
     layers: int = 1,
     scale: float = 1.0,
     offset=(0.0, 0.0, 0.0),
+    allow_open: bool = False,
 ) -> tuple[TetMesh, np.ndarray]:
     """Tet mesh of a shell whose outer surface is a closed triangulated surface (a scanned nut:
     STL or any meshio format, points x scale + offset, in m) and its per-tet region (0 face,
@@ -163,15 +164,23 @@ def shell_from_surface(
     suture plane, through the surface's centroid with normal ``suture_normal``), in ``layers``
     equal steps, and the prisms between are cut into tets as in :func:`walnut_shell`. The wall
     must stay below the surface's smallest radius of curvature, or inner nodes cross: such a
-    surface is refused (inverted tets).
+    surface is refused (inverted tets). With ``allow_open`` an open surface is walled too (its
+    triangles wound consistently; the wall grows against their right-hand normals).
+
+    The points are numbered layer by layer: the surface's ns nodes first (layer 0, the outer
+    surface), node i of layer k is k ns + i.
     """
     suture_wall, layers = _check_shell_args(wall, suture_wall, suture_band, layers)
     try:
         pts, tris = read_surface(path, scale, offset, hint="export the closed outer surface as triangles, e.g. STL")
     except ValueError as err:  # MeshError included
         raise MeshError(str(err)) from None
-    if not surface_closure(tris)[0]:
+    closed, consistent = surface_closure(tris)
+    if not closed and not allow_open:
         raise MeshError(f"the surface in {path} is not closed (every edge in two triangles): close it first")
+    if not consistent:
+        raise MeshError(f"the triangles of the surface in {path} are not wound consistently (or an edge has more "
+                        "than two): repair it (e.g. fix normals in MeshLab)")
     if element_size is not None:
         _check_h(element_size)
         pts, tris = _remesh_surface(pts, tris, element_size)

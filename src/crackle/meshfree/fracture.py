@@ -108,7 +108,8 @@ class LinkBreaking:
         F = deformation[ids].reshape(-1, 3, 3)
         N = np.einsum("kab,ka->kb", F, n_current)  # F^T n: the normal pulled back to the material
         N /= np.linalg.norm(N, axis=1)[:, None]
-        wall = self.wall_frame[ids, 2]
+        # A solid (no wall_frame) keeps the principal direction: nothing to remove.
+        wall = np.zeros((len(ids), 3)) if self.wall_frame is None else self.wall_frame[ids, 2]
         N -= np.einsum("ka,ka->k", N, wall)[:, None] * wall
         through = np.flatnonzero(np.linalg.norm(N, axis=1) < 1e-6)
         if len(through):

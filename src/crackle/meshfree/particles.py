@@ -12,6 +12,12 @@ circumferential count is the one whose arc step at the mean radius is closest to
 and evenly between. Each particle owns the hexahedron between the mid-points to its neighbours
 (clipped at the walls and ends), with straight edges and planar quadrilateral faces.
 
+Tet mesh (tet_node_particles): a particle at each node of any tet mesh, owning its median-dual
+cell (median_dual_cells: a quarter of each tet, bounded by two planar triangles per tet edge and
+a quadrilateral per boundary triangle and node; ~80 faces a cell); a solid, no wall. Shell
+(shell_particles): the same on the wall FDEM's shell_from_surface builds inwards from a closed
+or open triangle surface, `layers` particles on each surface node's line through the wall.
+
 Every cell is a closed list of planar faces (`Cells`): centre and area vector (outward normal x
 area) of each, what stabilised conforming nodal integration (shape.smoothed_gradients) needs.
 A face between two cells is computed once and used by both with opposite signs, so the area
@@ -54,14 +60,18 @@ class WallFaces:
 
 @dataclass
 class WallParticles:
-    shape: str  # "plate" or "tube"
+    shape: str  # "plate", "tube", "mesh" (tet_node_particles) or "shell" (shell_particles)
     X: np.ndarray  # (n, 3) m, material (reference) positions
     volume: np.ndarray  # (n,) m^3, the cells' volumes
     area: np.ndarray  # (n,) m^2, the cell's extent along the wall (contact area against tools)
-    spacing: np.ndarray  # (3,) m, the grid steps (plate: along x, y, z; tube: arc at the outer wall, axial, radial)
-    layers: int
+    # (3,) m, the grid steps (plate: along x, y, z; tube: arc at the outer wall, axial, radial; mesh and shell:
+    # the longest, median and shortest tet edge): the support radius is dilation x the largest, h the smallest
+    spacing: np.ndarray
+    layers: int  # particles through the wall (mesh: 0, a solid)
     cells: Cells
-    wall_frame: np.ndarray  # (n, 3, 3): rows two unit tangents of the wall and its unit normal (outward)
+    # (n, 3, 3): rows two unit tangents of the wall and its unit normal (outward); None for a solid mesh (no
+    # wall: fracture keeps the principal direction as the crack normal)
+    wall_frame: np.ndarray | None
     surface: WallFaces
     thickness_axis: int | None = None  # plate: 0, 1 or 2, its thinnest side; tube: None
     axis: np.ndarray | None = None  # tube: the unit vector along it; plate: None
@@ -227,3 +237,180 @@ def _quads(corner, c0, c1, c2, c3):
     a2 = 0.5 * np.einsum("...a,...a->...", np.cross(p2 - p0, p3 - p0), unit)
     centre = (a1[..., None] * (p0 + p1 + p2) + a2[..., None] * (p0 + p2 + p3)) / (3.0 * (a1 + a2)[..., None])
     return centre, area
+
+
+# The 6 edges of a tet as local vertices (a, b, c, d): (a, b) the edge and (a, b, c, d) an even
+# permutation of (0, 1, 2, 3), so that det(b - a, c - a, d - a) = 6 V > 0 in a positive tet and
+# the dual triangles below have area vectors along b - a (from a's cell into b's).
+_EDGE_VERTICES = np.array([[0, 1, 2, 3], [0, 2, 3, 1], [0, 3, 1, 2], [1, 2, 0, 3], [1, 3, 2, 0], [2, 3, 0, 1]])
+
+
+# The percentile of a tet mesh's edge lengths that the support radius is dilation x (mesh_spacing).
+SUPPORT_EDGE_PERCENTILE = 90.0
+
+
+def tet_node_particles(points, tets) -> WallParticles:
+    """Particles at the nodes of a tet mesh (a solid: shape "mesh"), each owning its median-dual
+    cell (median_dual_cells). No wall: wall_frame None (a crack keeps its principal normal),
+    layers 0, the full quadratic basis; the contact area against tools is volume^(2/3) and every
+    boundary face is on the OUTER surface. spacing: the 90th percentile, the median and the
+    shortest tet edge (mesh_spacing). Raises ValueError naming what is wrong with the mesh."""
+    particles, _ = _tet_node_particles(points, tets)
+    return particles
+
+
+def _tet_node_particles(points, tets) -> tuple[WallParticles, tuple]:
+    """tet_node_particles and the boundary faces of median_dual_cells (with their triangles)."""
+    X, tets = _checked_tets(points, tets)
+    cells, volume, boundary = median_dual_cells(X, tets)
+    owner, centre, area, _ = boundary
+    surface = WallFaces(owner, centre, area, np.full(len(owner), OUTER, dtype=np.int8))
+    particles = WallParticles("mesh", X, volume, volume ** (2.0 / 3.0), mesh_spacing(X, tets), 0, cells, None,
+                              surface)
+    return particles, boundary
+
+
+def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0),
+                    element_size: float | None = None) -> WallParticles:
+    """Particles through the wall of a shell walled inwards from a closed or open triangle
+    surface (geometry.walnut.shell_from_surface: the file's points x scale + offset, remeshed to
+    element_size when given; `layers` particles on each surface node's line through the wall,
+    layers - 1 tets), each owning its median-dual cell (median_dual_cells). wall_frame: the
+    surface's outward vertex normal (the same on the node's whole line) and two tangents; the
+    contact area against tools is volume / the node's extent through the wall (wall / (layers -
+    1), half on the two surfaces); the boundary faces on the file's surface are OUTER, those on
+    the offset one INNER (an open surface's rim is neither). Particle order: the layers of one
+    line fastest. Raises ValueError (geometry.MeshError) naming what is wrong."""
+    from ..geometry.walnut import shell_from_surface
+
+    if layers < 3:
+        raise ValueError(f"layers = {layers}: a shell needs 3 or more particles through the wall (on two "
+                         "surfaces the quadratic basis is nearly singular)")
+    mesh, _ = shell_from_surface(path, element_size, wall=wall, suture_wall=None, layers=layers - 1, scale=scale,
+                                 offset=offset, allow_open=True)
+    ns = mesh.n_points // layers
+    # Node i of layer k (k ns + i in the walled mesh) becomes particle i layers + k.
+    k, i = np.divmod(np.arange(mesh.n_points), ns)
+    new = i * layers + k
+    X = np.empty_like(mesh.points)
+    X[new] = mesh.points
+    particles, boundary = _tet_node_particles(X, new[mesh.tets])
+    layer = np.arange(len(X)) % layers
+    outward = X[layer == 0] - X[layer == 1]  # along the vertex normal the walling used
+    normal = np.repeat(outward / np.linalg.norm(outward, axis=1)[:, None], layers, axis=0)
+    extent = np.where((layer == 0) | (layer == layers - 1), 0.5, 1.0) * wall / (layers - 1)
+    # A boundary face is on a surface when its triangle's three nodes are (an open surface's
+    # rim triangles span the layers).
+    owner, centre, area, triangle = boundary
+    outer = np.all(layer[triangle] == 0, axis=1)
+    inner = np.all(layer[triangle] == layers - 1, axis=1)
+    keep = outer | inner
+    faces = WallFaces(owner[keep], centre[keep], area[keep], np.where(outer[keep], OUTER, INNER).astype(np.int8))
+    return WallParticles("shell", X, particles.volume, particles.volume / extent, particles.spacing, layers,
+                         particles.cells, _frame_of_normals(normal), faces)
+
+
+def _frame_of_normals(normal: np.ndarray) -> np.ndarray:
+    """(n, 3, 3): rows two unit tangents and the unit normal; the first tangent from the
+    coordinate axis least aligned with the normal (as tube_frame)."""
+    axis = np.eye(3)[np.argmin(np.abs(normal), axis=1)]
+    t1 = axis - np.einsum("na,na->n", axis, normal)[:, None] * normal
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return np.stack([t1, np.cross(normal, t1), normal], axis=1)
+
+
+def _checked_tets(points, tets) -> tuple[np.ndarray, np.ndarray]:
+    """Float and int64 copies, every tet positively oriented; ValueError for a point in no tet or
+    a flat tet."""
+    from ..geometry.meshes import tet_volumes
+
+    X = np.ascontiguousarray(points, dtype=float)
+    tets = np.array(tets, dtype=np.int64)
+    if X.ndim != 2 or X.shape[1] != 3 or tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
+        raise ValueError("a tet mesh needs (n, 3) points and (m, 4) tets")
+    if tets.min() < 0 or tets.max() >= len(X):
+        raise ValueError("tets refer to missing points")
+    if np.any(np.bincount(tets.ravel(), minlength=len(X)) == 0):
+        raise ValueError("some points are in no tet (a particle needs a cell): remove them")
+    volume = tet_volumes(X, tets)
+    if np.any(volume == 0.0):
+        raise ValueError("some tets are flat (zero volume)")
+    flip = volume < 0.0
+    tets[flip] = tets[flip][:, [1, 0, 2, 3]]
+    return X, tets
+
+
+def mesh_spacing(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """(3,) m: the 90th percentile, the median and the shortest of the tet edges. The support
+    radius is dilation x the first (build.py; global): long enough for the quadratic basis where
+    the mesh is coarse (the crack discs of neighbours then overlap, fracture.py), but not set by
+    the few longest edges (a gmsh surface's longest edge is ~1.7 x its median; a support that
+    long smears a shell's wall through its thickness: a pressurised sphere's hoop stress went
+    from the outer to the inner layer as 12.7, 9.1, 6.0 MPa for Lame's 9.0, 9.3, 9.5). A
+    support that leaves a face centre too few neighbours stops the set-up naming
+    particles.dilation. The shortest edge is the stiffest pair, what the tool penalty E / h and
+    the step's probe take."""
+    from ..geometry.meshes import TetMesh
+
+    edges = TetMesh(X, tets).edges()
+    length = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    return np.array([np.percentile(length, SUPPORT_EDGE_PERCENTILE), np.median(length), length.min()])
+
+
+def median_dual_cells(X: np.ndarray, tets: np.ndarray):
+    """The median-dual cells of the nodes of a tet mesh (tets positively oriented): each tet is
+    split among its 4 nodes. Inside a tet the face between the cells of an edge's two nodes is
+    the two planar triangles (edge midpoint, centroid of one of the two tet faces on the edge,
+    tet centroid); each is computed once and added to both cells with opposite signs. A boundary
+    triangle gives each of its nodes the planar quadrilateral (node, the two edge midpoints, the
+    triangle's centroid): a third of its area vector, centroid (2 node + both midpoints + 2
+    centroid) / 6 (the medians cut the triangle into 6 triangles of equal area). Returns (Cells,
+    volume = the sum of a quarter of each tet's volume (the divergence theorem's volume of the
+    cell), the boundary faces (particle, centre, area, the nodes (k, 3) of the boundary triangle
+    each lies on))."""
+    from ..geometry.meshes import LOCAL_FACE_VERTICES, internal_faces, tet_volumes
+
+    n, m = len(X), len(tets)
+    corner = X[tets]  # (m, 4, 3)
+    g = corner.mean(axis=1)
+    n_inner = 12 * m
+    # Rows: the 12 m internal triangles for their a-node, again (negated) for their b-node, then
+    # the boundary quadrilaterals.
+    boundary = internal_faces(tets).boundary_faces
+    tri = tets[boundary[:, 0][:, None], LOCAL_FACE_VERTICES[boundary[:, 1]]]  # (b, 3), outward
+    n_rows = 2 * n_inner + 3 * len(tri)
+    owner = np.empty(n_rows, dtype=np.int64)
+    centre = np.empty((n_rows, 3))
+    area = np.empty((n_rows, 3))
+    inner_c = centre[:n_inner].reshape(m, 6, 2, 3)
+    inner_a = area[:n_inner].reshape(m, 6, 2, 3)
+    inner_o = owner[:n_inner].reshape(m, 6, 2)
+    for e, (a, b, c, d) in enumerate(_EDGE_VERTICES):
+        mid = 0.5 * (corner[:, a] + corner[:, b])
+        f1 = (corner[:, a] + corner[:, b] + corner[:, c]) / 3.0
+        f2 = (corner[:, a] + corner[:, b] + corner[:, d]) / 3.0
+        inner_a[:, e, 0] = 0.5 * np.cross(f1 - mid, g - mid)
+        inner_a[:, e, 1] = 0.5 * np.cross(g - mid, f2 - mid)
+        inner_c[:, e, 0] = (mid + f1 + g) / 3.0
+        inner_c[:, e, 1] = (mid + g + f2) / 3.0
+        inner_o[:, e] = tets[:, a, None]
+        owner[n_inner:2 * n_inner].reshape(m, 6, 2)[:, e] = tets[:, b, None]
+    centre[n_inner:2 * n_inner] = centre[:n_inner]
+    np.negative(area[:n_inner], out=area[n_inner:2 * n_inner])
+    P = X[tri]  # (b, 3, 3)
+    tri_area = 0.5 * np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    tri_centre = P.mean(axis=1)
+    rows = slice(2 * n_inner, n_rows)
+    b_owner, b_centre, b_area = owner[rows].reshape(-1, 3), centre[rows].reshape(-1, 3, 3), area[rows].reshape(-1, 3, 3)
+    for k in range(3):
+        p, q, r = P[:, k], P[:, (k + 1) % 3], P[:, (k + 2) % 3]
+        b_owner[:, k] = tri[:, k]
+        b_centre[:, k] = (2.0 * p + 0.5 * (p + q) + 0.5 * (p + r) + 2.0 * tri_centre) / 6.0
+        b_area[:, k] = tri_area / 3.0
+    order = np.argsort(owner, kind="stable")
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=start[1:])
+    volume = np.bincount(tets.ravel(), weights=np.repeat(tet_volumes(X, tets) / 4.0, 4), minlength=n)
+    b_rows = order[order >= 2 * n_inner]  # the boundary rows, in the cells' order
+    faces = (owner[b_rows], centre[b_rows], area[b_rows], tri[(b_rows - 2 * n_inner) // 3])
+    return Cells(start, centre[order], area[order]), volume, faces

@@ -3,7 +3,9 @@
 [specimen] a box (FDEM's keys; its thinnest side is the wall thickness) or a tube (inner
 radius, wall thickness, length, axis, origin) filled by [particles]
 (an in-plane spacing, particles through the thickness, the support's dilation factor and the
-stabilisation of nodal integration); [material] the elastic constants, the law (`model`: the J2
+stabilisation of nodal integration), or particles at the nodes of a tet mesh: a mesh file
+(shape "mesh", a solid) or the wall FDEM's shape "shell" builds from a triangle surface
+(particles.layers through it; particles.spacing remeshes the surface); [material] the elastic constants, the law (`model`: the J2
 elasto-visco-plastic law of paper 000 eqs 14-15, or the thermo-elasto-viscoplastic law of eqs
 16-22) and the fracture stress (section 3.3); [[pressures]] on the wall faces, optionally behind
 a front travelling along a tube. Tools, supports, run control and outputs are the shared ones.
@@ -18,20 +20,23 @@ from typing import Annotated, Literal
 from pydantic import Field, field_validator, model_validator
 
 from ..loading.build import build_loading, build_precracks
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
-from .particles import plate_particles, tube_particles
+from ..geometry.meshes import MeshError, read_mesh
+from .particles import plate_particles, shell_particles, tet_node_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
 
 class MeshfreeSpecimen(Specimen):
-    """[specimen]: the plate or tube the particles fill (FDEM's box keys, or a tube's; no element size)."""
+    """[specimen]: the plate or tube the particles fill (FDEM's box keys, or a tube's; no element size), or
+    the tet mesh whose nodes are the particles (a mesh file, or a shell walled from a triangle surface)."""
 
-    shape: Literal["box", "beam", "tube"]
+    shape: Literal["box", "beam", "tube", "mesh", "shell"]
     """box and beam: size, origin (the thinnest side is the wall thickness); tube: inner_radius, thickness,
-    length, axis, origin"""
+    length, axis, origin; mesh: file (a solid, a particle at each node); shell: file (a closed or open
+    triangle surface), wall, scale, center (walled inwards as FDEM's shell, particles.layers through the wall)"""
     origin: Vec3 = (0.0, 0.0, 0.0)
     """m, box and beam: the lower corner; tube: the centre of its first end (the axis starts there)"""
     inner_radius: Positive | None = None
@@ -43,9 +48,17 @@ class MeshfreeSpecimen(Specimen):
     axis: Vec3 = (0.0, 0.0, 1.0)
     """tube: its axis (any non-zero vector); the angle around it counts from the coordinate axis least aligned with
     it (x for a tube along z)"""
+    file: str | None = None
+    """mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...), a particle at each node; shell: a closed or open
+    triangle surface (STL or any meshio format), the wall's outer side; relative to the scenario file's folder"""
+    wall: Positive | None = None
+    """m, shell: the wall thickness (needed), walled inwards from the surface along its vertex normals (an open
+    surface: against its triangles' right-hand normals)"""
 
     @model_validator(mode="after")
     def _needs(self):
+        if self.shape in MESH_KEYS:
+            return self._mesh_keys()
         need = ("inner_radius", "thickness", "length") if self.shape == "tube" else ("size",)
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
@@ -57,23 +70,50 @@ class MeshfreeSpecimen(Specimen):
             raise ValueError(f"{', '.join(tube_only)}: only for shape = \"tube\" (a box's sides are size)")
         if self.shape == "tube" and self.size is not None:
             raise ValueError("size: not used by a tube (inner_radius, thickness, length)")
+        self._common_keys()
+        mesh_only = sorted({"file", "wall", "scale", "center"} & self.model_fields_set)
+        if mesh_only:
+            raise ValueError(f"{', '.join(mesh_only)}: only for shape = \"mesh\" or \"shell\"")
+        return self
+
+    def _common_keys(self):
         if self.element_size is not None:
             raise ValueError("element_size is not used by the meshfree method: the particle spacing is particles.spacing")
         if "layers" in self.model_fields_set:
             raise ValueError("layers: the meshfree method's particles through the thickness are particles.layers")
         if any(w != 0.0 for w in self.angular_velocity):
             raise ValueError("angular_velocity: not available for the meshfree method yet (initial_velocity is)")
+
+    def _mesh_keys(self):
+        """mesh and shell: only their keys (MESH_KEYS); a shell's wall given."""
+        if self.file is None:
+            raise ValueError(f"shape '{self.shape}' needs file")
+        self._common_keys()
+        other = sorted(self.model_fields_set - MESH_KEYS[self.shape])
+        if other:
+            raise ValueError(f"{', '.join(other)}: not used by shape = \"{self.shape}\" (its keys: "
+                             f"{', '.join(sorted(MESH_KEYS[self.shape] - {'shape'}))})")
+        if self.shape == "shell" and self.wall is None:
+            raise ValueError("wall: shape = \"shell\" needs the wall thickness (m)")
         return self
+
+
+# The keys of the specimens whose particles are a tet mesh's nodes (the rest are refused).
+MESH_KEYS = {"mesh": {"shape", "file", "initial_velocity"},
+             "shell": {"shape", "file", "wall", "scale", "center", "initial_velocity"}}
 
 
 class ParticlesSpec(Strict):
     """[particles]: the EFG particles filling the specimen and their shape functions."""
 
-    spacing: Positive
-    """m, between neighbouring particles along the in-plane sides (adjusted to fit the sides exactly)"""
+    spacing: Positive | None = None
+    """m, box, beam, tube (needed): between neighbouring particles along the in-plane sides (adjusted to fit the
+    sides exactly); shell: the surface is remeshed to this edge (unset: its triangles as they are); mesh: not used
+    (the particles are the mesh's nodes)"""
     layers: int = 3
     """particles through the wall thickness (on both faces and evenly between): 2 or 3 as in paper 000; with 2
-    the quadratic basis drops the square of the through-thickness coordinate"""
+    the quadratic basis drops the square of the through-thickness coordinate (a tube or shell needs 3 or more;
+    a shell has layers - 1 tets through its wall; mesh: not used)"""
     dilation: Positive = 2.5
     """support radius / the largest particle step (in-plane or through the thickness): the quadratic basis needs
     2.5 or more (below that, edge and corner particles see too few neighbours: a singular moment matrix)"""
@@ -182,25 +222,46 @@ class Scenario(ScenarioBase):
     method: Literal["meshfree"]
     """picks this method"""
     specimen: MeshfreeSpecimen
-    """the plate the particles fill"""
-    particles: ParticlesSpec
-    """the particles and their shape functions"""
+    """the plate, tube, mesh or shell the particles fill"""
+    particles: ParticlesSpec = ParticlesSpec()
+    """the particles and their shape functions (a mesh's: dilation and stabilisation only)"""
     material: MeshfreeMaterial
     """elastic constants, the J2 or thermo law and the fracture stress"""
     precracks: list[PrecrackSpec] = []
     """notches and slits present from the start: the links between particles that cross the plane inside the
     box are removed (the same visibility rule as a grown crack, fracture.py)"""
 
+    @model_validator(mode="after")
+    def _particles_of_the_shape(self):
+        shape, particles = self.specimen.shape, self.particles
+        if shape == "mesh":
+            for key in ("spacing", "layers"):
+                if key in particles.model_fields_set:
+                    raise ValueError(f"particles.{key}: not used by specimen.shape = \"mesh\" (the particles are "
+                                     "the mesh's nodes); remove it")
+        elif shape != "shell" and particles.spacing is None:
+            raise ValueError(f"particles.spacing: specimen.shape = \"{shape}\" needs the particle spacing (m)")
+        return self
+
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
     tools, supports, pressures = build_loading(scenario, base)
     spec, particles = scenario.specimen, scenario.particles
     try:
-        if spec.shape == "tube":
+        if spec.shape == "mesh":
+            mesh = read_mesh(resolve_path(spec.file, base))
+            plate = tet_node_particles(mesh.points, mesh.tets)
+        elif spec.shape == "shell":
+            plate = shell_particles(resolve_path(spec.file, base), spec.wall, particles.layers, spec.scale,
+                                    spec.center, particles.spacing)
+        elif spec.shape == "tube":
             plate = tube_particles(spec.origin, spec.axis, spec.inner_radius, spec.thickness, spec.length,
                                    particles.spacing, particles.layers)
         else:
             plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
+    except MeshError as err:
+        key = "specimen.wall" if str(err).startswith("the wall") else "specimen.file"  # shell_from_surface's
+        raise ScenarioError(f"{key}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"particles.{err}") from None
     mat = scenario.material

@@ -40,8 +40,9 @@ def quartic_spline(s):
 
 def basis_terms(thickness_axis: int, layers: int) -> np.ndarray:
     """Indices of the quadratic basis terms used: all 10, or without the square of the
-    through-thickness coordinate (term 4 + axis) with only two particles through the wall."""
-    if layers >= 3:
+    through-thickness coordinate (term 4 + axis) with only two particles through the wall (of a
+    plate: no thickness axis, all 10)."""
+    if layers >= 3 or thickness_axis is None:
         return FULL_BASIS.copy()
     return np.array([k for k in range(10) if k != 4 + thickness_axis], dtype=np.int64)
 
