@@ -118,8 +118,9 @@ class ParticlesSpec(Strict):
     """support radius / the largest particle step (in-plane or through the thickness): the quadratic basis needs
     2.5 or more (below that, edge and corner particles see too few neighbours: a singular moment matrix)"""
     stabilisation: NonNegative = 0.1
-    """alpha: the penalty on the relative motion of linked particles that their deformation gradient does not
-    explain (the zero-energy modes of nodal integration), a stiffness alpha E per link; 0: off"""
+    """alpha: the penalty on each particle's displacement against the MLS approximation at it (zero for quadratic
+    fields: it stiffens the zero-energy modes of nodal integration, not bending), a stiffness alpha E V over the
+    mean squared link length; 0: off"""
 
     @field_validator("layers")
     @classmethod
