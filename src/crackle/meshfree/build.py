@@ -55,14 +55,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     spread = np.bincount(row, weights=weight * dist2, minlength=n)
     table = law.table()
     stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
-    # The transpose of the links, for the gather: for particle L, every link (I, L) in order of I.
-    back_link = np.lexsort((row, neighbour))
-    back_start = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
-    to_back = np.empty_like(back_link)
-    to_back[back_link] = np.arange(len(back_link))
-    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)), back_start, to_back,
-                  row[back_link], np.ascontiguousarray(grad[back_link]))
+    links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)),
+                  *transposed_links(n, row, neighbour, grad))
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
     loads = pressure_arrays(plate, pressures, scale)
@@ -99,6 +93,19 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
         sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, dX, table, tool_k, h)[0])
     return sim
+
+
+def transposed_links(n: int, row: np.ndarray, neighbour: np.ndarray, grad: np.ndarray):
+    """The transpose of the links of n particles (rows `row`, each in increasing `neighbour`
+    order), for the gather: for particle L, every link (I, L) in order of I, as (back_start,
+    to_back, back_row, back_grad) of kernels.Links. A function of its own: the sort's
+    permutation is freed before the step estimate."""
+    back_link = np.argsort(neighbour, kind="stable")  # ties in link order: increasing I
+    back_start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
+    to_back = np.empty_like(back_link)
+    to_back[back_link] = np.arange(len(back_link))
+    return back_start, to_back, row[back_link], np.ascontiguousarray(grad[back_link])
 
 
 def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
