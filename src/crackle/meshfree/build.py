@@ -233,19 +233,33 @@ def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float
     the least):
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
     estimate of the new omega_max^2 (fracture.LinkBreaking)."""
-    n = len(particles.mass)
+    n, count = len(particles.mass), len(row)
     neighbour, grad, k = links.neighbour, links.grad, links.stiffness
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
-    gn = np.linalg.norm(grad, axis=1)
+    # The per-link terms are formed in blocks of links (_per_link: whole-array temporaries were
+    # the set-up's peak memory); each sum over the links is still one bincount, in link order.
+    gn = _per_link(count, lambda r: np.linalg.norm(grad[r], axis=1))
     c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
-    G = np.bincount(row, weights=gn * inv_sqrt_m[neighbour], minlength=n)
-    elastic = c_norm * np.bincount(neighbour, weights=particles.volume[row] * gn * G[row], minlength=n)
-    # Stabilisation: d eps_IJ / d x_M = delta_JM - delta_IM - grad N_M(X_I) . dX_IJ, bounded row by row.
-    dlen = np.linalg.norm(dX, axis=1)
-    s = inv_sqrt_m[neighbour] + inv_sqrt_m[row] + dlen * G[row]
-    Z = np.bincount(row, weights=k * s * dlen, minlength=n)
-    stab = (np.bincount(neighbour, weights=k * s, minlength=n) + np.bincount(row, weights=k * s, minlength=n)
-            + np.bincount(neighbour, weights=gn * Z[row], minlength=n))
+    G = np.bincount(row, weights=_per_link(count, lambda r: gn[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
+    elastic = c_norm * np.bincount(
+        neighbour, weights=_per_link(count, lambda r: particles.volume[row[r]] * gn[r] * G[row[r]]), minlength=n)
+    # Stabilisation: d eps_IJ / d x_M = delta_JM - delta_IM - grad N_M(X_I) . dX_IJ, bounded row by row:
+    # k s, s = 1 / sqrt(m_J) + 1 / sqrt(m_I) + |dX| G_I.
+    ks = _per_link(count, lambda r: k[r] * (inv_sqrt_m[neighbour[r]] + inv_sqrt_m[row[r]]
+                                            + np.linalg.norm(dX[r], axis=1) * G[row[r]]))
+    Z = np.bincount(row, weights=_per_link(count, lambda r: ks[r] * np.linalg.norm(dX[r], axis=1)), minlength=n)
+    stab = (np.bincount(neighbour, weights=ks, minlength=n) + np.bincount(row, weights=ks, minlength=n)
+            + np.bincount(neighbour, weights=_per_link(count, lambda r: gn[r] * Z[row[r]]), minlength=n))
     omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
     return float(np.max(omega2))
+
+
+def _per_link(count: int, term, block: int = 1 << 18) -> np.ndarray:
+    """term(r) for the slices r of `count` links, block by block, into one array: elementwise
+    the same numbers as term(slice(None)), with temporaries of one block only."""
+    out = np.empty(count)
+    for first in range(0, count, block):
+        r = slice(first, first + block)
+        out[r] = term(r)
+    return out
