@@ -55,6 +55,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     spread = np.bincount(row, weights=weight * dist2, minlength=n)
     table = law.table()
     stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
+    del dist2, weight  # link-sized: freed before the links' transpose and the step estimate
     links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)),
                   *transposed_links(n, row, neighbour, grad))
     scale = float(np.max(np.ptp(X, axis=0)))
