@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 from scipy.spatial import cKDTree
 
 FULL_BASIS = np.arange(10, dtype=np.int64)
@@ -295,7 +295,7 @@ def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, bloc
     """cell_gradients' (rows, cols, grad) of the face centres `points` of `owner` (with the
     area / cell volume `weight`), writing their condition numbers into `condition`."""
     n = len(X)
-    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12), return_sorted=True)
+    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
     counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
     neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
     del lists
