@@ -55,7 +55,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     spread = np.bincount(row, weights=weight * dist2, minlength=n)
     table = law.table()
     stiffness = stabilisation * law.youngs_modulus * plate.volume[row] * weight / spread[row]
-    del dist2, weight  # link-sized: freed before the links' transpose and the step estimate
+    del dX, dist2, weight  # link-sized: freed before the links' transpose and the step estimate
     links = Links(start, neighbour, grad, stiffness, np.zeros((len(neighbour), 3)),
                   *transposed_links(n, row, neighbour, grad))
     scale = float(np.max(np.ptp(X, axis=0)))
@@ -77,7 +77,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
-    dt, step_ratio = stable_step(particles, links, row, dX, table, tool_k, h)
+    dt, step_ratio = stable_step(particles, links, row, None, table, tool_k, h)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
     if math.isfinite(fracture_stress) or precracks:
@@ -92,7 +92,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         except ValueError as err:
             raise SetupError(str(err).split(":")[0], str(err)) from None
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
-        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, dX, table, tool_k, h)[0])
+        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, None, table, tool_k, h)[0])
     return sim
 
 
@@ -169,7 +169,8 @@ _PROBE = 1e-4
 def stable_step(particles, links, row, dX, law_table, tool_k, spacing) -> tuple[float, float]:
     """STEP_MARGIN x 2 / omega_max, omega_max^2 the largest eigenvalue of M^-1 K of the
     linearised step estimated by Lanczos (highest_frequency2), and its ratio to Gershgorin's
-    bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds."""
+    bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds.
+    row, dX: as gershgorin_frequency2."""
     omega2, _, _ = highest_frequency2(particles, links, law_table, tool_k, spacing)
     return STEP_MARGIN * 2.0 / math.sqrt(omega2), omega2 / gershgorin_frequency2(particles, links, row, dX,
                                                                                law_table, tool_k)
@@ -233,12 +234,19 @@ def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float
     an isotropic grid without tools the most, plate-impact's, where the sphere's penalty weighs,
     the least):
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
-    estimate of the new omega_max^2 (fracture.LinkBreaking)."""
+    estimate of the new omega_max^2 (fracture.LinkBreaking). row: each link's particle I; dX: the
+    link vectors X_J - X_I, or None to form them from particles.X a block at a time (the set-up
+    then holds no link-sized array of them)."""
     n, count = len(particles.mass), len(row)
     neighbour, grad, k = links.neighbour, links.grad, links.stiffness
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
     # The per-link terms are formed in blocks of links (_per_link: whole-array temporaries were
     # the set-up's peak memory); each sum over the links is still one bincount, in link order.
+    X = particles.X
+
+    def link_length(r):  # |X_J - X_I| of the links r
+        return np.linalg.norm(dX[r] if dX is not None else X[neighbour[r]] - X[row[r]], axis=1)
+
     gn = _per_link(count, lambda r: np.linalg.norm(grad[r], axis=1))
     c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
@@ -248,8 +256,8 @@ def gershgorin_frequency2(particles, links, row, dX, law_table, tool_k) -> float
     # Stabilisation: d eps_IJ / d x_M = delta_JM - delta_IM - grad N_M(X_I) . dX_IJ, bounded row by row:
     # k s, s = 1 / sqrt(m_J) + 1 / sqrt(m_I) + |dX| G_I.
     ks = _per_link(count, lambda r: k[r] * (inv_sqrt_m[neighbour[r]] + inv_sqrt_m[row[r]]
-                                            + np.linalg.norm(dX[r], axis=1) * G[row[r]]))
-    Z = np.bincount(row, weights=_per_link(count, lambda r: ks[r] * np.linalg.norm(dX[r], axis=1)), minlength=n)
+                                            + link_length(r) * G[row[r]]))
+    Z = np.bincount(row, weights=_per_link(count, lambda r: ks[r] * link_length(r)), minlength=n)
     stab = (np.bincount(neighbour, weights=ks, minlength=n) + np.bincount(row, weights=ks, minlength=n)
             + np.bincount(neighbour, weights=_per_link(count, lambda r: gn[r] * Z[row[r]]), minlength=n))
     omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
