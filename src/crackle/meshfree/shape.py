@@ -157,11 +157,12 @@ def neighbour_links(X: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarra
     CSR (start (n + 1), neighbour), each row in increasing neighbour order, and `mirror`: for the
     link (I, J) the position of (J, I) (the relation is symmetric: one radius for all)."""
     tree = cKDTree(X)
-    lists = tree.query_ball_point(X, radius * (1.0 - 1e-12))
-    counts = np.array([len(row) for row in lists], dtype=np.int64)
+    lists = tree.query_ball_point(X, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
+    counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
     start = np.zeros(len(X) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    neighbour = np.concatenate([np.sort(np.asarray(row, dtype=np.int64)) for row in lists])
+    neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(start[-1]))
+    del lists
     row = np.repeat(np.arange(len(X), dtype=np.int64), counts)
     n = np.int64(len(X))
     key = row * n + neighbour  # increasing: rows in order, each row sorted
