@@ -251,8 +251,8 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, 
 
 
 # Owners per block in cell_gradients. All at once, the supports of the 6 n face centres (Python
-# lists) and their ~360 contributions per particle, sorted and copied, peaked at 13.6 GB at 280k
-# particles; a block holds ~1.5 M contributions (~100 MB).
+# lists) and their ~310 contributions per particle, sorted and copied, peaked at 13.6 GB at 280k
+# particles; a block holds ~1.3 M contributions (~0.1 GB).
 OWNER_BLOCK = 4096
 
 
