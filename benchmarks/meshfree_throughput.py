@@ -16,11 +16,13 @@ size alone.
 Output: one line per size, then one JSON object on the last line:
 
     {"sizes": [{"particles", "links", "steps", "seconds_per_step", "particle_steps_per_s",
-                "bytes_per_particle", "peak_rss_mb", "threads", "dt", "build_s", "stable_step_s",
-                "repeat_seconds", "cpu_utilisation", "cpu_seconds_per_step", "idle_percent_before",
-                "forces_seconds_per_step", "forces_fraction"}, ...]}
+                "bytes_per_particle", "peak_rss_mb", "build_peak_rss_mb", "threads", "dt", "build_s",
+                "stable_step_s", "repeat_seconds", "cpu_utilisation", "cpu_seconds_per_step",
+                "idle_percent_before", "forces_seconds_per_step", "forces_fraction"}, ...]}
 
 bytes_per_particle: nbytes of every array of the particles and the links over the particle count.
+build_peak_rss_mb: maxrss when the build returns, the set-up's own peak (peak_rss_mb also counts
+the steps, and the copy of the state that the forces timing makes).
 cpu_seconds_per_step: process CPU time per step (all threads; median of the repeats): on a shared
 machine, where the wall time counts the waits for a core, it is the steadier measure of the work.
 forces_seconds_per_step: the stress pass and the gather alone (kernels.internal_forces, the same
@@ -100,6 +102,7 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
     sim = build(n_particles)
     mf_build.highest_frequency2 = lanczos
     build_s = time.perf_counter() - started
+    build_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     dt = 0.7 * sim.stable_dt
     sim.advance(20, dt)  # compile or load the cache
     t0 = time.perf_counter()
@@ -135,6 +138,7 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
         "particle_steps_per_s": n / per_step,
         "bytes_per_particle": model_bytes(sim) / n,
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "build_peak_rss_mb": build_rss_mb,
         "threads": numba.get_num_threads(),
         "dt": dt,
         "build_s": build_s,
@@ -177,7 +181,8 @@ def main() -> None:
         rows.append(row)
         print(f"{row['particles']:>8,} particles {row['links']:>10,} links: {row['seconds_per_step'] * 1e3:8.2f} ms/step, "
               f"{row['particle_steps_per_s'] / 1e6:6.2f} M particle-steps/s, {row['bytes_per_particle']:6.0f} B/particle, "
-              f"forces {100 * row['forces_fraction']:.0f} % of the step, peak RSS {row['peak_rss_mb']:.0f} MB, "
+              f"forces {100 * row['forces_fraction']:.0f} % of the step, peak RSS {row['peak_rss_mb']:.0f} MB "
+              f"(build {row['build_peak_rss_mb']:.0f} MB), "
               f"{row['threads']} threads, build {row['build_s']:.1f} s (stable step {row['stable_step_s']:.1f} s), "
               f"CPU utilisation {row['cpu_utilisation']:.2f} ({row['cpu_seconds_per_step'] * 1e3:.2f} CPU ms/step)")
         if (row["idle_percent_before"] or 100.0) < 90.0 or row["cpu_utilisation"] < 0.85:

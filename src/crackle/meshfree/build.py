@@ -53,14 +53,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row,
                                         stabilisation * law.youngs_modulus)
     table = law.table()
-    # The transpose of the links, for the gather: for particle L, every link (I, L) in order of I.
-    back_link = np.lexsort((row, neighbour))
-    back_start = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
-    to_back = np.empty_like(back_link)
-    to_back[back_link] = np.arange(len(back_link))
-    links = Links(start, neighbour, grad, value, back_start, to_back, row[back_link],
-                  np.ascontiguousarray(grad[back_link]), value[back_link])
+    links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value))
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection = support_constraints(supports, X, scale)
     loads = pressure_arrays(plate, pressures, scale)
@@ -98,6 +91,19 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
         sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, table, tool_k, h)[0])
     return sim
+
+
+def transposed_links(n: int, row: np.ndarray, neighbour: np.ndarray, grad: np.ndarray, value: np.ndarray):
+    """The transpose of the links of n particles (rows `row`, each in increasing `neighbour`
+    order), for the gather: for particle L, every link (I, L) in order of I, as (back_start,
+    to_back, back_row, back_grad, back_value) of kernels.Links. A function of its own: the
+    sort's permutation is freed before the step estimate."""
+    back_link = np.argsort(neighbour, kind="stable")  # ties in link order: increasing I
+    back_start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
+    to_back = np.empty_like(back_link)
+    to_back[back_link] = np.arange(len(back_link))
+    return back_start, to_back, row[back_link], np.ascontiguousarray(grad[back_link]), value[back_link]
 
 
 def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
@@ -176,7 +182,8 @@ _PROBE = 1e-4
 def stable_step(particles, links, row, law_table, tool_k, spacing) -> tuple[float, float]:
     """STEP_MARGIN x 2 / omega_max, omega_max^2 the largest eigenvalue of M^-1 K of the
     linearised step estimated by Lanczos (highest_frequency2), and its ratio to Gershgorin's
-    bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds."""
+    bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds.
+    row: as gershgorin_frequency2."""
     omega2, _, _ = highest_frequency2(particles, links, law_table, tool_k, spacing)
     return STEP_MARGIN * 2.0 / math.sqrt(omega2), omega2 / gershgorin_frequency2(particles, links, row, law_table,
                                                                                tool_k)
@@ -239,19 +246,33 @@ def gershgorin_frequency2(particles, links, row, law_table, tool_k) -> float:
     an isotropic grid without tools the most, plate-impact's, where the sphere's penalty weighs,
     the least):
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
-    estimate of the new omega_max^2 (fracture.LinkBreaking)."""
-    n = len(particles.mass)
-    neighbour, grad = links.neighbour, links.grad
+    estimate of the new omega_max^2 (fracture.LinkBreaking). row: each link's particle I."""
+    n, count = len(particles.mass), len(row)
+    neighbour, grad, value = links.neighbour, links.grad, links.value
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
-    gn = np.linalg.norm(grad, axis=1)
+    # The per-link terms are formed in blocks of links (_per_link: whole-array temporaries were
+    # the set-up's peak memory); each sum over the links is still one bincount, in link order.
+    gn = _per_link(count, lambda r: np.linalg.norm(grad[r], axis=1))
     c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
-    G = np.bincount(row, weights=gn * inv_sqrt_m[neighbour], minlength=n)
-    elastic = c_norm * np.bincount(neighbour, weights=particles.volume[row] * gn * G[row], minlength=n)
+    G = np.bincount(row, weights=_per_link(count, lambda r: gn[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
+    elastic = c_norm * np.bincount(
+        neighbour, weights=_per_link(count, lambda r: particles.volume[row[r]] * gn[r] * G[row[r]]), minlength=n)
     # Stabilisation: Hessian sum_J k_J D_JL D_JM with D_JM = d eps_J / d u_M = delta_JM - N_M(X_J):
     # row L bounded by sum_J k_J |D_JL| S_J, S_J = sum_M |D_JM| / sqrt(m_M).
-    D = np.abs((row == neighbour) - links.value)
-    S = np.bincount(row, weights=D * inv_sqrt_m[neighbour], minlength=n)
-    stab = np.bincount(neighbour, weights=particles.stab_k[row] * D * S[row], minlength=n)
+    D = _per_link(count, lambda r: np.abs((row[r] == neighbour[r]) - value[r]))
+    S = np.bincount(row, weights=_per_link(count, lambda r: D[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
+    stab = np.bincount(neighbour, weights=_per_link(count, lambda r: particles.stab_k[row[r]] * D[r] * S[row[r]]),
+                       minlength=n)
     omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
     return float(np.max(omega2))
+
+
+def _per_link(count: int, term, block: int = 1 << 18) -> np.ndarray:
+    """term(r) for the slices r of `count` links, block by block, into one array: elementwise
+    the same numbers as term(slice(None)), with temporaries of one block only."""
+    out = np.empty(count)
+    for first in range(0, count, block):
+        r = slice(first, first + block)
+        out[r] = term(r)
+    return out

@@ -42,8 +42,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .material import thermal_strain
 from .kernels import stabilisation_stiffness
+from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, nodal_values
 
 # Steps between fracture checks: the criterion is evaluated and links removed at the step
@@ -83,8 +83,7 @@ class LinkBreaking:
         self.tool_k, self.step_ratio = tool_k, float(step_ratio)
         self.row = np.repeat(np.arange(n, dtype=np.int64), np.diff(links.start))
         self.key = self.row * np.int64(n) + links.neighbour  # increasing (CSR rows sorted)
-        dX = X[links.neighbour] - X[self.row]
-        self.reach = float(np.sqrt(np.max(np.einsum("ij,ij->i", dX, dX))))
+        self.reach = _longest_link(X, self.row, links.neighbour)
 
     # -- the criterion ---------------------------------------------------------------------------
     def newly_failed(self, cauchy: np.ndarray, deformation: np.ndarray, pk2: np.ndarray):
@@ -323,3 +322,13 @@ class LinkBreaking:
         if len(self.blocked) == 0:
             return np.zeros(len(keys), dtype=bool)
         return self.blocked[np.minimum(np.searchsorted(self.blocked, keys), len(self.blocked) - 1)] == keys
+
+
+def _longest_link(X, row, neighbour, block=1 << 20) -> float:
+    """max |X_J - X_I| over the links (I = row, J = neighbour), in blocks of links: all the link
+    vectors at once would add 32 bytes a link to the set-up's peak memory."""
+    longest2 = 0.0
+    for first in range(0, len(row), block):
+        dX = X[neighbour[first:first + block]] - X[row[first:first + block]]
+        longest2 = max(longest2, float(np.max(np.einsum("ij,ij->i", dX, dX))))
+    return float(np.sqrt(longest2))

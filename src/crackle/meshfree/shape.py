@@ -21,8 +21,10 @@ rounding (tests/test_meshfree.py, the patch test).
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 from scipy.spatial import cKDTree
 
 FULL_BASIS = np.arange(10, dtype=np.int64)
@@ -156,11 +158,12 @@ def neighbour_links(X: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarra
     CSR (start (n + 1), neighbour), each row in increasing neighbour order, and `mirror`: for the
     link (I, J) the position of (J, I) (the relation is symmetric: one radius for all)."""
     tree = cKDTree(X)
-    lists = tree.query_ball_point(X, radius * (1.0 - 1e-12))
-    counts = np.array([len(row) for row in lists], dtype=np.int64)
+    lists = tree.query_ball_point(X, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
+    counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
     start = np.zeros(len(X) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    neighbour = np.concatenate([np.sort(np.asarray(row, dtype=np.int64)) for row in lists])
+    neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(start[-1]))
+    del lists
     row = np.repeat(np.arange(len(X), dtype=np.int64), counts)
     n = np.int64(len(X))
     key = row * n + neighbour  # increasing: rows in order, each row sorted
@@ -298,6 +301,12 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, 
     return link_start, link_col, grad, float(np.max(condition)), first_bad
 
 
+# Owners per block in cell_gradients. All at once, the supports of the 6 n face centres (Python
+# lists) and their ~310 contributions per particle, sorted and copied, peaked at 13.6 GB at 280k
+# particles; a block holds ~1.3 M contributions (~0.1 GB).
+OWNER_BLOCK = 4096
+
+
 def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, linear_fallback=False):
     """The smoothed gradients (smoothed_gradients) of the particles `owners` only, with the MLS
     at their face centres summing over the particles within the support but for the pairs
@@ -306,18 +315,39 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     with a contribution, sorted by row then column, the condition number of every face centre's
     moment matrix, the face centres and their owners (the owners' faces in turn, each cell's in
     its own order). `linear_fallback`: at a crack face (mls_values)."""
-    n = len(X)
+    X = np.ascontiguousarray(X, dtype=float)
+    volume = np.asarray(volume, dtype=float)
     owners = np.asarray(owners, dtype=np.int64)
     face_counts = cells.start[owners + 1] - cells.start[owners]
     face_first = np.zeros(len(owners) + 1, dtype=np.int64)
     np.cumsum(face_counts, out=face_first[1:])
     rows_of_faces = np.repeat(cells.start[owners] - face_first[:-1], face_counts) + np.arange(face_first[-1])
-    points = cells.centre[rows_of_faces]
+    points = np.ascontiguousarray(cells.centre[rows_of_faces])
     owner = np.repeat(owners, face_counts)
     weight = cells.area[rows_of_faces] / volume[owner][:, None]
-    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12))
-    counts = np.array([len(r) for r in lists], dtype=np.int64)
-    neighbour = np.concatenate([np.sort(np.asarray(r, dtype=np.int64)) for r in lists])
+    condition = np.zeros(len(points))
+    # A link's contributions all come from its row's faces, so they meet in one block of owners
+    # and are summed there in the same order as all at once (bit-identical); with increasing
+    # owners the blocks' links follow in order (else one block).
+    block = OWNER_BLOCK if np.all(owners[1:] > owners[:-1]) else max(len(owners), 1)
+    pieces = []
+    for first_owner in range(0, len(owners), block):
+        faces = slice(face_first[first_owner], face_first[min(first_owner + block, len(owners))])
+        pieces.append(_block_gradients(X, volume, points[faces], owner[faces], weight[faces], radius, terms, tree,
+                                       blocked, linear_fallback, condition[faces]))
+    rows, cols, grad = (np.concatenate(parts) for parts in zip(*pieces)) if pieces else (
+        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+    return rows, cols, grad, condition, points, owner
+
+
+def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, blocked, linear_fallback, condition):
+    """cell_gradients' (rows, cols, grad) of the face centres `points` of `owner` (with the
+    area / cell volume `weight`), writing their condition numbers into `condition`."""
+    n = len(X)
+    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
+    counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
+    del lists
     point_of = np.repeat(np.arange(len(points)), counts)
     if blocked is not None and len(blocked):
         key = owner[point_of] * np.int64(n) + neighbour
@@ -327,7 +357,7 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
         counts = np.bincount(point_of, minlength=len(points))
     start = np.zeros(len(points) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    value, condition = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback)
+    value, condition[:] = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback)
     # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
     rows = owner[point_of]
     parts = weight[point_of] * value[:, None]
@@ -335,4 +365,4 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     rows, cols, parts = rows[order], neighbour[order], parts[order]
     first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
     grad = np.add.reduceat(parts, first, axis=0)
-    return rows[first], cols[first], grad, condition, points, owner
+    return rows[first], cols[first], grad
