@@ -156,7 +156,7 @@ def test_pressurised_tube_energy_audit():
     """The same tube under a sudden internal pressure of 1 MPa, undamped (it rings): the work of
     the follower pressure (-p J F^-T A0 N on the inner wall's faces, counted with the step's
     velocities) equals the kinetic, elastic and stabilisation energy within 1 % (measured
-    3e-5) after 300 steps (44 x 5 x 3 particles)."""
+    -1.2e-4) after 300 steps (44 x 5 x 3 particles)."""
     load = Pressure(History.constant(1e6), EVERYWHERE, wall="inner")
     sim = build_meshfree_simulation(_tube(length=0.012), RHO_AL, J2Law(E_AL, NU), pressures=[load])
     dt = 0.7 * sim.stable_dt
@@ -189,7 +189,7 @@ def test_detonation_front_arrives_at_s_over_d():
     running along a 24 mm tube at D = 2350 m/s from its first end: each inner-wall face first
     pushes (its particle's external work turns nonzero) at the first step at or after s / D,
     s the face centre's distance along the axis (to one step: 0 <= t - s / D < dt), the outer
-    wall never; and the audit with the detonation's work closes within 1 % (measured 1.3e-4)."""
+    wall never; and the audit with the detonation's work closes within 1 % (measured -4.3e-4)."""
     D = 2350.0
     load = Pressure(History.taylor_wave(6.1e6, 0.4, 2e-5), EVERYWHERE, wall="inner", front_speed=D)
     tube = _tube(length=0.024)
@@ -315,7 +315,7 @@ end_time = 1e-6
 def test_tube_scenario_runs_with_the_detonation(tmp_path):
     """The scenario above through the command line (a Taylor-wave detonation entering the tube):
     it completes, the output contract holds (method, particles 924) and the audit closes within
-    1 % (measured -7e-5)."""
+    1 % (measured -2.7e-4)."""
     path = tmp_path / "tube.toml"
     path.write_text(TUBE)
     out = tmp_path / "o"
@@ -330,9 +330,9 @@ def test_tube_detonation_example_quick(tmp_path):
     wall 0.89 mm, 3 layers, 4 mm spacing, 60 mm long, clamped ends, shot 1's 25.4 mm axial notch
     at mid-length; a Taylor wave of p_CJ = 6.1 MPa at D = 2350 m/s on the inner wall, 30 us): the
     notch cuts links (measured 990 pairs), the run completes with the audit within 3 % (measured
-    -0.002 %), and the wall yields (the front's step load overshoots the static hoop stress
+    -0.007 %), and the wall yields (the front's step load overshoots the static hoop stress
     p r / t = 138 MPa about twice; the notch tips concentrate it: measured peak plastic strain
-    0.016 there, below 0.1)."""
+    0.015 there, below 0.1)."""
     out = tmp_path / "o"
     assert main(["run", "tube-detonation", "--quick", "--out", str(out), "--set", "run.field_frames=1"]) == 0
     s = json.loads((out / "summary.json").read_text())
