@@ -230,19 +230,20 @@ def _values_at(points, X, volume, start, neighbour, radius, terms, value, condit
             value[r] = volume[j] * w * pg
 
 
-def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback=False):
+def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback=False, max_condition=MAX_CONDITION):
     """(value (links,), condition (points,)): N_J(points[q]) for the links (q, J) of the CSR
     (start, neighbour), the MLS centred on each point (_values_at). With `linear_fallback`, a
     point whose moment matrix is singular with the quadratic basis (near a crack face: the
     particles it still sees lie on too few planes) uses the linear basis 1, x, y, z instead (it
-    still reproduces linear fields); its condition is then the linear one."""
+    still reproduces linear fields); its condition is then the linear one. `max_condition`: the
+    condition number above which a moment matrix counts as singular (MAX_CONDITION or lower)."""
     X = np.ascontiguousarray(X, dtype=float)
     volume = np.asarray(volume, dtype=float)
     value = np.zeros(len(neighbour))
     condition = np.zeros(len(points))
     _values_at(np.ascontiguousarray(points, dtype=float), X, volume, start, neighbour, float(radius), terms, value,
                condition)
-    bad = np.flatnonzero(~np.isfinite(condition) | (condition > MAX_CONDITION))
+    bad = np.flatnonzero(~np.isfinite(condition) | (condition > max_condition))
     if linear_fallback and len(bad):
         counts = start[bad + 1] - start[bad]
         sub_start = np.zeros(len(bad) + 1, dtype=np.int64)
@@ -257,7 +258,7 @@ def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallba
     return value, condition
 
 
-def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None):
+def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None, max_condition=MAX_CONDITION):
     """The MLS values N_K(X_J) at the particles J = `rows` themselves, over their links (J, K)
     but for the `hidden` ones (a boolean per link: removed by fracture), with the linear
     fallback at a crack face (mls_values): what the link stabilisation compares each particle's
@@ -274,7 +275,7 @@ def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None):
     kept_start = np.zeros(len(rows) + 1, dtype=np.int64)
     np.cumsum(np.bincount(np.repeat(np.arange(len(rows)), counts)[keep], minlength=len(rows)), out=kept_start[1:])
     kept_value, condition = mls_values(X[rows], X, volume, kept_start, neighbour[pos[keep]], radius, terms,
-                                       linear_fallback=True)
+                                       linear_fallback=True, max_condition=max_condition)
     value = np.zeros(len(pos))
     value[keep] = kept_value
     return pos, value, condition
@@ -307,14 +308,15 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, 
 OWNER_BLOCK = 4096
 
 
-def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, linear_fallback=False):
+def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, linear_fallback=False,
+                   max_condition=MAX_CONDITION):
     """The smoothed gradients (smoothed_gradients) of the particles `owners` only, with the MLS
     at their face centres summing over the particles within the support but for the pairs
     (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
     fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
     with a contribution, sorted by row then column, the condition number of every face centre's
     moment matrix, the face centres and their owners (the owners' faces in turn, each cell's in
-    its own order). `linear_fallback`: at a crack face (mls_values)."""
+    its own order). `linear_fallback`, `max_condition`: at a crack face (mls_values)."""
     X = np.ascontiguousarray(X, dtype=float)
     volume = np.asarray(volume, dtype=float)
     owners = np.asarray(owners, dtype=np.int64)
@@ -334,13 +336,14 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     for first_owner in range(0, len(owners), block):
         faces = slice(face_first[first_owner], face_first[min(first_owner + block, len(owners))])
         pieces.append(_block_gradients(X, volume, points[faces], owner[faces], weight[faces], radius, terms, tree,
-                                       blocked, linear_fallback, condition[faces]))
+                                       blocked, linear_fallback, max_condition, condition[faces]))
     rows, cols, grad = (np.concatenate(parts) for parts in zip(*pieces)) if pieces else (
         np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
     return rows, cols, grad, condition, points, owner
 
 
-def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, blocked, linear_fallback, condition):
+def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, blocked, linear_fallback, max_condition,
+                     condition):
     """cell_gradients' (rows, cols, grad) of the face centres `points` of `owner` (with the
     area / cell volume `weight`), writing their condition numbers into `condition`."""
     n = len(X)
@@ -357,7 +360,8 @@ def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, bloc
         counts = np.bincount(point_of, minlength=len(points))
     start = np.zeros(len(points) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    value, condition[:] = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback)
+    value, condition[:] = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback,
+                                     max_condition)
     # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
     rows = owner[point_of]
     parts = weight[point_of] * value[:, None]
