@@ -65,7 +65,7 @@ class WallParticles:
     volume: np.ndarray  # (n,) m^3, the cells' volumes
     area: np.ndarray  # (n,) m^2, the cell's extent along the wall (contact area against tools)
     # (3,) m, the grid steps (plate: along x, y, z; tube: arc at the outer wall, axial, radial; mesh and shell:
-    # the longest, median and shortest tet edge): the support radius is dilation x the largest, h the smallest
+    # the 90th-percentile, median and shortest tet edge): the support radius is dilation x the first, h the last
     spacing: np.ndarray
     layers: int  # particles through the wall (mesh: 0, a solid)
     cells: Cells
