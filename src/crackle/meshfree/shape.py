@@ -308,9 +308,10 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     at their cells' quadrature points summing over the particles within the support but for the
     pairs (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
     fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
-    with a contribution, sorted by row then column, and per row of the owners' cells (the owners
-    in turn, each cell's rows in order) the condition number of its point's moment matrix, the
-    point and the owner. `linear_fallback`: at a crack face (mls_values)."""
+    with a contribution, in the order of the (distinct) owners, each row's columns increasing,
+    and per row of the owners' cells (the owners in turn, each cell's rows in order) the
+    condition number of its point's moment matrix, the point and the owner. `linear_fallback`:
+    at a crack face (mls_values)."""
     X = np.ascontiguousarray(X, dtype=float)
     volume = np.asarray(volume, dtype=float)
     owners = np.asarray(owners, dtype=np.int64)
@@ -333,10 +334,12 @@ def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, 
     return rows, cols, grad, condition, cells.points[point], owner
 
 
-def csr_positions(start: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def csr_positions(start: np.ndarray, rows: np.ndarray, counts=None) -> tuple[np.ndarray, np.ndarray]:
     """The positions of the entries of the CSR rows `rows` (start (n + 1,)), row after row, and
-    where each row begins among them ((len(rows) + 1,))."""
-    counts = start[rows + 1] - start[rows]
+    where each row begins among them ((len(rows) + 1,)); with `counts`, the first counts[k] of
+    row k only."""
+    if counts is None:
+        counts = start[rows + 1] - start[rows]
     first = np.zeros(len(rows) + 1, dtype=np.int64)
     np.cumsum(counts, out=first[1:])
     return np.repeat(start[rows] - first[:-1], counts) + np.arange(first[-1]), first
@@ -369,14 +372,59 @@ def _block_gradients(X, volume, points, point, owner, weight, radius, terms, tre
     np.cumsum(counts, out=start[1:])
     value, point_condition = mls_values(where, X, volume, start, neighbour, radius, terms, linear_fallback)
     condition[:] = point_condition[of_row]
-    # Contributions (I, J, weight N_J / V_I), each row's over its point's links, summed per
-    # (I, J) in a fixed order (stable sort).
-    pos, row_first = csr_positions(start, of_row)
-    row_of = np.repeat(np.arange(len(of_row)), np.diff(row_first))
-    rows, cols = owner[row_of], neighbour[pos]
-    parts = weight[row_of] * value[pos][:, None]
-    order = np.lexsort((cols, rows))
-    rows, cols, parts = rows[order], cols[order], parts[order]
-    first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
-    grad = np.add.reduceat(parts, first, axis=0)
-    return rows[first], cols[first], grad
+    # Each owner's rows lie in one run: per owner the sums (I, J, sum weight N_J / V_I) at once
+    # (_cell_sums), at most one entry per contribution until compacted.
+    owner_first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1], True])
+    contribution_first = np.r_[0, np.cumsum(counts[of_row])][owner_first]
+    cols = np.empty(contribution_first[-1], dtype=np.int64)
+    grad = np.empty((contribution_first[-1], 3))
+    found = np.zeros(len(owner_first) - 1, dtype=np.int64)
+    _cell_sums(owner_first, contribution_first, of_row, weight, start, neighbour, value, cols, grad, found)
+    keep, _ = csr_positions(contribution_first, np.arange(len(found)), found)
+    return np.repeat(owner[owner_first[:-1]], found), cols[keep], grad[keep]
+
+
+@njit(parallel=True, cache=True)
+def _cell_sums(owner_first, contribution_first, of_row, weight, start, neighbour, value, cols, grad, found):
+    """For each owner k (rows owner_first[k]:owner_first[k + 1], row r's point of_row[r] with
+    its links start:neighbour and MLS `value`): the particles J it sees, increasing, in
+    cols[contribution_first[k]:][:found[k]], and beside them in grad the sum of weight[r] N_J
+    over its rows in order, as np.add.reduceat sums a run: the first term + (0 + the second +
+    ...), so that a cell of fewer than 9 rows (a plate's or tube's 6 faces) gets the sums a
+    stable sort of the contributions and np.add.reduceat gave, bit for bit."""
+    for k in prange(owner_first.shape[0] - 1):
+        lo = contribution_first[k]
+        m = contribution_first[k + 1] - lo
+        col = np.empty(m, dtype=np.int64)
+        row = np.empty(m, dtype=np.int64)
+        link = np.empty(m, dtype=np.int64)
+        c = 0
+        for r in range(owner_first[k], owner_first[k + 1]):
+            q = of_row[r]
+            for t in range(start[q], start[q + 1]):
+                col[c] = neighbour[t]
+                row[c] = r
+                link[c] = t
+                c += 1
+        order = np.argsort(col, kind="mergesort")
+        u = -1
+        head = np.zeros(3)
+        rest = np.zeros(3)
+        for i in range(m):
+            o = order[i]
+            if i == 0 or col[o] != col[order[i - 1]]:
+                if u >= 0:
+                    for a in range(3):
+                        grad[lo + u, a] = head[a] + rest[a]
+                u += 1
+                cols[lo + u] = col[o]
+                for a in range(3):
+                    head[a] = weight[row[o], a] * value[link[o]]
+                    rest[a] = 0.0
+            else:
+                for a in range(3):
+                    rest[a] += weight[row[o], a] * value[link[o]]
+        if u >= 0:
+            for a in range(3):
+                grad[lo + u, a] = head[a] + rest[a]
+        found[k] = u + 1
