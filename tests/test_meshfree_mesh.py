@@ -40,35 +40,42 @@ def _rows(cells):
 
 
 def test_median_dual_cells_are_closed_and_fill_the_mesh():
-    """On the bar (458 nodes, 1,480 tets, 83 faces per cell on average): the cell volumes (a
-    quarter of each tet to each of its nodes) sum to the bar's 3.2e-5 m^3 (1e-12 rel; measured
-    0) and equal each cell's divergence-theorem volume sum A.(c - X) / 3 (1e-12 rel; measured
-    3e-15); every cell's area vectors sum to zero (closed: below 1e-12 of the largest face's;
-    measured 1.4e-14); every internal
-    face is used by exactly two cells with exactly opposite area vectors (computed once), and the
-    boundary faces (the wall surface, all OUTER) cover each side of the bar: |A| summed is
-    2 (Ly Lz, Lx Lz, Lx Ly) (1e-12 rel; measured 6e-16) and the vector sum is zero (1e-12 of
-    Lx Ly; measured 8e-16)."""
+    """On the bar (458 nodes, 1,480 tets; 83 triangles a cell on average, integrated at their
+    vertices: 20,950 rows (cell, vertex), 7,516 distinct points): the cell volumes (a quarter of
+    each tet to each of its nodes) sum to the bar's 3.2e-5 m^3 (1e-12 rel; measured 0) and equal
+    each cell's divergence-theorem volume sum w.(x - X) / 3 (1e-12 rel; measured 2.4e-15); every
+    cell's weights sum to zero (closed: below 1e-12 of the largest; measured 5.8e-15); the
+    cells' weights at a quadrature point inside the bar cancel (the integration constraint: below
+    1e-12 of the largest weight; measured 1e-16), exactly at an edge midpoint (two cells, summed
+    in the same order), and those on the boundary cover each side of the bar: |w| summed is
+    2 (Ly Lz, Lx Lz, Lx Ly) (1e-12 rel; measured 1.1e-15), as the boundary faces (the wall
+    surface, all OUTER) do, whose vector sum is zero (1e-12 of Lx Ly; measured 8e-16)."""
     mesh, bar = _bar()
     cells, n = bar.cells, len(bar.X)
     assert np.array_equal(bar.X, mesh.points) and bar.shape == "mesh" and bar.wall_frame is None
     assert bar.volume.sum() == pytest.approx(np.prod(BAR), rel=1e-12)
     row = _rows(cells)
-    divergence = np.bincount(row, weights=np.einsum("ka,ka->k", cells.area, cells.centre - bar.X[row]), minlength=n)
+    x = cells.points[cells.point]
+    divergence = np.bincount(row, weights=np.einsum("ka,ka->k", cells.weight, x - bar.X[row]), minlength=n)
     assert np.abs(divergence / 3.0 / bar.volume - 1.0).max() < 1e-12
     closure = np.zeros((n, 3))
-    np.add.at(closure, row, cells.area)
-    assert np.abs(closure).max() < 1e-12 * np.abs(cells.area).max()
-    faces = {}
-    for k, centre in enumerate(cells.centre):
-        faces.setdefault(centre.tobytes(), []).append(k)
-    counts = np.array([len(v) for v in faces.values()])
-    assert set(counts) == {1, 2}
-    for pair in (v for v in faces.values() if len(v) == 2):
-        assert np.array_equal(cells.area[pair[0]], -cells.area[pair[1]]) and row[pair[0]] != row[pair[1]]
-    surface = bar.surface
-    assert (counts == 1).sum() == len(surface.particle) and np.all(surface.side == OUTER)
+    np.add.at(closure, row, cells.weight)
+    largest = np.abs(cells.weight).max()
+    assert np.abs(closure).max() < 1e-12 * largest
+    assert len(cells.point) == 20950 and len(cells.points) == 7516
+    total = np.zeros_like(cells.points)
+    np.add.at(total, cells.point, cells.weight)
     Lx, Ly, Lz = BAR
+    P = cells.points
+    on_boundary = np.any((np.abs(P) < 1e-12) | (np.abs(P - np.array(BAR)) < 1e-12), axis=1)
+    assert np.abs(total[~on_boundary]).max() < 1e-12 * largest
+    shared_by = np.bincount(cells.point, minlength=len(P))
+    pairs = np.flatnonzero((shared_by == 2) & ~on_boundary)
+    assert len(pairs) and np.all(total[pairs] == 0.0)
+    assert np.abs(total[on_boundary]).sum(axis=0) == pytest.approx(2 * np.array([Ly * Lz, Lx * Lz, Lx * Ly]),
+                                                                   rel=1e-12)
+    surface = bar.surface
+    assert np.all(surface.side == OUTER)
     assert np.abs(surface.area).sum(axis=0) == pytest.approx(2 * np.array([Ly * Lz, Lx * Lz, Lx * Ly]), rel=1e-12)
     assert np.abs(surface.area.sum(axis=0)).max() < 1e-12 * Lx * Ly
     # What build needs: a global support from the edges, the contact area volume^(2/3).
@@ -80,7 +87,7 @@ def test_mesh_patch_test_linear_field():
     """A gmsh ball (radius 10 mm, 4 mm edges: 201 nodes, curved faceted boundary): the MLS
     reproduces a linear field u = A X + b at every node (1e-10 of |u|; measured 4e-15) and the
     gradients smoothed over the median-dual cells are exact at every node, boundary included
-    (1e-10 of |A|; measured 1.5e-14)."""
+    (1e-10 of |A|; measured 1.2e-14)."""
     mesh = gmsh_sphere(0.01, 0.004)
     ball = tet_node_particles(mesh.points, mesh.tets)
     radius = 2.5 * float(np.max(ball.spacing))
@@ -105,7 +112,7 @@ def test_mesh_uniform_stress_leaves_the_inside_in_equilibrium():
     its x faces (the other boundary faces' normals see no traction), so every node farther than
     the support radius R (19.9 mm) from both x faces (216 of 458) is in equilibrium to 1e-9 of
     E e h^2 (h the median edge; measured 1.2e-12), while the ends do pull (> 1e-2 of it;
-    measured 0.94)."""
+    measured 0.92)."""
     _, bar = _bar()
     sim = build_meshfree_simulation(bar, RHO_AL, J2Law(E_AL, NU))
     p = sim.particles
@@ -124,7 +131,7 @@ def test_mesh_uniform_stress_leaves_the_inside_in_equilibrium():
 
 
 def test_too_small_a_support_names_the_dilation():
-    """With dilation 1 (the support radius one 90th-percentile edge) a face centre of the bar
+    """With dilation 1 (the support radius one 90th-percentile edge) a quadrature point of the bar
     sees too few nodes for the quadratic basis: SetupError naming particles.dilation."""
     _, bar = _bar()
     with pytest.raises(SetupError) as err:
@@ -159,15 +166,15 @@ def test_pressurised_spherical_shell_gives_the_membrane_stress(tmp_path):
     """A closed spherical shell walled inwards from a triangle surface (outer radius b = 50 mm,
     10 mm triangles; wall t = 2.5 mm, 3 particle layers: 412 x 3 = 1,236 particles) under an
     internal pressure p = 1 MPa ramped over one breathing period, damped at twice the breathing
-    frequency and run 4 periods (kinetic energy below 1e-6 of the elastic; measured 1e-8): the
+    frequency and run 4 periods (kinetic energy below 1e-6 of the elastic; measured 5e-9): the
     hoop stress averaged over each layer and through the wall with the layers' shares (1/4, 1/2,
     1/4) is the thin-shell membrane stress p r / 2t, with r = a^2 / r_mean the hemisphere's force
-    balance p a^2 / (b^2 - a^2) = 9.26 MPa (a = b - t), within 3 % (measured -2.4 %; -3.5 % with
-    12.5 mm triangles, -0.9 % with 7 mm; p r_mean / 2t = 9.75 MPa). The support (2.5 x the
+    balance p a^2 / (b^2 - a^2) = 9.26 MPa (a = b - t), within 3 % (measured -0.3 %; +1.5 % with
+    12.5 mm triangles, -0.6 % with 7 mm; p r_mean / 2t = 9.75 MPa). The support (2.5 x the
     90th-percentile edge, 25 mm) spans half the radius here: the quadratic fit across it smears
-    the wall's through-thickness strain (the layers measured 10.0, 9.1, 7.9 MPa outer to inner
-    against Lame's 9.0, 9.3, 9.5; in order with 5 mm triangles) and the stabilisation holds a
-    third of the stored energy (0.32; 0.12 with 7 mm triangles). The pressure acts on the INNER
+    the wall's through-thickness strain (the layers measured 10.3, 9.0, 8.6 MPa outer to inner
+    against Lame's 9.0, 9.3, 9.5; 9.3, 9.2, 9.2 with 7 mm triangles) and the stabilisation holds a
+    third of the stored energy (0.33; 0.13 with 7 mm triangles). The pressure acts on the INNER
     faces only and their net force vanishes (1e-12)."""
     b, t = 0.05, 0.0025
     a = b - t
@@ -214,8 +221,8 @@ def test_open_surface_shell_walls_against_the_winding(tmp_path):
     assert np.allclose(np.linalg.norm(shell.X[layer == 0], axis=1), 0.05)
     row = _rows(shell.cells)
     closure = np.zeros_like(shell.X)
-    np.add.at(closure, row, shell.cells.area)
-    assert np.abs(closure).max() < 1e-12 * np.abs(shell.cells.area).max()
+    np.add.at(closure, row, shell.cells.weight)
+    assert np.abs(closure).max() < 1e-12 * np.abs(shell.cells.weight).max()
     radial = shell.X / np.linalg.norm(shell.X, axis=1)[:, None]
     assert np.einsum("na,na->n", shell.wall_frame[:, 2], radial).min() > 0.99
     side = shell.surface.side

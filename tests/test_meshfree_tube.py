@@ -39,10 +39,10 @@ def test_tube_cells_are_closed_and_share_their_faces():
     tube = _tube((0.1, 0.2, 0.3), (1.0, 2.0, 2.0))
     n = len(tube.X)
     assert n == 44 * 7 * 3
-    area = tube.cells.area.reshape(n, 6, 3)
+    area = tube.cells.weight.reshape(n, 6, 3)  # one quadrature row a face: its area vector
     assert np.abs(area.sum(axis=1)).max() < 1e-12 * np.abs(area).max()
     faces = {}
-    for centre, a in zip(tube.cells.centre, tube.cells.area):
+    for centre, a in zip(tube.cells.points[tube.cells.point], tube.cells.weight):
         faces.setdefault(centre.tobytes(), []).append(a)
     shared = [pair for pair in faces.values() if len(pair) == 2]
     assert max(len(pair) for pair in faces.values()) == 2

@@ -46,8 +46,9 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     start, neighbour, grad, condition, first_bad = smoothed_gradients(X, plate.volume, plate.cells, radius, terms)
     if first_bad is not None:
         raise SetupError("particles.dilation", (
-            f"the moment matrix at {first_bad.round(6).tolist()} m (a particle's cell face) is singular: the support "
-            f"radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles for the quadratic basis; "
+            f"the moment matrix at {first_bad.round(6).tolist()} m (a quadrature point of a particle's cell) is "
+            f"singular: the support radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles for "
+            f"the quadratic basis; "
             f"increase particles.dilation (2.5 or more)"))
     row = np.repeat(np.arange(n), np.diff(start))
     value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row,
@@ -115,7 +116,8 @@ def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
     in_support = np.einsum("ij,ij->i", X[neighbour] - X[row], X[neighbour] - X[row]) < (radius * (1.0 - 1e-12)) ** 2
     if not np.array_equal(np.bincount(row, weights=in_support, minlength=n),
                           cKDTree(X).query_ball_point(X, radius * (1.0 - 1e-12), return_length=True)):
-        raise RuntimeError("a particle's links miss part of its own support: its cell's face centres lie too far out")
+        raise RuntimeError("a particle's links miss part of its own support: its cell's quadrature points lie too "
+                           "far out")
     _, value, condition = nodal_values(X, volume, radius, terms, start, neighbour, np.arange(n))
     stab_k = stabilisation_stiffness(X, volume, row, neighbour, np.ones(len(row), dtype=bool), radius, scale)
     stab_k[~np.isfinite(condition) | (condition > MAX_CONDITION)] = 0.0

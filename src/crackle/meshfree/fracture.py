@@ -2,7 +2,7 @@
 a particle exceeds the fracture stress (`fracture_factor` x `tensile_strength`, 3 x in the
 paper), the particle fails, once: a crack plane passes through it with its normal along that
 principal direction. The links that cross the crack are removed, in both directions, and the
-shape-function gradients (the MLS at the face centres of each affected particle's cell, and
+shape-function gradients (the MLS at the quadrature points of each affected particle's cell, and
 the stabilisation's values and stiffness at the particle) are rebuilt without them: the crack hides each side
 from the other's interpolation (a visibility rule).
 
@@ -21,9 +21,9 @@ on different sides of the plane and the segment X_I X_J meets the plane within t
 particle on the plane (c itself among them) counts as on the side the normal points away from,
 so c keeps its links on that side and loses those to the side N_c points to.
 
-A face centre on a crack face sees particles on one side only: with the default dilation (2.5)
-they lie on two planes parallel to the crack, too few for the quadratic basis, so such a face
-centre falls back to the linear basis (shape.cell_gradients; linear fields are still exact). A
+A quadrature point on a crack face sees particles on one side only: with the default dilation
+(2.5) they lie on two planes parallel to the crack, too few for the quadratic basis, so such a
+point falls back to the linear basis (shape.cell_gradients; linear fields are still exact). A
 particle whose cell is left with a singular moment matrix even so (too few visible neighbours
 for the linear basis) is detached: all its links are removed, it carries
 no stress and no pressure and moves as a free particle (mass, tools, supports and gravity still
@@ -300,7 +300,7 @@ class LinkBreaking:
                                                                max_condition=REBUILD_CONDITION)
             at = np.searchsorted(self.key, r * n + col)
             if not np.array_equal(self.key[np.minimum(at, len(self.key) - 1)], r * n + col):
-                raise RuntimeError("a rebuilt gradient has no link: the face centres' supports grew")
+                raise RuntimeError("a rebuilt gradient has no link: the quadrature points' supports grew")
             links.grad[at] = grad
             self._stabilisation(links, p, rows)
             bad = ~np.isfinite(condition) | (condition > REBUILD_CONDITION)

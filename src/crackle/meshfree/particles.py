@@ -18,13 +18,14 @@ a quadrilateral per boundary triangle and node; ~80 faces a cell); a solid, no w
 (shell_particles): the same on the wall FDEM's shell_from_surface builds inwards from a closed
 or open triangle surface, `layers` particles on each surface node's line through the wall.
 
-Every cell is a closed list of planar faces (`Cells`): centre and area vector (outward normal x
-area) of each, what stabilised conforming nodal integration (shape.smoothed_gradients) needs.
-A face between two cells is computed once and used by both with opposite signs, so the area
-vectors of neighbours cancel exactly (the integration constraint). The cell volume is the
-particle's nodal volume (the quadrature weight, and mass = density x volume); the contact area
-against tools is the cell's extent along the wall (volume / extent through the wall). The faces
-on the wall's two surfaces (`WallFaces`) are where pressures act."""
+Every cell is a closed list of planar faces, given as the quadrature over them that stabilised
+conforming nodal integration (shape.smoothed_gradients) needs (`Cells`: points and weight
+vectors): a grid cell's face centroids with their area vectors (outward normal x area), a
+median-dual cell's triangle vertices. A face between two cells is computed once and used by
+both with opposite signs, so the weights of neighbours cancel (the integration constraint).
+The cell volume is the particle's nodal volume (the quadrature weight, and mass = density x
+volume); the contact area against tools is the cell's extent along the wall (volume / extent
+through the wall). The faces on the wall's two surfaces (`WallFaces`) are where pressures act."""
 
 from __future__ import annotations
 
@@ -40,12 +41,18 @@ WALL_SIDES = {"inner": INNER, "outer": OUTER}
 
 @dataclass
 class Cells:
-    """Each particle's integration cell as a closed polyhedron: the faces of particle I are rows
-    start[I]:start[I + 1]."""
+    """Each particle's integration cell as a quadrature over its closed polyhedral boundary: the
+    rows start[I]:start[I + 1] of particle I, each a point (`point`, an index into `points`) and
+    its weight vector, so that the integral of f n dA over the cell's boundary is sum weight
+    f(point), exact for linear f. A plate's or tube's row is a face: its centroid and area vector
+    (outward normal x area). A median-dual cell's is one of its faces' vertices, shared by the
+    cells that meet there: the sum of A / 3 over the cell's triangles at the vertex (vertex
+    quadrature; median_dual_cells)."""
 
     start: np.ndarray  # (n + 1,) int64
-    centre: np.ndarray  # (k, 3) m, each face's centroid
-    area: np.ndarray  # (k, 3) m^2, outward normal x area
+    point: np.ndarray  # (k,) int64, each row's quadrature point
+    weight: np.ndarray  # (k, 3) m^2
+    points: np.ndarray  # (p, 3) m
 
 
 @dataclass
@@ -115,7 +122,7 @@ def plate_particles(origin, size, spacing: float, layers: int) -> WallParticles:
     for side, at, face in ((INNER, 0, 2 * axis), (OUTER, layers - 1, 2 * axis + 1)):
         ids = np.flatnonzero(layer == at)
         rows = cells.start[ids] + face
-        faces.append((ids, cells.centre[rows], cells.area[rows], np.full(len(ids), side, dtype=np.int8)))
+        faces.append((ids, cells.points[cells.point[rows]], cells.weight[rows], np.full(len(ids), side, dtype=np.int8)))
     surface = WallFaces(*(np.concatenate(parts) for parts in zip(*faces)))
     return WallParticles("plate", X, volume, area, steps, layers, cells, frame, surface, axis)
 
@@ -133,7 +140,12 @@ def _cuboid_cells(lo: np.ndarray, hi: np.ndarray) -> Cells:
             face[:, axis] = bound[:, axis]
             face_centre[:, 2 * axis + k] = face
             face_area[:, 2 * axis + k, axis] = side * area
-    return Cells(np.arange(0, 6 * n + 1, 6, dtype=np.int64), face_centre.reshape(-1, 3), face_area.reshape(-1, 3))
+    return _face_cells(face_centre.reshape(-1, 3), face_area.reshape(-1, 3))
+
+
+def _face_cells(centre: np.ndarray, area: np.ndarray) -> Cells:
+    """The Cells of 6 faces a particle, in order: each face its own quadrature point."""
+    return Cells(np.arange(0, len(area) + 1, 6, dtype=np.int64), np.arange(len(area), dtype=np.int64), area, centre)
 
 
 def tube_frame(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -213,7 +225,7 @@ def tube_particles(origin, axis, inner_radius: float, thickness: float, length: 
     radial_dir = (X - origin) - ((X - origin) @ e3)[:, None] * e3
     radial_dir /= np.linalg.norm(radial_dir, axis=1)[:, None]
     frame = np.stack([np.cross(e3, radial_dir), np.broadcast_to(e3, (n, 3)), radial_dir], axis=1)
-    cells = Cells(np.arange(0, 6 * n + 1, 6, dtype=np.int64), centres.reshape(-1, 3), areas.reshape(-1, 3))
+    cells = _face_cells(centres.reshape(-1, 3), areas.reshape(-1, 3))
     layer = by_particle(k)
     faces = []
     for side, at, face in ((INNER, 0, 0), (OUTER, nr - 1, 1)):
@@ -243,6 +255,10 @@ def _quads(corner, c0, c1, c2, c3):
 # permutation of (0, 1, 2, 3), so that det(b - a, c - a, d - a) = 6 V > 0 in a positive tet and
 # the dual triangles below have area vectors along b - a (from a's cell into b's).
 _EDGE_VERTICES = np.array([[0, 1, 2, 3], [0, 2, 3, 1], [0, 3, 1, 2], [1, 2, 0, 3], [1, 3, 2, 0], [2, 3, 0, 1]])
+# The row of _EDGE_VERTICES of the edge between two local vertices (either order).
+_LOCAL_EDGE = np.full((4, 4), -1, dtype=np.int64)
+_LOCAL_EDGE[_EDGE_VERTICES[:, 0], _EDGE_VERTICES[:, 1]] = range(6)
+_LOCAL_EDGE[_EDGE_VERTICES[:, 1], _EDGE_VERTICES[:, 0]] = range(6)
 
 
 # The percentile of a tet mesh's edge lengths that the support radius is dilation x (mesh_spacing).
@@ -361,56 +377,90 @@ def median_dual_cells(X: np.ndarray, tets: np.ndarray):
     """The median-dual cells of the nodes of a tet mesh (tets positively oriented): each tet is
     split among its 4 nodes. Inside a tet the face between the cells of an edge's two nodes is
     the two planar triangles (edge midpoint, centroid of one of the two tet faces on the edge,
-    tet centroid); each is computed once and added to both cells with opposite signs. A boundary
-    triangle gives each of its nodes the planar quadrilateral (node, the two edge midpoints, the
-    triangle's centroid): a third of its area vector, centroid (2 node + both midpoints + 2
-    centroid) / 6 (the medians cut the triangle into 6 triangles of equal area). Returns (Cells,
-    volume = the sum of a quarter of each tet's volume (the divergence theorem's volume of the
-    cell), the boundary faces (particle, centre, area, the nodes (k, 3) of the boundary triangle
-    each lies on))."""
+    tet centroid), added to both cells with opposite signs. A boundary triangle gives each of
+    its nodes the planar quadrilateral (node, the two edge midpoints, the triangle's centroid),
+    the two triangles (node, midpoint, centroid) of a sixth of its area each.
+    The cells' quadrature (Cells) is at the triangles' vertices: the mean of a field at a planar
+    triangle's 3 vertices integrates it over the triangle exactly when linear, so a cell needs the
+    MLS only at its distinct vertices (~35 for ~80 triangles), each shared by the cells meeting
+    there (an edge midpoint by 2, a tet-face centroid by 3, a tet centroid by 4) and computed once:
+    the weights of the cells at a vertex cancel (to rounding; the integration constraint). Returns
+    (Cells, volume = the sum of a quarter of each tet's volume (the divergence theorem's volume of
+    the cell), the boundary faces: the quadrilaterals as (particle, centroid (2 node + both
+    midpoints + 2 triangle centroid) / 6, a third of the triangle's area vector, the nodes (k, 3)
+    of the triangle), in the cells' order)."""
     from ..geometry.meshes import LOCAL_FACE_VERTICES, internal_faces, tet_volumes
 
     n, m = len(X), len(tets)
-    corner = X[tets]  # (m, 4, 3)
-    g = corner.mean(axis=1)
-    n_inner = 12 * m
-    # Rows: the 12 m internal triangles for their a-node, again (negated) for their b-node, then
-    # the boundary quadrilaterals.
+    # The quadrature points, each computed once: the nodes (a boundary quadrilateral's corner),
+    # the edge midpoints, the tet-face centroids and the tet centroids, in this order.
+    edge_nodes, edge_id = _distinct(tets[:, _EDGE_VERTICES[:, :2]], n)  # (m, 6): the edges (a, b)
+    face_nodes, face_id = _distinct(tets[:, LOCAL_FACE_VERTICES], n)  # (m, 4): the face opposite vertex f
+    points = np.concatenate([X, 0.5 * (X[edge_nodes[:, 0]] + X[edge_nodes[:, 1]]), X[face_nodes].mean(axis=1),
+                             X[tets].mean(axis=1)])
+    at_edge, at_face, at_tet = n, n + len(edge_nodes), n + len(edge_nodes) + len(face_nodes)
+    # Rows (owner, point, weight) before summing per (owner, point): per tet and edge (a, b) the
+    # triangles T1 = (mid, f1, g) and T2 = (mid, g, f2) with area vectors A1, A2 along b - a give
+    # a the weights (A1 + A2) / 3 at mid and g, A1 / 3 at f1, A2 / 3 at f2, and b their negatives.
+    g = at_tet + np.arange(m)
+    owner, point, weight = [], [], []
+    for e, (a, b, c, d) in enumerate(_EDGE_VERTICES):
+        mid, f1, f2 = at_edge + edge_id[:, e], at_face + face_id[:, d], at_face + face_id[:, c]
+        A1 = 0.5 * np.cross(points[f1] - points[mid], points[g] - points[mid]) / 3.0
+        A2 = 0.5 * np.cross(points[g] - points[mid], points[f2] - points[mid]) / 3.0
+        for w, q in ((A1 + A2, mid), (A1, f1), (A2, f2), (A1 + A2, g)):
+            # a's and b's rows side by side: both cells meet a midpoint's rows in one order, so
+            # their sums there are exactly opposite.
+            owner.append(tets[:, [a, b]].ravel())
+            point.append(np.repeat(q, 2))
+            weight.append(np.stack([w, -w], axis=1).reshape(-1, 3))
+    # A boundary triangle (p, q, r) outward, area vector A: p's two triangles (p, m_pq, centroid),
+    # (p, centroid, m_pr) give p and the centroid A / 9 each, the midpoints A / 18.
     boundary = internal_faces(tets).boundary_faces
     tri = tets[boundary[:, 0][:, None], LOCAL_FACE_VERTICES[boundary[:, 1]]]  # (b, 3), outward
-    n_rows = 2 * n_inner + 3 * len(tri)
-    owner = np.empty(n_rows, dtype=np.int64)
-    centre = np.empty((n_rows, 3))
-    area = np.empty((n_rows, 3))
-    inner_c = centre[:n_inner].reshape(m, 6, 2, 3)
-    inner_a = area[:n_inner].reshape(m, 6, 2, 3)
-    inner_o = owner[:n_inner].reshape(m, 6, 2)
-    for e, (a, b, c, d) in enumerate(_EDGE_VERTICES):
-        mid = 0.5 * (corner[:, a] + corner[:, b])
-        f1 = (corner[:, a] + corner[:, b] + corner[:, c]) / 3.0
-        f2 = (corner[:, a] + corner[:, b] + corner[:, d]) / 3.0
-        inner_a[:, e, 0] = 0.5 * np.cross(f1 - mid, g - mid)
-        inner_a[:, e, 1] = 0.5 * np.cross(g - mid, f2 - mid)
-        inner_c[:, e, 0] = (mid + f1 + g) / 3.0
-        inner_c[:, e, 1] = (mid + g + f2) / 3.0
-        inner_o[:, e] = tets[:, a, None]
-        owner[n_inner:2 * n_inner].reshape(m, 6, 2)[:, e] = tets[:, b, None]
-    centre[n_inner:2 * n_inner] = centre[:n_inner]
-    np.negative(area[:n_inner], out=area[n_inner:2 * n_inner])
     P = X[tri]  # (b, 3, 3)
     tri_area = 0.5 * np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     tri_centre = P.mean(axis=1)
-    rows = slice(2 * n_inner, n_rows)
-    b_owner, b_centre, b_area = owner[rows].reshape(-1, 3), centre[rows].reshape(-1, 3, 3), area[rows].reshape(-1, 3, 3)
+    tri_point = at_face + face_id[boundary[:, 0], boundary[:, 1]]
+    b_owner, b_centre = np.empty((len(tri), 3), dtype=np.int64), np.empty((len(tri), 3, 3))
+    local = LOCAL_FACE_VERTICES[boundary[:, 1]]  # the triangle's nodes as the tet's local vertices
     for k in range(3):
         p, q, r = P[:, k], P[:, (k + 1) % 3], P[:, (k + 2) % 3]
         b_owner[:, k] = tri[:, k]
         b_centre[:, k] = (2.0 * p + 0.5 * (p + q) + 0.5 * (p + r) + 2.0 * tri_centre) / 6.0
-        b_area[:, k] = tri_area / 3.0
-    order = np.argsort(owner, kind="stable")
+        m_pq, m_pr = (at_edge + edge_id[boundary[:, 0], _LOCAL_EDGE[local[:, k], local[:, j]]]
+                      for j in ((k + 1) % 3, (k + 2) % 3))
+        for w, at in ((tri_area / 9.0, tri[:, k]), (tri_area / 18.0, m_pq), (tri_area / 18.0, m_pr),
+                      (tri_area / 9.0, tri_point)):
+            owner.append(tri[:, k])
+            point.append(at)
+            weight.append(w)
+    owner, point, weight = np.concatenate(owner), np.concatenate(point), np.concatenate(weight)
+    # Summed per (owner, point) in a fixed order; the points used, renumbered in order.
+    order = np.lexsort((point, owner))
+    owner, point, weight = owner[order], point[order], weight[order]
+    first = np.flatnonzero(np.r_[True, (owner[1:] != owner[:-1]) | (point[1:] != point[:-1])])
+    weight = np.add.reduceat(weight, first, axis=0)
+    owner, point = owner[first], point[first]
+    used, point = np.unique(point, return_inverse=True)
     start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner, minlength=n), out=start[1:])
     volume = np.bincount(tets.ravel(), weights=np.repeat(tet_volumes(X, tets) / 4.0, 4), minlength=n)
-    b_rows = order[order >= 2 * n_inner]  # the boundary rows, in the cells' order
-    faces = (owner[b_rows], centre[b_rows], area[b_rows], tri[(b_rows - 2 * n_inner) // 3])
-    return Cells(start, centre[order], area[order]), volume, faces
+    b_order = np.argsort(b_owner.ravel(), kind="stable")  # the boundary faces in the cells' order
+    faces = (b_owner.ravel()[b_order], b_centre.reshape(-1, 3)[b_order], np.repeat(tri_area / 3.0, 3, axis=0)[b_order],
+             tri[b_order // 3])
+    return Cells(start, point.ravel(), weight, points[used]), volume, faces
+
+
+def _distinct(nodes: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct node tuples among `nodes` (..., k) of a mesh of n nodes (each tuple as a set:
+    sorted) and the index of each tuple among them (shape nodes.shape[:-1])."""
+    rows = np.sort(nodes, axis=-1).reshape(-1, nodes.shape[-1])
+    if n ** rows.shape[1] < 2**63:  # one int64 key a tuple: far faster than np.unique(axis=0)
+        key = rows[:, 0].astype(np.int64)
+        for k in range(1, rows.shape[1]):
+            key = key * np.int64(n) + rows[:, k]
+        _, first, ids = np.unique(key, return_index=True, return_inverse=True)
+    else:
+        _, first, ids = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    return rows[first], ids.reshape(nodes.shape[:-1])

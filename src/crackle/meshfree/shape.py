@@ -245,10 +245,7 @@ def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallba
                condition)
     bad = np.flatnonzero(~np.isfinite(condition) | (condition > max_condition))
     if linear_fallback and len(bad):
-        counts = start[bad + 1] - start[bad]
-        sub_start = np.zeros(len(bad) + 1, dtype=np.int64)
-        np.cumsum(counts, out=sub_start[1:])
-        pos = np.repeat(start[bad] - sub_start[:-1], counts) + np.arange(sub_start[-1])
+        pos, sub_start = csr_positions(start, bad)
         sub_value = np.zeros(len(pos))
         sub_condition = np.zeros(len(bad))
         _values_at(np.ascontiguousarray(points[bad], dtype=float), X, volume, sub_start, neighbour[pos], float(radius),
@@ -263,14 +260,12 @@ def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None, 
     but for the `hidden` ones (a boolean per link: removed by fracture), with the linear
     fallback at a crack face (mls_values): what the link stabilisation compares each particle's
     value with (kernels docstring). The links of J cover its own support: they are every
-    particle within the support radius of one of its cell's face centres, which surround X_J
-    closer than the radius. Returns (the positions of the rows' links, their values (0 on a hidden
-    link), the condition number of each row's moment matrix)."""
+    particle within the support radius of one of its cell's quadrature points, which surround
+    X_J closer than the radius. Returns (the positions of the rows' links, their values (0 on a
+    hidden link), the condition number of each row's moment matrix)."""
     rows = np.asarray(rows, dtype=np.int64)
-    counts = start[rows + 1] - start[rows]
-    first = np.zeros(len(rows) + 1, dtype=np.int64)
-    np.cumsum(counts, out=first[1:])
-    pos = np.repeat(start[rows] - first[:-1], counts) + np.arange(first[-1])
+    pos, first = csr_positions(start, rows)
+    counts = np.diff(first)
     keep = np.ones(len(pos), dtype=bool) if hidden is None else ~hidden[pos]
     kept_start = np.zeros(len(rows) + 1, dtype=np.int64)
     np.cumsum(np.bincount(np.repeat(np.arange(len(rows)), counts)[keep], minlength=len(rows)), out=kept_start[1:])
@@ -284,14 +279,15 @@ def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None, 
 def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, terms: np.ndarray):
     """Stabilised conforming nodal integration (Chen et al. 2001): the gradient of N_J at the
     particle I is the mean over I's cell (a closed polyhedron of planar faces, particles.Cells,
-    volume V_I) by the divergence theorem, grad N_J(I) = (1 / V_I) sum_faces A N_J(face centre),
-    A the face's area vector (outward normal x area), one point per face (exact for linear
-    fields when the centre is the face's centroid). Neighbouring cells share their faces, so
-    under a uniform stress the particle forces are exactly the boundary's traction term: the
+    volume V_I) by the divergence theorem, grad N_J(I) = (1 / V_I) sum_rows w N_J(point), the
+    cell's quadrature rows (a plate's or tube's: one per face, its centroid with the area vector
+    w = outward normal x area; a median-dual cell's: its faces' vertices), exact for linear
+    fields. Neighbouring cells share their faces (and quadrature points, with opposite weights),
+    so under a uniform stress the particle forces are the boundary's traction term: the
     integration constraint that direct nodal integration misses. Returns the CSR links of the
-    particles (start, neighbour: every J that is nonzero at one of I's face centres, itself
+    particles (start, neighbour: every J that is nonzero at one of I's quadrature points, itself
     included, in increasing order), grad (links, 3), and the largest moment-matrix condition
-    number over the face centres with the first bad point (or None)."""
+    number over the quadrature points with the first bad point (or None)."""
     n = len(X)
     link_row, link_col, grad, condition, points, _ = cell_gradients(
         X, volume, cells, radius, terms, np.arange(n), cKDTree(X))
@@ -302,71 +298,137 @@ def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, 
     return link_start, link_col, grad, float(np.max(condition)), first_bad
 
 
-# Owners per block in cell_gradients. All at once, the supports of the 6 n face centres (Python
-# lists) and their ~310 contributions per particle, sorted and copied, peaked at 13.6 GB at 280k
-# particles; a block holds ~1.3 M contributions (~0.1 GB).
+# Owners per block in cell_gradients. All at once, the supports of a plate's 6 n face centres
+# (Python lists) and their ~310 contributions per particle, sorted and copied, peaked at 13.6 GB
+# at 280k particles; a block holds ~1.3 M contributions (~0.1 GB).
 OWNER_BLOCK = 4096
 
 
 def cell_gradients(X, volume, cells, radius, terms, owners, tree, blocked=None, linear_fallback=False,
                    max_condition=MAX_CONDITION):
     """The smoothed gradients (smoothed_gradients) of the particles `owners` only, with the MLS
-    at their face centres summing over the particles within the support but for the pairs
-    (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
+    at their cells' quadrature points summing over the particles within the support but for the
+    pairs (owner, J) whose key owner * n + J is in the sorted array `blocked` (links removed by
     fracture: the crack hides J from the owner's cell). Returns (rows, cols, grad) of the links
-    with a contribution, sorted by row then column, the condition number of every face centre's
-    moment matrix, the face centres and their owners (the owners' faces in turn, each cell's in
-    its own order). `linear_fallback`, `max_condition`: at a crack face (mls_values)."""
+    with a contribution, in the order of the (distinct) owners, each row's columns increasing,
+    and per row of the owners' cells (the owners in turn, each cell's rows in order) the
+    condition number of its point's moment matrix, the point and the owner. `linear_fallback`,
+    `max_condition`: at a crack face (mls_values)."""
     X = np.ascontiguousarray(X, dtype=float)
     volume = np.asarray(volume, dtype=float)
     owners = np.asarray(owners, dtype=np.int64)
-    face_counts = cells.start[owners + 1] - cells.start[owners]
-    face_first = np.zeros(len(owners) + 1, dtype=np.int64)
-    np.cumsum(face_counts, out=face_first[1:])
-    rows_of_faces = np.repeat(cells.start[owners] - face_first[:-1], face_counts) + np.arange(face_first[-1])
-    points = np.ascontiguousarray(cells.centre[rows_of_faces])
-    owner = np.repeat(owners, face_counts)
-    weight = cells.area[rows_of_faces] / volume[owner][:, None]
-    condition = np.zeros(len(points))
-    # A link's contributions all come from its row's faces, so they meet in one block of owners
+    rows_of_cells, row_first = csr_positions(cells.start, owners)
+    point = cells.point[rows_of_cells]
+    owner = np.repeat(owners, np.diff(row_first))
+    weight = cells.weight[rows_of_cells] / volume[owner][:, None]
+    condition = np.zeros(len(point))
+    # A link's contributions all come from its row's cell, so they meet in one block of owners
     # and are summed there in the same order as all at once (bit-identical); with increasing
     # owners the blocks' links follow in order (else one block).
     block = OWNER_BLOCK if np.all(owners[1:] > owners[:-1]) else max(len(owners), 1)
     pieces = []
     for first_owner in range(0, len(owners), block):
-        faces = slice(face_first[first_owner], face_first[min(first_owner + block, len(owners))])
-        pieces.append(_block_gradients(X, volume, points[faces], owner[faces], weight[faces], radius, terms, tree,
-                                       blocked, linear_fallback, max_condition, condition[faces]))
+        rows = slice(row_first[first_owner], row_first[min(first_owner + block, len(owners))])
+        pieces.append(_block_gradients(X, volume, cells.points, point[rows], owner[rows], weight[rows], radius, terms,
+                                       tree, blocked, linear_fallback, max_condition,
+                                       condition[rows]))
     rows, cols, grad = (np.concatenate(parts) for parts in zip(*pieces)) if pieces else (
         np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
-    return rows, cols, grad, condition, points, owner
+    return rows, cols, grad, condition, cells.points[point], owner
 
 
-def _block_gradients(X, volume, points, owner, weight, radius, terms, tree, blocked, linear_fallback, max_condition,
-                     condition):
-    """cell_gradients' (rows, cols, grad) of the face centres `points` of `owner` (with the
-    area / cell volume `weight`), writing their condition numbers into `condition`."""
+def csr_positions(start: np.ndarray, rows: np.ndarray, counts=None) -> tuple[np.ndarray, np.ndarray]:
+    """The positions of the entries of the CSR rows `rows` (start (n + 1,)), row after row, and
+    where each row begins among them ((len(rows) + 1,)); with `counts`, the first counts[k] of
+    row k only."""
+    if counts is None:
+        counts = start[rows + 1] - start[rows]
+    first = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(counts, out=first[1:])
+    return np.repeat(start[rows] - first[:-1], counts) + np.arange(first[-1]), first
+
+
+def _block_gradients(X, volume, points, point, owner, weight, radius, terms, tree, blocked, linear_fallback,
+                     max_condition, condition):
+    """cell_gradients' (rows, cols, grad) of the cell rows with the quadrature points
+    points[point] of `owner` (with the weight / cell volume `weight`), writing their condition
+    numbers into `condition`."""
     n = len(X)
-    lists = tree.query_ball_point(points, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
+    blocking = blocked is not None and len(blocked) > 0
+    if blocking:  # the MLS at a point depends on the owner: once per row
+        at, of_row = point, np.arange(len(point))
+    else:  # a point shared by several cells (a median-dual vertex) is evaluated once for all
+        at, of_row = np.unique(point, return_inverse=True)
+    where = np.ascontiguousarray(points[at])
+    lists = tree.query_ball_point(where, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
     counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
     neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
     del lists
-    point_of = np.repeat(np.arange(len(points)), counts)
-    if blocked is not None and len(blocked):
+    if blocking:
+        point_of = np.repeat(np.arange(len(where)), counts)
         key = owner[point_of] * np.int64(n) + neighbour
-        at = np.minimum(np.searchsorted(blocked, key), len(blocked) - 1)
-        keep = blocked[at] != key
-        neighbour, point_of = neighbour[keep], point_of[keep]
-        counts = np.bincount(point_of, minlength=len(points))
-    start = np.zeros(len(points) + 1, dtype=np.int64)
+        at_key = np.minimum(np.searchsorted(blocked, key), len(blocked) - 1)
+        keep = blocked[at_key] != key
+        neighbour = neighbour[keep]
+        counts = np.bincount(point_of[keep], minlength=len(where))
+    start = np.zeros(len(where) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
-    value, condition[:] = mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback,
-                                     max_condition)
-    # Contributions (I, J, n A N_J / V_I), summed per (I, J) in a fixed order (stable sort).
-    rows = owner[point_of]
-    parts = weight[point_of] * value[:, None]
-    order = np.lexsort((neighbour, rows))
-    rows, cols, parts = rows[order], neighbour[order], parts[order]
-    first = np.flatnonzero(np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])])
-    grad = np.add.reduceat(parts, first, axis=0)
-    return rows[first], cols[first], grad
+    value, point_condition = mls_values(where, X, volume, start, neighbour, radius, terms, linear_fallback,
+                                         max_condition)
+    condition[:] = point_condition[of_row]
+    # Each owner's rows lie in one run: per owner the sums (I, J, sum weight N_J / V_I) at once
+    # (_cell_sums), at most one entry per contribution until compacted.
+    owner_first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1], True])
+    contribution_first = np.r_[0, np.cumsum(counts[of_row])][owner_first]
+    cols = np.empty(contribution_first[-1], dtype=np.int64)
+    grad = np.empty((contribution_first[-1], 3))
+    found = np.zeros(len(owner_first) - 1, dtype=np.int64)
+    _cell_sums(owner_first, contribution_first, of_row, weight, start, neighbour, value, cols, grad, found)
+    keep, _ = csr_positions(contribution_first, np.arange(len(found)), found)
+    return np.repeat(owner[owner_first[:-1]], found), cols[keep], grad[keep]
+
+
+@njit(parallel=True, cache=True)
+def _cell_sums(owner_first, contribution_first, of_row, weight, start, neighbour, value, cols, grad, found):
+    """For each owner k (rows owner_first[k]:owner_first[k + 1], row r's point of_row[r] with
+    its links start:neighbour and MLS `value`): the particles J it sees, increasing, in
+    cols[contribution_first[k]:][:found[k]], and beside them in grad the sum of weight[r] N_J
+    over its rows in order, as np.add.reduceat sums a run: the first term + (0 + the second +
+    ...), so that a cell of fewer than 9 rows (a plate's or tube's 6 faces) gets the sums a
+    stable sort of the contributions and np.add.reduceat gave, bit for bit."""
+    for k in prange(owner_first.shape[0] - 1):
+        lo = contribution_first[k]
+        m = contribution_first[k + 1] - lo
+        col = np.empty(m, dtype=np.int64)
+        row = np.empty(m, dtype=np.int64)
+        link = np.empty(m, dtype=np.int64)
+        c = 0
+        for r in range(owner_first[k], owner_first[k + 1]):
+            q = of_row[r]
+            for t in range(start[q], start[q + 1]):
+                col[c] = neighbour[t]
+                row[c] = r
+                link[c] = t
+                c += 1
+        order = np.argsort(col, kind="mergesort")
+        u = -1
+        head = np.zeros(3)
+        rest = np.zeros(3)
+        for i in range(m):
+            o = order[i]
+            if i == 0 or col[o] != col[order[i - 1]]:
+                if u >= 0:
+                    for a in range(3):
+                        grad[lo + u, a] = head[a] + rest[a]
+                u += 1
+                cols[lo + u] = col[o]
+                for a in range(3):
+                    head[a] = weight[row[o], a] * value[link[o]]
+                    rest[a] = 0.0
+            else:
+                for a in range(3):
+                    rest[a] += weight[row[o], a] * value[link[o]]
+        if u >= 0:
+            for a in range(3):
+                grad[lo + u, a] = head[a] + rest[a]
+        found[k] = u + 1
