@@ -33,7 +33,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
                               fracture_stress: float = math.inf, precracks=(), pressures=()) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
-    material (density kg/m^3, J2Law), the link stabilisation alpha (kernels docstring), tools and
+    material (density kg/m^3, J2Law), the stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py) and

@@ -24,7 +24,7 @@ displacement field: no linear field (the patch test is untouched), no rigid moti
 a thin wall (a penalty on the links' departure from the particle's own F, tried first, resisted
 curvature: +35 % on the bending frequency of a strip at twice the thickness, x 2.6 on a 0.8 mm
 wall at 5 mm spacing). An oscillation from particle to particle is far from its own smooth
-approximation, so eps stiffens exactly the modes nodal integration leaves free. It is a true
+approximation, so eps stiffens the modes nodal integration leaves free. It is a true
 potential (its forces are its exact derivative, so the energy audit holds it:
 `energy.stabilisation`); objective, as eps = x_I - sum_K N_K(X_I) x_K turns with the body. Its
 force on L:

@@ -258,7 +258,7 @@ def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallba
 def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None, max_condition=MAX_CONDITION):
     """The MLS values N_K(X_J) at the particles J = `rows` themselves, over their links (J, K)
     but for the `hidden` ones (a boolean per link: removed by fracture), with the linear
-    fallback at a crack face (mls_values): what the link stabilisation compares each particle's
+    fallback at a crack face (mls_values): what the stabilisation compares each particle's
     value with (kernels docstring). The links of J cover its own support: they are every
     particle within the support radius of one of its cell's quadrature points, which surround
     X_J closer than the radius. Returns (the positions of the rows' links, their values (0 on a
