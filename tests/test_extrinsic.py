@@ -109,3 +109,29 @@ def test_bar_breaks_at_the_strength_and_dissipates_gf(law):
     assert ifs.e_damage[failed].sum() / (W * W) == pytest.approx(GF, rel=0.03)
     assert ifs.e_inserted[failed].min() > 0.0  # the preload, booked against their dissipation
     assert abs(energy_error(sim.energies(dt))) < 1e-3
+
+
+@pytest.mark.parametrize("stiffness_factor, warns", [(20.0, False), (0.2, True)])
+def test_summary_warns_when_the_insertion_preload_rivals_the_external_work(stiffness_factor, warns):
+    """Under the uniform pull every face across the bar reaches f_t together: the 5 inner
+    sections (80 faces, 5 W^2) are inserted, each holding the preload f_t^2 / 2k per unit area
+    (closed form, to 1e-6). Against the pull's work that is 1.8 % at k = 20 E / h (no warning)
+    and 128 % at k = 0.2 E / h, where the summary must say that the preload rivals the work
+    (threshold 10 %)."""
+    w1, period = _first_mode()
+    ramp = 20.0 * period
+    k = stiffness_factor * E / H
+    law = BilinearLaw(tensile_strength=FT, shear_strength=2.0 * FT, fracture_energy=GF, normal_stiffness=k,
+                      shear_stiffness=k, insertion="extrinsic")
+    model = _bar(Material(RHO, E, NU, law, name="rock, bilinear"), History.ramp(-2.0 * FT, ramp), 0.5 * w1)
+    sim = FdemSimulation(model)
+    dt = 0.8 * model.stable_dt
+    while sim.time < ramp and not np.any(model.ifs.state != 0):
+        sim.advance(10, dt)
+    inserted = model.ties.tied != TIED
+    assert model.ifs.area[inserted].sum() == pytest.approx(5 * W * W, rel=1e-9)
+    summary = sim.summary()
+    assert summary["insertion_energy"] == pytest.approx(5 * W * W * FT**2 / (2.0 * k), rel=1e-6)
+    external = sim.energies(dt)["energy.external"]
+    assert (summary["insertion_energy"] > 0.1 * external) == warns
+    assert any("insertion preload" in w for w in summary["warnings"]) == warns

@@ -30,6 +30,8 @@ from .model import FdemModel
 # Longest run of steps between two checks of the contact surface: new fracture faces take part in
 # surface contact at most this many steps after they fail.
 CONTACT_REFRESH_STEPS = 100
+# Extrinsic insertion energy, as a fraction of the external work, above which the summary warns.
+INSERTION_WARNING = 0.1
 
 
 class FdemSimulation:
@@ -290,6 +292,7 @@ class FdemSimulation:
 
     def summary(self) -> dict:
         m = self.model
+        insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None
         # Velocities change without new failures: refresh the fragment velocities for the record.
         self._fragments = None
         frags = self.fragments()
@@ -310,8 +313,22 @@ class FdemSimulation:
             "dt_limit": m.time_step.as_summary(m.mesh.label),
             # Extrinsic faces: the energy their preload put into the law's springs at insertion,
             # booked as negative dissipation (fdem.extrinsic); none without extrinsic laws.
-            "insertion_energy": float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None,
+            "insertion_energy": insertion,
             "added_mass": m.mass_scaling.added_mass,
             "mass_scaling": m.mass_scaling.as_summary(m.mesh.label),
-            "warnings": list(self.warnings),
+            "warnings": [*self.warnings, *self._insertion_warning(insertion)],
         }
+
+    def _insertion_warning(self, insertion: float | None) -> list[str]:
+        """The preload of faces inserted against a soft penalty can return to the body as motion
+        (fdem.extrinsic): where it rivals the work done on the specimen, the run is not the
+        quasi-static or energy-conserving one it looks like."""
+        external = float(np.sum(self.model.nodes.w_external)) + self._initial_energy
+        if insertion is None or not external or insertion <= INSERTION_WARNING * abs(external):
+            return []
+        return [
+            f"the extrinsic faces' insertion preload holds {insertion:.3g} J, {insertion / abs(external):.0%} of the "
+            f"external work (more than {INSERTION_WARNING:.0%}): the interface penalty is soft against the "
+            "tractions at insertion and that energy can return as motion; raise the interface stiffness "
+            "or use intrinsic insertion"
+        ]

@@ -278,6 +278,8 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         **({"resumed_from": resumed_from} if resumed_from is not None else {}),
         **sim.summary(),
     }
+    for warning in summary.get("warnings", [])[len(sim.warnings):]:  # those only the end of the run can tell
+        control.report(f"  warning: {warning}")
     if abs(summary["energy_error"]) > ENERGY_WARNING:
         warning = (
             f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
