@@ -28,8 +28,8 @@ from fdem_helpers import E, FT, GF, NU, RHO, bar_wave_speed, energy_error, rock
 L, W, H = 0.06, 0.02, 0.01
 
 
-def _bilinear(insertion):
-    k = 2.0 * E / H  # as soft as the extrinsic Guo-Munjiza default
+def _bilinear(insertion, stiffness_factor=2.0):
+    k = stiffness_factor * E / H  # by default as soft as the extrinsic Guo-Munjiza default
     law = BilinearLaw(tensile_strength=FT, shear_strength=2.0 * FT, fracture_energy=GF, normal_stiffness=k,
                       shear_stiffness=k, insertion=insertion)
     return Material(RHO, E, NU, law, name="rock, bilinear")
@@ -121,9 +121,7 @@ def test_summary_warns_when_the_insertion_preload_rivals_the_external_work(stiff
     w1, period = _first_mode()
     ramp = 20.0 * period
     k = stiffness_factor * E / H
-    law = BilinearLaw(tensile_strength=FT, shear_strength=2.0 * FT, fracture_energy=GF, normal_stiffness=k,
-                      shear_stiffness=k, insertion="extrinsic")
-    model = _bar(Material(RHO, E, NU, law, name="rock, bilinear"), History.ramp(-2.0 * FT, ramp), 0.5 * w1)
+    model = _bar(_bilinear("extrinsic", stiffness_factor), History.ramp(-2.0 * FT, ramp), 0.5 * w1)
     sim = FdemSimulation(model)
     dt = 0.8 * model.stable_dt
     while sim.time < ramp and not np.any(model.ifs.state != 0):

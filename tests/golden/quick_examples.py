@@ -84,10 +84,10 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     stored = json.loads(STORE.read_text()) if STORE.exists() else {"platform": "", "full": {}, "short": {}}
     here = platform_key()
-    if not args.update and stored["platform"] != here:
-        print(f"stored hashes are for '{stored['platform']}', this is '{here}': nothing to compare")
-        return 0
-    if args.update and stored["platform"] != here:
+    if stored["platform"] != here:
+        if not args.update:
+            print(f"stored hashes are for '{stored['platform']}', this is '{here}': nothing to compare")
+            return 0
         stored = {"platform": here, "full": {}, "short": {}}  # another machine's hashes say nothing here
     failed = 0
     for table, name, overrides in cases(args.short):

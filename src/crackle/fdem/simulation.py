@@ -131,6 +131,9 @@ class FdemSimulation:
     def describe(self) -> str:
         return f"{self.model.n_tets:,} tets, {self.model.n_interfaces:,} interfaces"
 
+    def _external_work(self) -> float:
+        return float(np.sum(self.model.nodes.w_external)) + self._initial_energy
+
     def _kinetic(self) -> float:
         n = self.model.nodes
         return float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)))
@@ -167,7 +170,7 @@ class FdemSimulation:
             "energy.damage": float(np.sum(m.ifs.e_damage)),
             "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
             "energy.damping": float(np.sum(nodes.w_damping)),
-            "energy.external": float(np.sum(nodes.w_external)) + self._initial_energy,
+            "energy.external": self._external_work(),
         }
 
     def sample(self, dt: float) -> dict[str, float]:
@@ -323,7 +326,7 @@ class FdemSimulation:
         """The preload of faces inserted against a soft penalty can return to the body as motion
         (fdem.extrinsic): where it rivals the work done on the specimen, the run is not the
         quasi-static or energy-conserving one it looks like."""
-        external = float(np.sum(self.model.nodes.w_external)) + self._initial_energy
+        external = self._external_work()
         if insertion is None or not external or insertion <= INSERTION_WARNING * abs(external):
             return []
         return [
