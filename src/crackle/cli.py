@@ -1,10 +1,11 @@
-"""Command line: crackle run | examples | fpz."""
+"""Command line: crackle run | sweep | examples | keys | fpz."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from pathlib import Path
 
 
 def _cmd_run(args) -> int:
@@ -39,6 +40,30 @@ def _cmd_run(args) -> int:
         print(f"  {s['message']}")
     print(f"  outputs in {result.out_dir}")
     return 130 if s["status"] == "interrupted" else 0
+
+
+def _cmd_sweep(args) -> int:
+    from .scenario import ScenarioError
+    from .sweep import make_plan, run_sweep
+
+    for name in ("workers", "threads_per_run"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            print(f"crackle: error: --{name.replace('_', '-')} must be at least 1", file=sys.stderr)
+            return 2
+    try:
+        plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick)
+        out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
+        result = run_sweep(plan, out, args.scheduler, args.workers, args.threads_per_run, args.plot,
+                           report=lambda text: print(text, flush=True))
+    except ScenarioError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return 2
+    statuses = [row["status"] for row in result.rows]
+    counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
+    print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
+    print(f"  table in {result.out_dir / 'sweep.csv'} (and sweep.parquet), plots in {result.out_dir / 'plots'}")
+    return 0 if all(s in ("completed", "stopped") for s in statuses) else 1
 
 
 def _cmd_examples(args) -> int:
@@ -94,6 +119,26 @@ def main(argv=None) -> int:
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR (its checkpoint) to run.end_time; "
                    "give the same scenario, --quick and --set as that run")
     p.set_defaults(func=_cmd_run)
+    p = sub.add_parser("sweep", help="a family of runs on Dask: every combination of --vary values, one table",
+                       description="Run a scenario for every combination (or, with --zip, every position) of the "
+                       "--vary values, each in its own folder under --out, on a Dask cluster; then sweep.csv, "
+                       "sweep.parquet and plots/sweep_KEY.png. Rerun the same command to finish an interrupted sweep.")
+    p.add_argument("sweep", help="a scenario (file or shipped example), a sweep file, or a shipped sweep "
+                   "(brazilian-angles, walnut-layouts, mesh-ladder)")
+    p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
+                   help="a key and its values, e.g. --vary loading.angle=0,30,60,90 (repeat for more keys)")
+    p.add_argument("--zip", action="store_true", help="the i-th values of every key together (not every combination)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an override every run gets")
+    p.add_argument("--quick", action="store_true", help="every run in its example's quick form")
+    p.add_argument("--out", help="the sweep's folder (default crackle-out/sweep-NAME)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://HOST:PORT); "
+                   "default: a local cluster on this machine")
+    p.add_argument("--workers", type=int, help="local workers (default: one per core, at most one per run)")
+    p.add_argument("--threads-per-run", type=int, help="numba threads per run (default: the cores shared "
+                   "among the workers)")
+    p.add_argument("--plot", action="append", default=[], metavar="SCALAR",
+                   help="a summary scalar to plot against each varied key, beside peak_force, broken, energy_error")
+    p.set_defaults(func=_cmd_sweep)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)
     p = sub.add_parser("keys", help="every scenario key: unit, default, range (docs/keys.md)")

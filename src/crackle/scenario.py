@@ -564,7 +564,7 @@ def apply_overrides(data: dict, overrides: dict[str, Any] | list[str]) -> dict:
     import copy
 
     data = copy.deepcopy(data)
-    items = overrides.items() if isinstance(overrides, dict) else (_split_override(s) for s in overrides)
+    items = overrides.items() if isinstance(overrides, dict) else (split_override(s) for s in overrides)
     for key, value in items:
         parts = key.split(".")
         node = data
@@ -585,7 +585,7 @@ def apply_overrides(data: dict, overrides: dict[str, Any] | list[str]) -> dict:
     return data
 
 
-def _split_override(text: str) -> tuple[str, Any]:
+def split_override(text: str) -> tuple[str, Any]:
     if "=" not in text:
         raise ScenarioError(f"--set {text!r}: write key=value, e.g. --set run.end_time=1e-3")
     key, raw = text.split("=", 1)

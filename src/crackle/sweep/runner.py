@@ -1,0 +1,192 @@
+"""Running a sweep's runs on Dask: a local cluster by default, any scheduler by its address.
+
+Each run is an ordinary `crackle run` in its own folder (outputs of the output contract); a run
+whose folder holds a finished summary.json is not run again, so an interrupted sweep continues
+where it stopped. A run that fails (a value its scenario refuses, an unstable run, an error) is
+a row with its status and message; the others go on."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..scenario import ScenarioError
+from .plan import SweepPlan, SweepRun
+from .table import write_table
+
+MANIFEST = "sweep.json"
+# A run folder whose summary has one of these is finished (interrupted runs are run again).
+FINISHED = ("completed", "stopped", "unstable")
+
+
+@dataclass
+class SweepResult:
+    out_dir: Path
+    rows: list[dict]  # one per run, in the plan's order
+    ran: int  # runs made by this call (the rest were finished before)
+
+
+def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int) -> dict:
+    """One run, on a worker: `crackle run` with these overrides, `threads` numba threads.
+    Returns {"status", "message"}; never raises, so one run's failure stays its own."""
+    import numba
+
+    from ..api import run_scenario
+    from ..solver import UnstableRunError
+
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        result = run_scenario(scenario, folder, overrides, quick, progress=False)
+    except ScenarioError as err:
+        return {"status": "invalid", "message": str(err)}
+    except UnstableRunError as err:
+        return {"status": "unstable", "message": str(err)}
+    except Exception as err:  # noqa: BLE001 - any error is this run's row, not the sweep's end
+        return {"status": "failed", "message": f"{type(err).__name__}: {err}"}
+    return {"status": result.summary["status"], "message": result.summary.get("message", "")}
+
+
+def finished_summary(folder: Path) -> dict | None:
+    """The summary of a finished run in `folder`, or None."""
+    try:
+        summary = json.loads((folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if summary.get("status") in FINISHED else None
+
+
+def check_runs(plan: SweepPlan, runs: list[SweepRun]) -> dict[int, str]:
+    """Validate every run's scenario before any is started: {index: message} of those refused.
+    When every run is refused the sweep cannot do anything: ScenarioError (exit 2)."""
+    from ..scenario import load_scenario
+
+    refused = {}
+    for run in runs:
+        try:
+            load_scenario(plan.scenario, {**plan.fixed, **run.varied}, plan.quick)
+        except ScenarioError as err:
+            refused[run.index] = str(err)
+    if refused and len(refused) == len(runs):
+        first = runs[0]
+        raise ScenarioError(f"every run of the sweep is refused; the first ({first.folder}): {refused[first.index]}")
+    return refused
+
+
+def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None, workers: int | None = None,
+              threads_per_run: int | None = None, plots: list[str] = (), report=print) -> SweepResult:
+    """Run the plan's runs not finished yet in out_dir, then write the table and the plots."""
+    out = Path(out_dir)
+    runs = plan.runs()
+    _claim_folder(out, plan)
+    refused = check_runs(plan, runs)
+    todo = [r for r in runs if r.index not in refused and finished_summary(out / r.folder) is None]
+    report(f"sweep of {len(runs)} runs in {out}: {len(runs) - len(todo) - len(refused)} finished before, "
+           f"{len(refused)} refused, {len(todo)} to run")
+    outcome: dict[int, dict] = {i: {"status": "invalid", "message": msg} for i, msg in refused.items()}
+    if todo:
+        outcome.update(_run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report))
+    rows = []
+    for run in runs:
+        summary = finished_summary(out / run.folder)
+        row = {"run": run.folder, **run.varied}
+        if summary is not None:
+            row.update(status=summary["status"], message=summary.get("message", ""), summary=summary)
+        else:
+            got = outcome.get(run.index, {"status": "missing", "message": "no finished summary.json"})
+            row.update(status=got["status"], message=got["message"], summary={})
+        rows.append(row)
+    write_table(out, list(plan.vary), rows, plots)
+    return SweepResult(out, rows, len(todo))
+
+
+def _claim_folder(out: Path, plan: SweepPlan) -> None:
+    """Write the plan into out/sweep.json, refusing a folder that holds another sweep."""
+    manifest = out / MANIFEST
+    record = plan.as_record()
+    if manifest.is_file():
+        try:
+            before = json.loads(manifest.read_text())
+        except ValueError:
+            before = None
+        if before != json.loads(json.dumps(record)):
+            raise ScenarioError(
+                f"--out {out}: it holds another sweep ({MANIFEST} differs: scenario, --vary, --set, --zip or "
+                "--quick changed); give a new --out, or the same arguments to continue that sweep"
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    manifest.write_text(json.dumps(record, indent=2) + "\n")
+
+
+def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -> dict[int, dict]:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise ScenarioError("crackle sweep needs Dask: pip install 'crackle[sweep]'") from None
+    cores = os.cpu_count() or 1
+    if scheduler is None:
+        workers = workers or max(1, min(len(todo), cores // (threads_per_run or 1)))
+        threads = threads_per_run or max(1, cores // workers)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as err:
+            raise ScenarioError(f"--scheduler {scheduler}: cannot reach it ({err}); start dask-scheduler there "
+                                "or give its address as tcp://HOST:PORT") from None
+        cluster = None
+        threads = threads_per_run or 1
+    report(f"  on {'a local cluster of ' + str(workers) + ' workers' if cluster else scheduler}, "
+           f"{threads} numba thread(s) per run")
+    outcome = {}
+    try:
+        futures = {
+            client.submit(run_one, plan.scenario, str((out / r.folder).resolve()), {**plan.fixed, **r.varied},
+                          plan.quick, threads, pure=False, key=f"crackle-{r.folder}-{time.time_ns()}"): r
+            for r in todo
+        }
+        with _RunsProgress(len(todo)) as progress:
+            for future in as_completed(futures):
+                run = futures[future]
+                try:
+                    outcome[run.index] = future.result()
+                except Exception as err:  # noqa: BLE001 - the worker died (memory, a crash): this run's row
+                    outcome[run.index] = {"status": "failed", "message": f"{type(err).__name__}: {err}"}
+                progress.advance(f"{run.folder}: {outcome[run.index]['status']}")
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return outcome
+
+
+class _RunsProgress:
+    """A bar over the runs on a terminal; a line per finished run otherwise."""
+
+    def __init__(self, total: int):
+        self.total, self.done, self.bar = total, 0, None
+
+    def __enter__(self):
+        if sys.stdout.isatty():
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+            self.bar = Progress(BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+            self.task = self.bar.add_task("runs", total=self.total)
+            self.bar.start()
+        return self
+
+    def advance(self, text: str) -> None:
+        self.done += 1
+        if self.bar is not None:
+            self.bar.console.print(text, highlight=False, markup=False)
+            self.bar.advance(self.task)
+        else:
+            print(f"  [{self.done}/{self.total}] {text}", flush=True)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.stop()

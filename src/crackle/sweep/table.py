@@ -1,0 +1,128 @@
+"""A sweep's table (sweep.csv, sweep.parquet) and its comparison plots (plots/sweep_KEY.png).
+
+Columns: the varied keys, then `run` (its folder), `status`, `message`, then every scalar of
+the runs' summary.json (a nested object's scalars as `object.field`, e.g. `dt_limit.dt`; lists
+are left out: they stay in each run's summary)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from pathlib import Path
+
+DEFAULT_PLOTTED = ("peak_force", "broken", "energy_error")
+
+
+def summary_scalars(summary: dict) -> dict:
+    """The scalars of a summary, nested objects' as `object.field`, in sorted order."""
+    out = {}
+    for key in sorted(summary):
+        value = summary[key]
+        if isinstance(value, dict):
+            for sub in sorted(value):
+                if _is_scalar(value[sub]):
+                    out[f"{key}.{sub}"] = value[sub]
+        elif _is_scalar(value):
+            out[key] = value
+    return out
+
+
+def _is_scalar(value) -> bool:
+    return value is None or isinstance(value, (bool, int, float, str))
+
+
+def table_rows(varied_keys: list[str], rows: list[dict]) -> tuple[list[str], list[dict]]:
+    """The table's columns and rows from the runner's rows (varied values, run, status,
+    message, summary)."""
+    first = list(varied_keys) + ["run", "status", "message"]
+    records, columns = [], list(first)
+    for row in rows:
+        record = {key: row[key] for key in first}
+        for key, value in summary_scalars(row["summary"]).items():
+            if key in ("status", "message"):
+                continue
+            record[key] = value
+            if key not in columns:
+                columns.append(key)
+        records.append(record)
+    return columns, records
+
+
+def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: list[str] = ()) -> None:
+    columns, records = table_rows(varied_keys, rows)
+    with open(out / "sweep.csv", "w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, columns, restval="")
+        writer.writeheader()
+        for record in records:
+            writer.writerow({k: _csv_value(v) for k, v in record.items()})
+    _write_parquet(out / "sweep.parquet", columns, records)
+    for key in varied_keys:
+        plot_against(out / "plots" / f"sweep_{_file_part(key)}.png", key, varied_keys, records,
+                     list(DEFAULT_PLOTTED) + [name for name in plotted if name not in DEFAULT_PLOTTED])
+
+
+def _csv_value(value):
+    if isinstance(value, list):
+        return "[" + ", ".join(str(v) for v in value) + "]"
+    return "" if value is None else value
+
+
+def _write_parquet(path: Path, columns: list[str], records: list[dict]) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrays = {}
+    for column in columns:
+        values = [r.get(column) for r in records]
+        try:
+            arrays[column] = pa.array(values)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):  # mixed kinds (a number in one run, text in another)
+            arrays[column] = pa.array([None if v is None else str(v) for v in values])
+    pq.write_table(pa.table(arrays), path)
+
+
+def _file_part(key: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", key)
+
+
+def plot_against(path: Path, key: str, varied_keys: list[str], records: list[dict], names: list[str]) -> None:
+    """Each named scalar against `key`, a line per combination of the other varied keys' values
+    (failed runs left out). Values that are not numbers are placed in order, labelled."""
+    from ..io.plots import _new_figure, _save
+
+    names = [n for n in names if any(_number(r.get(n)) is not None for r in records)]
+    if not names:
+        return
+    others = [k for k in varied_keys if k != key]
+    numeric = all(_number(r[key]) is not None for r in records)
+    labels = [] if numeric else list(dict.fromkeys(str(r[key]) for r in records))
+
+    def x_of(value):
+        return float(value) if numeric else labels.index(str(value))
+
+    fig = _new_figure(figsize=(5.0, 2.6 * len(names)))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    groups: dict[tuple, list[dict]] = {}
+    for r in records:
+        groups.setdefault(tuple(str(r[k]) for k in others), []).append(r)
+    for ax, name in zip(axes, names):
+        for group, members in groups.items():
+            points = sorted((x_of(r[key]), _number(r.get(name))) for r in members if _number(r.get(name)) is not None)
+            if points:
+                label = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in zip(others, group)) or None
+                ax.plot([p[0] for p in points], [p[1] for p in points], "o-", label=label)
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+        if others and ax is axes[0]:
+            ax.legend(fontsize=7)
+    if labels:
+        axes[-1].set_xticks(range(len(labels)), labels, rotation=30, fontsize=7)
+    axes[-1].set_xlabel(key)
+    _save(fig, path)
+
+
+def _number(value) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value)
