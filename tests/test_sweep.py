@@ -1,17 +1,22 @@
-"""crackle sweep: the plan (product, zip, values), runs on a local Dask cluster of 2 workers equal
-to the same runs made one by one, resuming an interrupted sweep, and bad input."""
+"""crackle sweep and calibrate: the plan (product, zip, values), runs on a local Dask cluster of 2
+workers equal to the same runs made one by one, resuming an interrupted sweep, the curve distance
+and a calibration that recovers its own curve's strength, and bad input."""
 
 from __future__ import annotations
 
 import csv
 import json
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
 from crackle.cli import main
+from crackle.io import read_history_csv
+from crackle.io.plots import tool_curves
 from crackle.scenario import ScenarioError
 from crackle.sweep import list_sweeps, make_plan
+from crackle.sweep.calibrate import curve_distance, quadratic_minimum, read_target
 from crackle.sweep.plan import parse_vary
 from crackle.sweep.runner import check_runs
 from crackle.sweep.table import summary_scalars
@@ -134,3 +139,83 @@ def test_a_folder_holding_another_sweep_is_refused(tmp_path, capsys):
     (out / "sweep.json").write_text(json.dumps({"scenario": "single-fracture"}))
     assert main(["sweep", *SHORT, "--vary", "material.interface.tensile_strength=3e6", "--out", str(out)]) == 2
     assert "holds another sweep" in capsys.readouterr().err
+
+
+# The bonded-particle Brazilian disc, coarse and fast (574 particles, ~1.5 s a run): its peak
+# force grows with the bonds' tensile strength t (2.76 / 3.56 / 4.02 kN at t = 3 / 4 / 4.5 MPa).
+DEM_DISC = ["--quick", "--set", "packing.mean_radius=1.6e-3", "--set", "run.end_time=4e-4", "--set", "run.field_frames=0"] + [
+    f"--set=tools.{tool}.{key}={value}" for tool in ("top", "bottom") for key, value in (("speed", 0.2), ("ramp_time", 5e-5))
+]
+
+
+def test_curve_distance_of_a_scaled_and_a_shifted_curve():
+    """F_run = 1.1 F: distance = 0.1 x rms(F) / max(F) (closed form, 1e-12); the run's curve read
+    between its points linearly and past its end at its last force."""
+    u = np.linspace(0.0, 1e-3, 11)
+    f = 1e3 * np.sin(np.pi * u / 1e-3) + 10.0
+    assert curve_distance(u, f, u, 1.1 * f) == pytest.approx(0.1 * np.sqrt(np.mean(f**2)) / f.max(), rel=1e-12)
+    assert curve_distance(u, f, u, f) == 0.0
+    short = u <= 5e-4  # the run stops half-way at its peak force f(5e-4)
+    expected = np.where(short, 0.0, f[5] - f)
+    assert curve_distance(u, f, u[short], f[short]) == pytest.approx(np.sqrt(np.mean(expected**2)) / f.max(), rel=1e-12)
+
+
+def test_quadratic_minimum_of_noisy_squared_distances():
+    """Distances |x - 3| / 4 (x in MPa) with +-10 % noise at 40 points in [1, 6]: the fitted
+    quadratic's minimum within 2 % of 3; a linear trend (no minimum) gives None."""
+    rng = np.random.default_rng(1)
+    x = rng.uniform(1e6, 6e6, 40)
+    d = np.abs(x - 3e6) / 4e6 * (1.0 + 0.1 * rng.uniform(-1.0, 1.0, 40))
+    best = quadratic_minimum(x[:, None], d, np.array([[1e6, 6e6]]))
+    assert best[0] == pytest.approx(3e6, rel=0.02)
+    assert quadratic_minimum(x[:, None], x / 6e6, np.array([[1e6, 6e6]])) is None
+
+
+def test_calibration_recovers_the_tensile_strength_of_its_own_curve(tmp_path):
+    """The disc's top-platen curve made with t = 3 MPa is the target; from t = 2 MPa within
+    [1, 6] MPa, 5 candidates a generation for 6 generations on 2 workers: t within 2 % of 3 MPa."""
+    made = tmp_path / "made"
+    assert main(["run", "dem-brazilian", *DEM_DISC, "--set", "material.tensile_strength=3e6", "--out", str(made)]) == 0
+    u, f, _ = tool_curves(read_history_csv(made / "history.csv"))["top"]
+    target = tmp_path / "measured.csv"
+    target.write_text("displacement,force\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(u.tolist(), f.tolist())))
+    out = tmp_path / "cal"
+    assert main(["calibrate", "dem-brazilian", *DEM_DISC, "--target", str(target), "--tool", "top",
+                 "--fit", "material.tensile_strength=1e6:6e6", "--start", "material.tensile_strength=2e6",
+                 "--population", "5", "--generations", "6", "--workers", "2", "--out", str(out)]) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["fitted"]["material.tensile_strength"] == pytest.approx(3e6, rel=0.02)
+    assert record["start"] == {"material.tensile_strength": 2e6}
+    with open(out / "calibration.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert float(rows[0]["material.tensile_strength"]) == 2e6 and len(rows) == record["runs"]
+    assert record["distance"] < float(rows[0]["distance"])  # closer than the start
+    assert (out / "calibration.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--fit", "material.tensile_strength=6e6:1e6"], "lo < hi"),
+        (["--fit", "material.tensile_strength=1e6:6e6", "--start", "material.tensile_strength=9e6"], "within its --fit range"),
+        (["--fit", "material.tensile_strength=1e6:6e6", "--start", "material.cohesion=9e6"], "not a fitted key"),
+        (["--fit", "material.tensile_strength=-1:6e6"], "tensile_strength"),  # a bound the scenario refuses
+    ],
+)
+def test_bad_calibration_input_exits_2(tmp_path, capsys, args, message):
+    target = tmp_path / "t.csv"
+    target.write_text("displacement,force\n0,0\n1e-4,100\n2e-4,150\n")
+    assert main(["calibrate", "dem-brazilian", "--quick", "--target", str(target), *args, "--out", str(tmp_path / "c")]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [("", "empty"), ("a,b,c\n1,2,3\n", "name the columns"), ("displacement,force\n0,0\n1,x\n2,3\n", "a number"),
+     ("displacement,force\n0,0\n2,1\n1,3\n", "must not decrease"), ("displacement,force\n0,0\n1,1\n", "at least 3")],
+)
+def test_a_bad_target_curve_is_refused(tmp_path, text, message):
+    path = tmp_path / "t.csv"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=message):
+        read_target(path)

@@ -1,4 +1,4 @@
-"""Command line: crackle run | sweep | examples | keys | fpz."""
+"""Command line: crackle run | sweep | calibrate | examples | keys | fpz."""
 
 from __future__ import annotations
 
@@ -64,6 +64,31 @@ def _cmd_sweep(args) -> int:
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
     print(f"  table in {result.out_dir / 'sweep.csv'} (and sweep.parquet), plots in {result.out_dir / 'plots'}")
     return 0 if all(s in ("completed", "stopped") for s in statuses) else 1
+
+
+def _cmd_calibrate(args) -> int:
+    from .scenario import ScenarioError
+    from .sweep.calibrate import calibrate
+
+    for name in ("workers", "threads_per_run", "population", "generations"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            print(f"crackle: error: --{name.replace('_', '-')} must be at least 1", file=sys.stderr)
+            return 2
+    try:
+        result = calibrate(
+            args.scenario, args.target, args.fit, args.start, args.set, args.quick, args.tool,
+            args.out or f"crackle-out/calibrate-{Path(args.scenario).stem}", args.population, args.generations,
+            args.tol, args.seed, args.scheduler, args.workers, args.threads_per_run,
+            report=lambda text: print(text, flush=True),
+        )
+    except ScenarioError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return 2
+    values = ", ".join(f"{key} = {value:.6g}" for key, value in result.fitted.items())
+    print(f"calibrate: {values}; distance {result.distance:.4g} after {result.runs} runs")
+    print(f"  calibration.json, calibration.csv, calibration.png in {result.out_dir}; best run in {result.best_folder}")
+    return 0
 
 
 def _cmd_examples(args) -> int:
@@ -139,6 +164,30 @@ def main(argv=None) -> int:
     p.add_argument("--plot", action="append", default=[], metavar="SCALAR",
                    help="a summary scalar to plot against each varied key, beside peak_force, broken, energy_error")
     p.set_defaults(func=_cmd_sweep)
+    p = sub.add_parser("calibrate", help="fit scenario values to a measured load-displacement curve (runs on Dask)",
+                       description="Fit the --fit keys within their bounds so that a tool's load-displacement "
+                       "curve matches --target (scipy's differential evolution, each generation's runs in "
+                       "parallel on Dask). Distance: RMS force difference at the target's displacements over "
+                       "its largest force.")
+    p.add_argument("scenario", help="a .toml scenario or the name of a shipped example")
+    p.add_argument("--target", required=True, help="CSV with columns displacement (m) and force (N)")
+    p.add_argument("--fit", action="append", default=[], metavar="KEY=LO:HI", required=True,
+                   help="a key to fit and its bounds, e.g. --fit material.interface.tensile_strength=1e6:6e6")
+    p.add_argument("--start", action="append", default=[], metavar="KEY=VALUE",
+                   help="a fitted key's start value (default: the middle of its bounds)")
+    p.add_argument("--tool", help="the tool whose curve is fitted (default: the first in the history)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an override every run gets")
+    p.add_argument("--quick", action="store_true", help="every run in its example's quick form")
+    p.add_argument("--population", type=int, default=8, help="candidates per generation and fitted key (default 8)")
+    p.add_argument("--generations", type=int, default=20, help="at most this many generations (default 20)")
+    p.add_argument("--tol", type=float, default=0.01, help="stop when the population's distances agree to this "
+                   "fraction of their mean (default 0.01)")
+    p.add_argument("--seed", type=int, default=0, help="the search's random seed (default 0)")
+    p.add_argument("--out", help="output folder (default crackle-out/calibrate-NAME)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, help="local workers (default: one per core)")
+    p.add_argument("--threads-per-run", type=int, help="numba threads per run")
+    p.set_defaults(func=_cmd_calibrate)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)
     p = sub.add_parser("keys", help="every scenario key: unit, default, range (docs/keys.md)")

@@ -73,23 +73,32 @@ def _magnitude(cols: dict, prefix: str, components: tuple[str, ...]) -> np.ndarr
     return np.sqrt(sum(p**2 for p in parts))
 
 
-def plot_load_displacement(history, path) -> Path:
-    """Force magnitude (kN) against displacement magnitude (mm), one curve per tool. A tool that
-    never moves (a support plate) is drawn against the travel of the moving tools (the largest
-    of their displacements), where its reaction belongs, not as a vertical line at 0."""
+def tool_curves(history) -> dict[str, tuple[np.ndarray, np.ndarray, bool]]:
+    """Each tool's (displacement magnitude, force magnitude, fixed) over the history. A tool that
+    never moves (a support plate) gets the travel of the moving tools (the largest of their
+    displacements), where its reaction belongs."""
     cols = _columns(history)
-    fig = _new_figure(figsize=(6, 4.5))
-    ax = fig.add_subplot()
     tools = tool_names(cols)
     disp = {tool: _magnitude(cols, f"tool.{tool}.", ("ux", "uy", "uz")) for tool in tools}
     moving = [d for d in disp.values() if np.any(d != 0.0)]
     travel = np.max(moving, axis=0) if moving else None
+    out = {}
     for tool in tools:
         force = _magnitude(cols, f"tool.{tool}.", ("fx", "fy", "fz"))
-        if travel is not None and not np.any(disp[tool] != 0.0):
-            ax.plot(travel * 1e3, force * 1e-3, "--", label=f"{tool} (fixed)")
-        else:
-            ax.plot(disp[tool] * 1e3, force * 1e-3, label=tool)
+        fixed = travel is not None and not np.any(disp[tool] != 0.0)
+        out[tool] = (travel if fixed else disp[tool], force, fixed)
+    return out
+
+
+def plot_load_displacement(history, path) -> Path:
+    """Force magnitude (kN) against displacement magnitude (mm), one curve per tool (tool_curves:
+    a fixed tool against the moving tools' travel, dashed)."""
+    fig = _new_figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    curves = tool_curves(history)
+    for tool, (disp, force, fixed) in curves.items():
+        ax.plot(disp * 1e3, force * 1e-3, "--" if fixed else "-", label=f"{tool} (fixed)" if fixed else tool)
+    tools = list(curves)
     if tools:
         ax.legend(title="tool")
     else:

@@ -7,6 +7,7 @@ a row with its status and message; the others go on."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -121,29 +122,42 @@ def _claim_folder(out: Path, plan: SweepPlan) -> None:
     manifest.write_text(json.dumps(record, indent=2) + "\n")
 
 
-def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -> dict[int, dict]:
+@contextlib.contextmanager
+def dask_client(scheduler: str | None, workers: int | None, threads_per_run: int | None, n_runs: int, report):
+    """A Dask client and the numba threads per run: a local cluster of `workers` processes (default
+    one per core, at most one per run) sharing the cores, or the scheduler at its address."""
     try:
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, LocalCluster
     except ImportError:
-        raise ScenarioError("crackle sweep needs Dask: pip install 'crackle[sweep]'") from None
+        raise ScenarioError("crackle sweep and calibrate need Dask: pip install 'crackle[sweep]'") from None
     cores = os.cpu_count() or 1
     if scheduler is None:
-        workers = workers or max(1, min(len(todo), cores // (threads_per_run or 1)))
+        workers = workers or max(1, min(n_runs, cores // (threads_per_run or 1)))
         threads = threads_per_run or max(1, cores // workers)
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
+        where = f"a local cluster of {workers} workers"
     else:
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError) as err:
             raise ScenarioError(f"--scheduler {scheduler}: cannot reach it ({err}); start dask-scheduler there "
                                 "or give its address as tcp://HOST:PORT") from None
-        cluster = None
-        threads = threads_per_run or 1
-    report(f"  on {'a local cluster of ' + str(workers) + ' workers' if cluster else scheduler}, "
-           f"{threads} numba thread(s) per run")
-    outcome = {}
+        cluster, threads, where = None, threads_per_run or 1, scheduler
+    report(f"  on {where}, {threads} numba thread(s) per run")
     try:
+        yield client, threads
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -> dict[int, dict]:
+    from distributed import as_completed
+
+    outcome = {}
+    with dask_client(scheduler, workers, threads_per_run, len(todo), report) as (client, threads):
         futures = {
             client.submit(run_one, plan.scenario, str((out / r.folder).resolve()), {**plan.fixed, **r.varied},
                           plan.quick, threads, pure=False, key=f"crackle-{r.folder}-{time.time_ns()}"): r
@@ -157,10 +171,6 @@ def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -
                 except Exception as err:  # noqa: BLE001 - the worker died (memory, a crash): this run's row
                     outcome[run.index] = {"status": "failed", "message": f"{type(err).__name__}: {err}"}
                 progress.advance(f"{run.folder}: {outcome[run.index]['status']}")
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
     return outcome
 
 
