@@ -48,14 +48,15 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     return sim, control
 
 
-def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick: bool = False, progress=None,
-                 resume=None, report=None) -> RunResult:
+def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None, quick: bool = False, progress=None,
+                 resume=None, report=None, plots: bool = True) -> RunResult:
     """Validate, build and run a scenario file or shipped example; returns the result.
 
     `resume`: the output folder of an earlier run of the same scenario (same file, --quick and
     --set, except the end time and what is written); continues it from its checkpoint to this
     scenario's run.end_time, in that folder. `report` (a callable taking a line of text) gets the
-    set-up lines, advice and cost estimate before the first step (nothing when None)."""
+    set-up lines, advice and cost estimate before the first step (nothing when None). `plots`:
+    False leaves out plots/ (a calibration's candidates: seconds each)."""
     scenario, base = load_scenario(source, overrides, quick)
     record = scenario.model_dump(mode="json")
     if resume is not None:
@@ -85,6 +86,7 @@ def run_scenario(source, out_dir=None, overrides: list[str] | None = None, quick
         sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress
+    control.plots = plots
     if report is not None:
         control.report = report
     return run(sim, control, out, scenario_name=scenario.name, scenario=record, resume=checkpoint)

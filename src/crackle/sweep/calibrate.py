@@ -135,7 +135,7 @@ def evaluate(scenario: str, folder: str, overrides: dict, quick: bool, threads: 
     from ..io import read_history_csv
     from ..io.plots import tool_curves
 
-    outcome = run_one(scenario, folder, overrides, quick, threads)
+    outcome = run_one(scenario, folder, overrides, quick, threads, plots=False)
     if outcome["status"] not in ("completed", "stopped"):
         return {**outcome, "distance": FAILED_DISTANCE}
     curves = tool_curves(read_history_csv(Path(folder) / "history.csv"))

@@ -31,9 +31,10 @@ class SweepResult:
     ran: int  # runs made by this call (the rest were finished before)
 
 
-def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int) -> dict:
-    """One run, on a worker: `crackle run` with these overrides, `threads` numba threads.
-    Returns {"status", "message"}; never raises, so one run's failure stays its own."""
+def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, plots: bool = True) -> dict:
+    """One run, on a worker: `crackle run` with these overrides, `threads` numba threads (and
+    its plots unless `plots` is False). Returns {"status", "message"}; never raises, so one run's
+    failure stays its own."""
     import numba
 
     from ..api import run_scenario
@@ -41,7 +42,7 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
-        result = run_scenario(scenario, folder, overrides, quick, progress=False)
+        result = run_scenario(scenario, folder, overrides, quick, progress=False, plots=plots)
     except ScenarioError as err:
         return {"status": "invalid", "message": str(err)}
     except UnstableRunError as err:
