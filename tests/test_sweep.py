@@ -131,6 +131,8 @@ def test_a_value_one_run_refuses_is_its_row_and_the_others_run(tmp_path, capsys)
 def test_bad_sweep_input_exits_2_with_a_message(tmp_path, capsys, args, message):
     assert main(["sweep", "three-point-bending", "--quick", *args, "--out", str(tmp_path / "s")]) == 2
     assert message in capsys.readouterr().err
+    if "--scheduler" not in args:
+        assert not (tmp_path / "s").exists()  # nothing written
 
 
 def test_a_folder_holding_another_sweep_is_refused(tmp_path, capsys):

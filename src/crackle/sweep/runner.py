@@ -81,10 +81,13 @@ def check_runs(plan: SweepPlan, runs: list[SweepRun]) -> dict[int, str]:
 def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None, workers: int | None = None,
               threads_per_run: int | None = None, plots: list[str] = (), report=print) -> SweepResult:
     """Run the plan's runs not finished yet in out_dir, then write the table and the plots."""
+    from ..api import check_output_folder
+
     out = Path(out_dir)
     runs = plan.runs()
+    check_output_folder(out)
+    refused = check_runs(plan, runs)  # before anything is written
     _claim_folder(out, plan)
-    refused = check_runs(plan, runs)
     todo = [r for r in runs if r.index not in refused and finished_summary(out / r.folder) is None]
     report(f"sweep of {len(runs)} runs in {out}: {len(runs) - len(todo) - len(refused)} finished before, "
            f"{len(refused)} refused, {len(todo)} to run")
