@@ -175,7 +175,8 @@ def test_quadratic_minimum_of_noisy_squared_distances():
 
 def test_calibration_recovers_the_tensile_strength_of_its_own_curve(tmp_path):
     """The disc's top-platen curve made with t = 3 MPa is the target; from t = 2 MPa within
-    [1, 6] MPa, 5 candidates a generation for 6 generations on 2 workers: t within 2 % of 3 MPa."""
+    [1, 6] MPa, 5 candidates a generation for 4 generations on 2 workers (26 runs with the
+    quadratic fit's): t within 2 % of 3 MPa (measured 2.987 MPa)."""
     made = tmp_path / "made"
     assert main(["run", "dem-brazilian", *DEM_DISC, "--set", "material.tensile_strength=3e6", "--out", str(made)]) == 0
     u, f, _ = tool_curves(read_history_csv(made / "history.csv"))["top"]
@@ -184,7 +185,7 @@ def test_calibration_recovers_the_tensile_strength_of_its_own_curve(tmp_path):
     out = tmp_path / "cal"
     assert main(["calibrate", "dem-brazilian", *DEM_DISC, "--target", str(target), "--tool", "top",
                  "--fit", "material.tensile_strength=1e6:6e6", "--start", "material.tensile_strength=2e6",
-                 "--population", "5", "--generations", "6", "--workers", "2", "--out", str(out)]) == 0
+                 "--population", "5", "--generations", "4", "--workers", "2", "--out", str(out)]) == 0
     record = json.loads((out / "calibration.json").read_text())
     assert record["fitted"]["material.tensile_strength"] == pytest.approx(3e6, rel=0.02)
     assert record["start"] == {"material.tensile_strength": 2e6}
