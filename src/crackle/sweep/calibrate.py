@@ -195,7 +195,13 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
                 candidates.append({"candidate": first + k, **values, "folder": folder})
                 futures.append(client.submit(evaluate, scenario, folder, {**fixed_overrides, **values}, quick, threads,
                                              tool, target_u, target_f, pure=False))
-            results = client.gather(futures)
+            results = []
+            for future in futures:
+                try:
+                    results.append(future.result())
+                except Exception as err:  # noqa: BLE001 - the worker died (memory, a crash): a failed candidate
+                    results.append({"status": "failed", "message": f"{type(err).__name__}: {err}",
+                                    "distance": FAILED_DISTANCE})
             for k, result in enumerate(results):
                 candidates[first + k].update(distance=result["distance"], status=result["status"],
                                              message=result.get("message", ""))
