@@ -1,11 +1,16 @@
 """crackle sweep and calibrate: the plan (product, zip, values), runs on a local Dask cluster of 2
-workers equal to the same runs made one by one, resuming an interrupted sweep, the curve distance
+workers equal to the same runs made one by one, a killed sweep finished by a rerun, the curve distance
 and a calibration that recovers its own curve's strength, and bad input."""
 
 from __future__ import annotations
 
 import csv
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -18,7 +23,7 @@ from crackle.scenario import ScenarioError
 from crackle.sweep import list_sweeps, make_plan
 from crackle.sweep.calibrate import curve_distance, quadratic_minimum, read_target
 from crackle.sweep.plan import parse_vary
-from crackle.sweep.runner import check_runs
+from crackle.sweep.runner import check_runs, finished_summary
 from crackle.sweep.table import summary_scalars
 
 pytestmark = pytest.mark.filterwarnings("ignore:element size")
@@ -70,11 +75,10 @@ def test_every_shipped_sweep_is_a_valid_family_of_scenarios():
     assert sizes == {"brazilian-angles": 4, "walnut-layouts": 4, "mesh-ladder": 3}
 
 
-def test_sweep_on_two_workers_equals_the_runs_one_by_one_and_resumes(tmp_path):
+def test_sweep_on_two_workers_equals_the_runs_one_by_one(tmp_path):
     """A 2 x 2 sweep on a local cluster of 2 workers: 4 run folders whose histories are
     byte-identical to the same runs made one by one with `crackle run`, and a table whose rows
-    are their summaries. Then 2 runs are made unfinished (one folder's summary gone, one marked
-    interrupted): a rerun makes those 2 only and leaves the others' files as they were."""
+    are their summaries."""
     out = tmp_path / "sweep"
     vary = ["--vary", "material.interface.tensile_strength=2e6,3e6", "--vary", "tools.top.speed=0.5,1.0"]
     assert main(["sweep", *SHORT, *vary, "--workers", "2", "--out", str(out)]) == 0
@@ -97,15 +101,6 @@ def test_sweep_on_two_workers_equals_the_runs_one_by_one_and_resumes(tmp_path):
                 assert float(row[key]) == value and prow[key] == value  # csv keeps repr's 17 digits
     for key in ("material.interface.tensile_strength", "tools.top.speed"):
         assert (out / "plots" / f"sweep_{key}.png").stat().st_size > 0
-
-    kept = {f: (out / f / "history.csv").stat().st_mtime_ns for f in folders}
-    (out / folders[1] / "summary.json").unlink()
-    interrupted = json.loads((out / folders[2] / "summary.json").read_text())
-    (out / folders[2] / "summary.json").write_text(json.dumps({**interrupted, "status": "interrupted"}))
-    assert main(["sweep", *SHORT, *vary, "--workers", "2", "--out", str(out)]) == 0
-    again = {f: (out / f / "history.csv").stat().st_mtime_ns for f in folders}
-    assert [f for f in folders if again[f] != kept[f]] == [folders[1], folders[2]]
-    assert (out / folders[1] / "history.csv").read_bytes() == (tmp_path / f"alone-{folders[1]}" / "history.csv").read_bytes()
 
 
 def test_a_value_one_run_refuses_is_its_row_and_the_others_run(tmp_path, capsys):
@@ -222,3 +217,40 @@ def test_a_bad_target_curve_is_refused(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(ScenarioError, match=message):
         read_target(path)
+
+
+def test_a_run_is_finished_when_its_summary_says_completed_stopped_or_unstable(tmp_path):
+    for status, finished in (("completed", True), ("stopped", True), ("unstable", True), ("interrupted", False)):
+        (tmp_path / "summary.json").write_text(json.dumps({"status": status}))
+        assert (finished_summary(tmp_path) is not None) == finished
+    (tmp_path / "summary.json").write_text("{\"status\": ")  # cut short by a kill
+    assert finished_summary(tmp_path) is None
+
+
+def test_a_killed_sweep_finishes_only_its_missing_runs(tmp_path, capsys):
+    """`crackle sweep` killed (SIGKILL to its process group: client, scheduler and workers) once
+    its first run has finished; the same command again runs exactly the runs without a finished
+    summary and leaves the finished ones' files as they were."""
+    out = tmp_path / "sweep"
+    args = ["sweep", *SHORT, "--vary", "tools.top.speed=0.5,0.6,0.7,0.8,0.9,1.0", "--workers", "1", "--out", str(out)]
+    process = subprocess.Popen([sys.executable, "-m", "crackle.cli", *args], start_new_session=True,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+
+    def finished():
+        return sorted(p.parent.name for p in out.glob("*/summary.json") if finished_summary(p.parent))
+
+    while not finished() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    done = finished()
+    assert 1 <= len(done) < 6
+    kept = {f: (out / f / "history.csv").stat().st_mtime_ns for f in done}
+    assert main(args) == 0
+    assert f"; {6 - len(done)} run now" in capsys.readouterr().out
+    assert sorted(finished()) == sorted(p.name for p in out.iterdir() if p.is_dir() and p.name != "plots")
+    assert len(finished()) == 6
+    assert {f: (out / f / "history.csv").stat().st_mtime_ns for f in done} == kept
+    with open(out / "sweep.csv", newline="") as fh:
+        assert [r["status"] for r in csv.DictReader(fh)] == ["completed"] * 6
