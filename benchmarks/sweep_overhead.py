@@ -35,6 +35,7 @@ def main() -> None:
 
     from crackle.api import run_scenario
     from crackle.sweep import make_plan, run_sweep
+    from crackle.sweep.runner import COMPLETED
 
     speeds = [round(0.1 + 0.01 * i, 4) for i in range(args.runs)]
     fixed = ["run.field_frames=0"] + ([f"run.end_time={args.end_time}"] if args.end_time else [])
@@ -57,7 +58,7 @@ def main() -> None:
         started = time.perf_counter()
         result = run_sweep(plan, work / "sweep", workers=2, threads_per_run=1, report=lambda text: None)
         swept = time.perf_counter() - started
-        assert all(row["status"] in ("completed", "stopped") for row in result.rows), result.rows
+        assert all(row["status"] in COMPLETED for row in result.rows), result.rows
     finally:
         shutil.rmtree(work, ignore_errors=True)
     ideal = alone / 2.0

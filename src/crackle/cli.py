@@ -42,15 +42,23 @@ def _cmd_run(args) -> int:
     return 130 if s["status"] == "interrupted" else 0
 
 
-def _cmd_sweep(args) -> int:
-    from .scenario import ScenarioError
-    from .sweep import make_plan, run_sweep
-
-    for name in ("workers", "threads_per_run"):
+def _counts_at_least_one(args, names) -> bool:
+    """Whether each of the count options given is at least 1 (a message for the first that is not)."""
+    for name in names:
         value = getattr(args, name)
         if value is not None and value < 1:
             print(f"crackle: error: --{name.replace('_', '-')} must be at least 1", file=sys.stderr)
-            return 2
+            return False
+    return True
+
+
+def _cmd_sweep(args) -> int:
+    from .scenario import ScenarioError
+    from .sweep import make_plan, run_sweep
+    from .sweep.runner import COMPLETED
+
+    if not _counts_at_least_one(args, ("workers", "threads_per_run")):
+        return 2
     try:
         plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick)
         out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
@@ -63,18 +71,15 @@ def _cmd_sweep(args) -> int:
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
     print(f"  table in {result.out_dir / 'sweep.csv'} (and sweep.parquet), plots in {result.out_dir / 'plots'}")
-    return 0 if all(s in ("completed", "stopped") for s in statuses) else 1
+    return 0 if all(s in COMPLETED for s in statuses) else 1
 
 
 def _cmd_calibrate(args) -> int:
     from .scenario import ScenarioError
     from .sweep.calibrate import calibrate
 
-    for name in ("workers", "threads_per_run", "population", "generations"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            print(f"crackle: error: --{name.replace('_', '-')} must be at least 1", file=sys.stderr)
-            return 2
+    if not _counts_at_least_one(args, ("workers", "threads_per_run", "population", "generations")):
+        return 2
     try:
         result = calibrate(
             args.scenario, args.target, args.fit, args.start, args.set, args.quick, args.tool,
@@ -87,7 +92,7 @@ def _cmd_calibrate(args) -> int:
         return 2
     values = ", ".join(f"{key} = {value:.6g}" for key, value in result.fitted.items())
     print(f"calibrate: {values}; distance {result.distance:.4g} after {result.runs} runs")
-    print(f"  calibration.json, calibration.csv, calibration.png in {result.out_dir}; best run in {result.best_folder}")
+    print(f"  calibration.json, calibration.csv, calibration.png in {result.out_dir}; fitted run in {result.fitted_folder}")
     return 0
 
 

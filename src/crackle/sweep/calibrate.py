@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from ..scenario import ScenarioError, split_override
-from .runner import dask_client, run_one
+from .plan import absolute_source
+from .runner import COMPLETED, dask_client, outcome_of, run_one
 
 FAILED_DISTANCE = 10.0  # a run that did not finish: far from any curve (a curve's own scale is 1)
 
@@ -41,7 +42,7 @@ class CalibrationResult:
     fitted: dict[str, float]
     distance: float
     runs: int
-    best_folder: Path
+    fitted_folder: Path  # the run of the fitted values
 
 
 def read_target(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -129,22 +130,30 @@ def quadratic_minimum(points: np.ndarray, distances: np.ndarray, bounds: np.ndar
     return lo + best * span
 
 
-def evaluate(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, tool: str | None,
-             target_u, target_f) -> dict:
-    """One candidate on a worker: the run, then its distance to the target curve."""
+def run_curve(folder: str | Path, tool: str | None) -> tuple[np.ndarray, np.ndarray] | str:
+    """A finished run's (displacement, force) of `tool` (default: the first in its history), or
+    the message why there is none."""
     from ..io import read_history_csv
     from ..io.plots import tool_curves
 
-    outcome = run_one(scenario, folder, overrides, quick, threads, plots=False)
-    if outcome["status"] not in ("completed", "stopped"):
-        return {**outcome, "distance": FAILED_DISTANCE}
     curves = tool_curves(read_history_csv(Path(folder) / "history.csv"))
     name = tool or next(iter(curves), None)
     if name not in curves:
-        return {"status": "invalid", "message": f"--tool {name}: no such tool in the history ({', '.join(curves)})",
-                "distance": FAILED_DISTANCE}
+        return f"--tool {name}: no such tool in the history ({', '.join(curves)})"
     u, f, _ = curves[name]
-    return {**outcome, "distance": curve_distance(target_u, target_f, u, f), "tool": name}
+    return u, f
+
+
+def evaluate(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, tool: str | None,
+             target_u, target_f) -> dict:
+    """One candidate on a worker: the run, then its distance to the target curve."""
+    outcome = run_one(scenario, folder, overrides, quick, threads, plots=False)
+    if outcome["status"] not in COMPLETED:
+        return {**outcome, "distance": FAILED_DISTANCE}
+    curve = run_curve(folder, tool)
+    if isinstance(curve, str):
+        return {"status": "invalid", "message": curve, "distance": FAILED_DISTANCE}
+    return {**outcome, "distance": curve_distance(target_u, target_f, *curve)}
 
 
 def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str] = (), fixed: list[str] = (),
@@ -172,9 +181,7 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
     for key in keys:
         if key in fixed_overrides:
             raise ScenarioError(f"{key}: both fitted and set; drop the --set")
-    path = Path(scenario)
-    if path.suffix == ".toml" or path.exists():
-        scenario = str(path.resolve())
+    scenario = absolute_source(scenario)
     # The bounds' ends must make valid scenarios (a refused value would stall the search).
     for corner in (dict(zip(keys, (b[0] for b in bounds.values()))), dict(zip(keys, (b[1] for b in bounds.values())))):
         load_scenario(scenario, {**fixed_overrides, **corner}, quick)
@@ -195,13 +202,7 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
                 candidates.append({"candidate": first + k, **values, "folder": folder})
                 futures.append(client.submit(evaluate, scenario, folder, {**fixed_overrides, **values}, quick, threads,
                                              tool, target_u, target_f, pure=False))
-            results = []
-            for future in futures:
-                try:
-                    results.append(future.result())
-                except Exception as err:  # noqa: BLE001 - the worker died (memory, a crash): a failed candidate
-                    results.append({"status": "failed", "message": f"{type(err).__name__}: {err}",
-                                    "distance": FAILED_DISTANCE})
+            results = [{"distance": FAILED_DISTANCE, **outcome_of(future)} for future in futures]
             for k, result in enumerate(results):
                 candidates[first + k].update(distance=result["distance"], status=result["status"],
                                              message=result.get("message", ""))
@@ -252,21 +253,18 @@ def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, target_u
     _plot_overlay(out / "calibration.png", target_u, target_f, candidates[0], fitted, tool, keys)
 
 
-def _plot_overlay(path, target_u, target_f, start, best, tool, keys) -> None:
-    from ..io import read_history_csv
-    from ..io.plots import _new_figure, _save, tool_curves
+def _plot_overlay(path, target_u, target_f, start, fitted, tool, keys) -> None:
+    from ..io.plots import _new_figure, _save
 
     fig = _new_figure(figsize=(6, 4.5))
     ax = fig.add_subplot()
     ax.plot(np.asarray(target_u) * 1e3, np.asarray(target_f) * 1e-3, "k.", label="target")
-    for label, candidate, style in (("start", start, "--"), ("fitted", best, "-")):
-        history = Path(candidate["folder"]) / "history.csv"
-        if candidate.get("status") not in ("completed", "stopped") or not history.is_file():
+    for label, candidate, style in (("start", start, "--"), ("fitted", fitted, "-")):
+        if candidate.get("status") not in COMPLETED:
             continue
-        curves = tool_curves(read_history_csv(history))
-        name = tool or next(iter(curves), None)
-        if name in curves:
-            u, f, _ = curves[name]
+        curve = run_curve(candidate["folder"], tool)
+        if not isinstance(curve, str):
+            u, f = curve
             values = ", ".join(f"{k.split('.')[-1]}={candidate[k]:.4g}" for k in keys)
             ax.plot(u * 1e3, f * 1e-3, style, label=f"{label}: {values} (distance {candidate['distance']:.3g})")
     ax.set_xlabel("displacement [mm]")

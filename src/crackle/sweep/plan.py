@@ -182,7 +182,11 @@ def make_plan(source: str, vary_texts: list[str], set_texts: list[str], zip_: bo
         if len(set(lengths.values())) > 1:
             listed = ", ".join(f"{k} ({n})" for k, n in lengths.items())
             raise ScenarioError(f"--zip: every varied key needs as many values; got {listed}")
+    return SweepPlan(absolute_source(scenario), vary, zip_, fixed, quick)
+
+
+def absolute_source(scenario: str) -> str:
+    """A scenario file as an absolute path (the workers may run in another folder); an example's
+    name as it is."""
     path = Path(scenario)
-    if path.suffix == ".toml" or path.exists():
-        scenario = str(path.resolve())  # the workers may run elsewhere than here
-    return SweepPlan(scenario, vary, zip_, fixed, quick)
+    return str(path.resolve()) if path.suffix == ".toml" or path.exists() else scenario

@@ -11,7 +11,6 @@ import contextlib
 import json
 import os
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from .table import write_table
 MANIFEST = "sweep.json"
 # A run folder whose summary has one of these is finished (interrupted runs are run again).
 FINISHED = ("completed", "stopped", "unstable")
+COMPLETED = ("completed", "stopped")  # finished with results to use
 
 
 @dataclass
@@ -50,6 +50,14 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
     except Exception as err:  # noqa: BLE001 - any error is this run's row, not the sweep's end
         return {"status": "failed", "message": f"{type(err).__name__}: {err}"}
     return {"status": result.summary["status"], "message": result.summary.get("message", "")}
+
+
+def outcome_of(future) -> dict:
+    """A task's {"status", "message"}, or a failed one when its worker died (memory, a crash)."""
+    try:
+        return future.result()
+    except Exception as err:  # noqa: BLE001 - one task's end, not the sweep's
+        return {"status": "failed", "message": f"{type(err).__name__}: {err}"}
 
 
 def finished_summary(folder: Path) -> dict | None:
@@ -164,16 +172,13 @@ def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -
     with dask_client(scheduler, workers, threads_per_run, len(todo), report) as (client, threads):
         futures = {
             client.submit(run_one, plan.scenario, str((out / r.folder).resolve()), {**plan.fixed, **r.varied},
-                          plan.quick, threads, pure=False, key=f"crackle-{r.folder}-{time.time_ns()}"): r
+                          plan.quick, threads, pure=False): r
             for r in todo
         }
         with _RunsProgress(len(todo)) as progress:
             for future in as_completed(futures):
                 run = futures[future]
-                try:
-                    outcome[run.index] = future.result()
-                except Exception as err:  # noqa: BLE001 - the worker died (memory, a crash): this run's row
-                    outcome[run.index] = {"status": "failed", "message": f"{type(err).__name__}: {err}"}
+                outcome[run.index] = outcome_of(future)
                 progress.advance(f"{run.folder}: {outcome[run.index]['status']}")
     return outcome
 
