@@ -14,8 +14,7 @@ import pytest
 from crackle.cli import main
 from crackle.io import read_history_csv
 from crackle.meshfree import build_simulation
-from crackle.meshfree.build import (STEP_MARGIN, build_meshfree_simulation, gershgorin_frequency2,
-                                    highest_frequency2)
+from crackle.meshfree.build import build_meshfree_simulation, gershgorin_frequency2, highest_frequency2
 from crackle.meshfree.fracture import FRACTURE_CHECK
 from crackle.meshfree.material import J2Law, ThermoLaw, material_point
 from crackle.meshfree.particles import plate_particles
@@ -24,6 +23,7 @@ from crackle.scenario import load_scenario
 from crackle.solver import RunControl, UnstableRunError
 from crackle.solver import run as run_simulation
 from crackle.solver.energy import energy_error, relative_imbalance
+from crackle.solver.stability import STEP_MARGIN
 from meshfree_fields import LINEAR_A, LINEAR_B, approximated, gradient
 from threads import outputs_with_1_and_2_threads
 

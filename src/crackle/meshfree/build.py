@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import eigh_tridiagonal
 from scipy.spatial import cKDTree
 
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
+from ..solver import stability
 from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
@@ -163,81 +163,32 @@ def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
     return Pressures(start, np.ascontiguousarray(area[order]), which[order], delay[order], times, values, counts)
 
 
-# The step is STEP_MARGIN x 2 / omega. Lanczos approaches omega_max from below; the value used,
-# Ritz value + residual bound (an eigenvalue lies within the bound of the Ritz value), is above
-# omega_max^2 once the top Ritz value has converged to it (measured +0.7 %). The margin covers a
-# start vector poor in the top mode and the geometric stiffness that the linearisation about the
-# unstressed state leaves out (~stress / E, 1e-3 for a metal).
-STEP_MARGIN = 0.95
-# The iteration ends when the residual bound is LANCZOS_TOLERANCE of the Ritz value, after at
-# least LANCZOS_MIN_ITERATIONS: a small residual alone can come early, before the top mode has
-# entered the Krylov space (measured: at 1 % after 8 iterations, a Ritz value 11 % low).
-LANCZOS_TOLERANCE = 1e-3
-LANCZOS_MIN_ITERATIONS = 20
-LANCZOS_ITERATIONS = 150  # at most
-LANCZOS_SEED = 0  # the start vector: seeded normal numbers (every mode present, fixed)
-# Displacement of the finite difference of the forces (central: the quadratic term of St.
-# Venant-Kirchhoff cancels; the cubic one is ~ this squared), relative to the smallest spacing.
-_PROBE = 1e-4
-
-
 def stable_step(particles, links, row, law_table, tool_k, spacing) -> tuple[float, float]:
     """STEP_MARGIN x 2 / omega_max, omega_max^2 the largest eigenvalue of M^-1 K of the
     linearised step estimated by Lanczos (highest_frequency2), and its ratio to Gershgorin's
     bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds.
     row: as gershgorin_frequency2."""
     omega2, _, _ = highest_frequency2(particles, links, law_table, tool_k, spacing)
-    return STEP_MARGIN * 2.0 / math.sqrt(omega2), omega2 / gershgorin_frequency2(particles, links, row, law_table,
-                                                                               tool_k)
+    ratio = omega2 / gershgorin_frequency2(particles, links, row, law_table, tool_k)
+    return stability.STEP_MARGIN * 2.0 / math.sqrt(omega2), ratio
 
 
 def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[float, float, int]:
-    """omega_max^2 (1/s^2) of the linearised step about the reference state, by Lanczos on
-    M^-1/2 K M^-1/2 (no reorthogonalisation: that makes ghost copies, never larger values):
-    K v is the central difference of the step's own internal forces (kernels.internal_forces,
-    elastic: plasticity only softens) about X, plus the tool penalties tool_k (N/m, per
-    particle) on every particle, the worst case of any contact set (adding a positive
-    semi-definite diagonal only raises eigenvalues). Supports are left out: a constraint only
-    lowers omega_max (interlacing). Returns (the largest Ritz value + its residual bound, that
-    residual bound, iterations). Deterministic: a seeded start vector, numpy's pairwise sums and
-    the kernels' thread-independent gathers."""
+    """omega_max^2 (1/s^2) of the linearised step about the reference state
+    (solver.stability.highest_frequency2 on kernels.internal_forces, elastic: plasticity only
+    softens), with the tool penalties tool_k (N/m, per particle) on every particle."""
     n = len(particles.mass)
     law = law_table.copy()
     law[YIELD] = math.inf
     p = particles._replace(x=particles.X.copy(), plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n),
                            w_plastic=np.zeros(n), stress=np.zeros((n, 6)), deformation=np.zeros((n, 9)),
                            internal=np.zeros((n, 9)), stab_force=np.zeros((n, 3)), thermal=particles.thermal.copy())
-    inv_sqrt_m = (1.0 / np.sqrt(particles.mass))[:, None]
-    diagonal = (tool_k / particles.mass)[:, None]
-    plus, minus = np.zeros((n, 3)), np.zeros((n, 3))
 
-    def apply(q):
-        u = q * inv_sqrt_m
-        s = _PROBE * spacing / np.max(np.abs(u))
-        np.add(particles.X, s * u, out=p.x)
-        internal_forces(0.0, p, links, law, plus)
-        np.subtract(particles.X, s * u, out=p.x)
-        internal_forces(0.0, p, links, law, minus)
-        return (minus - plus) / (2.0 * s) * inv_sqrt_m + diagonal * q
+    def forces(x, out):
+        p.x[:] = x
+        internal_forces(0.0, p, links, law, out)
 
-    q = np.random.default_rng(LANCZOS_SEED).standard_normal((n, 3))
-    q /= math.sqrt(np.sum(q * q))
-    q_prev = np.zeros_like(q)
-    alphas, betas = [], []
-    beta = 0.0
-    for k in range(LANCZOS_ITERATIONS):
-        w = apply(q)
-        a = float(np.sum(q * w))
-        w -= a * q + beta * q_prev
-        alphas.append(a)
-        beta = math.sqrt(np.sum(w * w))
-        values, vectors = eigh_tridiagonal(np.array(alphas), np.array(betas))
-        theta, residual = float(values[-1]), beta * abs(float(vectors[-1, -1]))
-        if (k + 1 >= LANCZOS_MIN_ITERATIONS and residual <= LANCZOS_TOLERANCE * theta) or beta == 0.0:
-            break
-        betas.append(beta)
-        q_prev, q = q, w / beta
-    return theta + residual, residual, k + 1
+    return stability.highest_frequency2(particles.X, particles.mass, forces, spacing, tool_k)
 
 
 def gershgorin_frequency2(particles, links, row, law_table, tool_k) -> float:

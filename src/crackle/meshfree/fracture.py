@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..solver.stability import STEP_MARGIN
 from .kernels import stabilisation_stiffness
 from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, nodal_values
@@ -259,7 +260,7 @@ class LinkBreaking:
         a Lanczos run per rebuild would cost ~100 force passes."""
         if self._step_warned or self.detached.all():
             return
-        from .build import STEP_MARGIN, gershgorin_frequency2  # build imports this module
+        from .build import gershgorin_frequency2  # build imports this module
 
         links = sim.links
         omega2 = self.step_ratio * gershgorin_frequency2(sim.particles, links, self.row, sim.law, self.tool_k)
