@@ -1,0 +1,1 @@
+"""Kirchhoff-Love shells on triangulated mid-surfaces with J-integral fracture mechanics (paper 002)."""

@@ -1,0 +1,333 @@
+"""The compiled step of the Kirchhoff-Love shell on triangles.
+
+Membrane: constant-strain triangles, Green-Lagrange strain from the deformed edge vectors and the
+reference ones (F = Ds Dm^-1, 3 x 2), St. Venant-Kirchhoff in plane stress; membrane force
+N = t S per unit length.
+
+Bending: the shape operator of each triangle from its three dihedral angles (mid-edge normals,
+Crouzeix-Raviart interpolation of the normal; paper 002 section 7.2.2 "from the variation of the
+vertex normals" in its rotation-free form): K = sum_i (theta_i - theta_i^0) |e_i| / (2 A) m_i m_i^T,
+m_i the reference in-plane normal of edge i. It is exact for a cylinder meshed along its
+generators and objective (dihedral angles do not change under rigid motion). The plate energy
+A D / 2 [nu (tr K)^2 + (1 - nu) K : K] is then a quadratic form 1/2 dtheta^T H dtheta in the three
+angle changes: H per triangle is computed once (shell.model), with a free boundary edge's angle
+condensed out (the moment across a free edge vanishes).
+
+Four passes per step, each a gather (no races, deterministic for any thread count): edges
+(dihedral angles), faces (membrane forces on the three corners, bending moments dE/dtheta), edges
+(the moment of both faces times the angle's gradient on the edge's four vertices), nodes (gather,
+external loads, tools, the shared integrator)."""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..solver.integrator import block_kernel, move, update_velocity
+
+BLOCK = 256  # faces, edges or nodes per parallel task
+
+Nodes = namedtuple(
+    "Nodes",
+    "x v mass area radius constraint projection tool tool_offset friction d_friction w_external w_damping "
+    "load face_start face_slot edge_start edge_slot",
+)
+# load: (n, 3) N, the nodal external force at load factor 1 (edge tractions, lumped);
+# face_slot / edge_slot: CSR (by node, in face then corner order) into Faces.force (face * 3 +
+# corner) and Edges.force (edge * 4 + slot).
+Faces = namedtuple("Faces", "tri dm_inv area lam_t mu_t bend face_edge force moment")
+# dm_inv: (m, 4) the inverse of the reference edge matrix in the face's own frame, row-major;
+# lam_t, mu_t: plane-stress Lame constants times thickness (N/m); bend: (m, 6) H's upper
+# triangle (00 01 02 11 12 22); force (m, 3, 3) per corner; moment (m, 3) dE/dtheta per local edge.
+Edges = namedtuple("Edges", "ends opposite face local theta theta0 force")
+# ends (k, 2), opposite (k, 2) (-1 on a boundary), face (k, 2), local (k, 2) the edge's index in
+# each face; theta (k,) the current dihedral angle, theta0 the reference one; force (k, 4, 3) on
+# ends[0], ends[1], opposite[0], opposite[1].
+LoadFactor = namedtuple("LoadFactor", "times values n")  # the history that scales Nodes.load
+
+
+@njit(cache=True, inline="always")
+def _normal(x, a, b, c):
+    """(b - a) x (c - a)."""
+    ux, uy, uz = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
+    wx, wy, wz = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+@njit(cache=True, inline="always")
+def dihedral_angle(x, e0, e1, oa, ob):
+    """Signed angle (rad) between the normals of faces (oa, e0, e1) and (ob, e1, e0), measured
+    about the edge e0 -> e1: 0 when flat; its sign says on which side of the normals it folds and
+    does not depend on which face is called first."""
+    ax, ay, az = _normal(x, oa, e0, e1)
+    bx, by, bz = _normal(x, ob, e1, e0)
+    ex, ey, ez = x[e1, 0] - x[e0, 0], x[e1, 1] - x[e0, 1], x[e1, 2] - x[e0, 2]
+    length = math.sqrt(ex * ex + ey * ey + ez * ez)
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return math.atan2((cx * ex + cy * ey + cz * ez) / length, ax * bx + ay * by + az * bz)
+
+
+@njit(cache=True, inline="always")
+def _dihedral_gradient(x, e0, e1, oa, ob, out, k, scale):
+    """out[k, slot] = scale x d(theta)/d(vertex) for the slots e0, e1, oa, ob (the hinge's
+    gradient: Bridson, Marino and Fedkiw 2003)."""
+    ax, ay, az = _normal(x, oa, e0, e1)
+    bx, by, bz = _normal(x, ob, e1, e0)
+    ex, ey, ez = x[e1, 0] - x[e0, 0], x[e1, 1] - x[e0, 1], x[e1, 2] - x[e0, 2]
+    length = math.sqrt(ex * ex + ey * ey + ez * ez)
+    na2 = ax * ax + ay * ay + az * az
+    nb2 = bx * bx + by * by + bz * bz
+    # Projections of the wing tips on the edge, from e0 and from e1.
+    pa0 = ((x[oa, 0] - x[e0, 0]) * ex + (x[oa, 1] - x[e0, 1]) * ey + (x[oa, 2] - x[e0, 2]) * ez) / length
+    pb0 = ((x[ob, 0] - x[e0, 0]) * ex + (x[ob, 1] - x[e0, 1]) * ey + (x[ob, 2] - x[e0, 2]) * ez) / length
+    pa1 = pa0 - length
+    pb1 = pb0 - length
+    sa = -scale / na2
+    sb = -scale / nb2
+    for d, na, nb in ((0, ax, bx), (1, ay, by), (2, az, bz)):
+        out[k, 2, d] = sa * length * na
+        out[k, 3, d] = sb * length * nb
+        out[k, 0, d] = sa * pa1 * na + sb * pb1 * nb
+        out[k, 1, d] = -(sa * pa0 * na + sb * pb0 * nb)
+
+
+@njit(cache=True, inline="always")
+def membrane(x, a0, a1, a2, dm, area, lam_t, mu_t):
+    """Deformation gradient columns (F0, F1: 3-vectors), membrane force N (n00, n01, n11, N/m)
+    and energy (J) of one triangle."""
+    d1x, d1y, d1z = x[a1, 0] - x[a0, 0], x[a1, 1] - x[a0, 1], x[a1, 2] - x[a0, 2]
+    d2x, d2y, d2z = x[a2, 0] - x[a0, 0], x[a2, 1] - x[a0, 1], x[a2, 2] - x[a0, 2]
+    f0x = d1x * dm[0] + d2x * dm[2]
+    f0y = d1y * dm[0] + d2y * dm[2]
+    f0z = d1z * dm[0] + d2z * dm[2]
+    f1x = d1x * dm[1] + d2x * dm[3]
+    f1y = d1y * dm[1] + d2y * dm[3]
+    f1z = d1z * dm[1] + d2z * dm[3]
+    e00 = 0.5 * (f0x * f0x + f0y * f0y + f0z * f0z - 1.0)
+    e11 = 0.5 * (f1x * f1x + f1y * f1y + f1z * f1z - 1.0)
+    e01 = 0.5 * (f0x * f1x + f0y * f1y + f0z * f1z)
+    trace = e00 + e11
+    n00 = lam_t * trace + 2.0 * mu_t * e00
+    n11 = lam_t * trace + 2.0 * mu_t * e11
+    n01 = 2.0 * mu_t * e01
+    energy = area * (mu_t * (e00 * e00 + e11 * e11 + 2.0 * e01 * e01) + 0.5 * lam_t * trace * trace)
+    return f0x, f0y, f0z, f1x, f1y, f1z, n00, n01, n11, energy
+
+
+@njit(cache=True, inline="always")
+def bending_moments(bend, f, d0, d1, d2):
+    """H dtheta for face f (bend: the upper triangle of H)."""
+    h = bend[f]
+    return (h[0] * d0 + h[1] * d1 + h[2] * d2, h[1] * d0 + h[3] * d1 + h[4] * d2,
+            h[2] * d0 + h[4] * d1 + h[5] * d2)
+
+
+@block_kernel
+def _angle_block(lo, hi, x, edges):
+    ends, opposite, theta = edges.ends, edges.opposite, edges.theta
+    for e in range(lo, hi):
+        if opposite[e, 1] < 0:
+            theta[e] = 0.0
+        else:
+            theta[e] = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1])
+
+
+@block_kernel
+def _face_block(lo, hi, x, faces, edges):
+    tri, dm_inv, area, force, moment = faces.tri, faces.dm_inv, faces.area, faces.force, faces.moment
+    face_edge, theta, theta0 = faces.face_edge, edges.theta, edges.theta0
+    for f in range(lo, hi):
+        a0, a1, a2 = tri[f, 0], tri[f, 1], tri[f, 2]
+        dm = dm_inv[f]
+        f0x, f0y, f0z, f1x, f1y, f1z, n00, n01, n11, _ = membrane(x, a0, a1, a2, dm, area[f], faces.lam_t[f],
+                                                                  faces.mu_t[f])
+        # P = F N (3 x 2); corner forces -A P Dm^-T on corners 1 and 2, corner 0 balances them.
+        px0 = f0x * n00 + f1x * n01
+        py0 = f0y * n00 + f1y * n01
+        pz0 = f0z * n00 + f1z * n01
+        px1 = f0x * n01 + f1x * n11
+        py1 = f0y * n01 + f1y * n11
+        pz1 = f0z * n01 + f1z * n11
+        s = -area[f]
+        for c, r in ((1, 0), (2, 1)):
+            g0 = dm[2 * r]
+            g1 = dm[2 * r + 1]
+            force[f, c, 0] = s * (px0 * g0 + px1 * g1)
+            force[f, c, 1] = s * (py0 * g0 + py1 * g1)
+            force[f, c, 2] = s * (pz0 * g0 + pz1 * g1)
+        for d in range(3):
+            force[f, 0, d] = -(force[f, 1, d] + force[f, 2, d])
+        e0, e1, e2 = face_edge[f, 0], face_edge[f, 1], face_edge[f, 2]
+        m0, m1, m2 = bending_moments(faces.bend, f, theta[e0] - theta0[e0], theta[e1] - theta0[e1],
+                                     theta[e2] - theta0[e2])
+        moment[f, 0] = m0
+        moment[f, 1] = m1
+        moment[f, 2] = m2
+
+
+@block_kernel
+def _hinge_block(lo, hi, x, faces, edges):
+    ends, opposite, face, local, force, moment = (edges.ends, edges.opposite, edges.face, edges.local, edges.force,
+                                                  faces.moment)
+    for e in range(lo, hi):
+        if opposite[e, 1] < 0:
+            for s in range(4):
+                force[e, s, 0] = 0.0
+                force[e, s, 1] = 0.0
+                force[e, s, 2] = 0.0
+            continue
+        total = moment[face[e, 0], local[e, 0]] + moment[face[e, 1], local[e, 1]]
+        _dihedral_gradient(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1], force, e, -total)
+
+
+@block_kernel
+def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, tool_v_next, load_factor, gravity,
+                alpha):
+    x, v, mass, area, radius = nodes.x, nodes.v, nodes.mass, nodes.area, nodes.radius
+    face_force, edge_force = faces.force, edges.force
+    face_start, face_slot, edge_start, edge_slot = nodes.face_start, nodes.face_slot, nodes.edge_start, nodes.edge_slot
+    n_tool = tools.kind.shape[0]
+    force_slots = tools.force_slots
+    scale = interp_history(t, load_factor.times, load_factor.values, load_factor.n)
+    load = nodes.load
+    for g in range(lo, hi):
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
+        for r in range(face_start[g], face_start[g + 1]):
+            k = face_slot[r]
+            f = k // 3
+            c = k - 3 * f
+            fx += face_force[f, c, 0]
+            fy += face_force[f, c, 1]
+            fz += face_force[f, c, 2]
+        for r in range(edge_start[g], edge_start[g + 1]):
+            k = edge_slot[r]
+            e = k // 4
+            s = k - 4 * e
+            fx += edge_force[e, s, 0]
+            fy += edge_force[e, s, 1]
+            fz += edge_force[e, s, 2]
+        m = mass[g]
+        cx, cy, cz, tool_work = contact_with_tools(
+            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
+            force_slots, tool_v_prev, tool_v_next, nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction,
+        )
+        update_velocity(g, v, fx, fy, fz, m * gravity[0] + scale * load[g, 0], m * gravity[1] + scale * load[g, 1],
+                        m * gravity[2] + scale * load[g, 2], cx, cy, cz, tool_work, m, alpha, dt, nodes.constraint,
+                        nodes.projection, nodes.w_external, nodes.w_damping)
+        move(g, x, v, dt)
+
+
+@njit(parallel=True, cache=True)
+def element_forces(x, faces, edges):
+    """The three element passes at positions x: Faces.force, Edges.force (and the angles and
+    moments) in place."""
+    n_face = faces.tri.shape[0]
+    n_edge = edges.ends.shape[0]
+    for blk in prange((n_edge + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
+    for blk in prange((n_face + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        _face_block(lo, min(lo + BLOCK, n_face), x, faces, edges)
+    for blk in prange((n_edge + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
+
+
+@njit(parallel=True, cache=True)
+def gather_forces(nodes, faces, edges, out):
+    """The internal force on each node (N) from the element passes' slots, into out (n, 3)."""
+    n = out.shape[0]
+    for g in prange(n):
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
+        for r in range(nodes.face_start[g], nodes.face_start[g + 1]):
+            k = nodes.face_slot[r]
+            f = k // 3
+            c = k - 3 * f
+            fx += faces.force[f, c, 0]
+            fy += faces.force[f, c, 1]
+            fz += faces.force[f, c, 2]
+        for r in range(nodes.edge_start[g], nodes.edge_start[g + 1]):
+            k = nodes.edge_slot[r]
+            e = k // 4
+            s = k - 4 * e
+            fx += edges.force[e, s, 0]
+            fy += edges.force[e, s, 1]
+            fz += edges.force[e, s, 2]
+        out[g, 0] = fx
+        out[g, 1] = fy
+        out[g, 2] = fz
+
+
+def internal_forces(x, nodes, faces, edges, out):
+    """Internal forces (N) at positions x into out (n, 3): the static solver's residual and the
+    stable step's K v."""
+    element_forces(x, faces, edges)
+    gather_forces(nodes, faces, edges, out)
+
+
+@njit(parallel=True, cache=True)
+def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, gravity, alpha):
+    """n_steps central-difference steps from step number first_step (time first_step x dt);
+    arrays updated in place."""
+    n_tool = tools.kind.shape[0]
+    n_node = nodes.x.shape[0]
+    n_face = faces.tri.shape[0]
+    n_edge = edges.ends.shape[0]
+    tool_v_prev = np.zeros((max(n_tool, 1), 3))
+    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    x = nodes.x
+    for step in range(n_steps):
+        t = (first_step + step) * dt
+        tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
+        for blk in prange((n_edge + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
+        for blk in prange((n_face + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _face_block(lo, min(lo + BLOCK, n_face), x, faces, edges)
+        for blk in prange((n_edge + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
+        for blk in prange((n_node + BLOCK - 1) // BLOCK):
+            lo = blk * BLOCK
+            _node_block(lo, min(lo + BLOCK, n_node), blk, t, dt, nodes, faces, edges, tools, tool_v_prev,
+                        tool_v_next, load_factor, gravity, alpha)
+        load_cell_step((first_step + step + 1) * dt, tools)
+        move_tools(dt, tools, tool_v_next)
+
+
+@njit(cache=True)
+def face_energies(x, faces, edges, membrane_out, bending_out):
+    """Each triangle's membrane and bending strain energy (J) at positions x."""
+    tri, area = faces.tri, faces.area
+    ends, opposite, theta0 = edges.ends, edges.opposite, edges.theta0
+    n_edge = ends.shape[0]
+    angle = np.zeros(n_edge)
+    for e in range(n_edge):
+        if opposite[e, 1] >= 0:
+            angle[e] = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1]) - theta0[e]
+    for f in range(tri.shape[0]):
+        membrane_out[f] = membrane(x, tri[f, 0], tri[f, 1], tri[f, 2], faces.dm_inv[f], area[f], faces.lam_t[f],
+                                   faces.mu_t[f])[9]
+        d0 = angle[faces.face_edge[f, 0]]
+        d1 = angle[faces.face_edge[f, 1]]
+        d2 = angle[faces.face_edge[f, 2]]
+        m0, m1, m2 = bending_moments(faces.bend, f, d0, d1, d2)
+        bending_out[f] = 0.5 * (m0 * d0 + m1 * d1 + m2 * d2)
+
+
+def strain_energies(x, faces, edges) -> tuple[float, float]:
+    """(membrane, bending) strain energy (J) at positions x."""
+    m = faces.tri.shape[0]
+    membrane_energy, bending_energy = np.zeros(m), np.zeros(m)
+    face_energies(x, faces, edges, membrane_energy, bending_energy)
+    return float(membrane_energy.sum()), float(bending_energy.sum())
