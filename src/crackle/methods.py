@@ -17,6 +17,7 @@ METHODS = {
     "lattice": "crackle.lattice",
     "dem": "crackle.dem",
     "meshfree": "crackle.meshfree",
+    "shell": "crackle.shell",
 }
 
 

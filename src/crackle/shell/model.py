@@ -5,6 +5,7 @@ lumped masses and the node-to-slot tables of the gathers; nodal loads of edge tr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -143,6 +144,11 @@ class Shell:
     faces: Faces
     edges: Edges
     nodes: Nodes
+
+    @cached_property
+    def frames(self) -> np.ndarray:
+        """(m, 3, 2) each triangle's reference tangent frame (face_frames)."""
+        return face_frames(self.mesh)[0]
 
     def forces(self, x: np.ndarray, out: np.ndarray) -> None:
         """Internal forces (N) at positions x into out (n, 3)."""

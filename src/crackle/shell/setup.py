@@ -1,0 +1,207 @@
+"""The shell's scenario sections and the build of a scenario into a ShellSimulation.
+
+[shell] the mid-surface (a rectangle meshed at element_size, or any triangle surface meshio
+reads) and its thickness; [material] the elastic constants; [[cracks]] pre-cracks as polylines on
+the surface (cut along the nearest chain of edges); [[edge_loads]] tractions on boundary edges;
+[fracture] the J-integral's rings and the closed form to compare with. Tools, supports, run
+control and outputs are the shared ones.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from ..geometry.meshes import MeshError
+from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
+from ..loading.build import build_loading, selection
+from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
+from ..schema import NonNegative, Positive, Strict, Vec3
+from ..solver.integrator import support_constraints
+from .kernels import BLOCK, LoadFactor
+from .mesh import SurfaceError, edge_path, rectangle, shell_mesh, split_along
+from .model import ShellMaterial, build_shell, edge_loads
+from .simulation import CrackTip, ShellSimulation
+
+
+class ShellSpec(Strict):
+    """[shell]: the mid-surface and its thickness."""
+
+    surface: Literal["rectangle", "file"]
+    """rectangle: size and element_size, in the x-y plane from origin; file: a triangle surface (file)"""
+    thickness: Positive
+    """m, the shell's thickness"""
+    size: tuple[Positive, Positive] | None = None
+    """m, rectangle: its sides along x and y"""
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    """m, rectangle: its lower corner"""
+    element_size: Positive | None = None
+    """m, rectangle: the side of its square cells (two triangles each)"""
+    file: str | None = None
+    """file: any triangle surface meshio reads (.stl, .msh, .obj, .vtu ...), relative to the scenario's folder; its
+    triangles oriented alike"""
+    scale: Positive = 1.0
+    """file: multiplies its coordinates (e.g. 1e-3 for a file in mm)"""
+
+    @model_validator(mode="after")
+    def _keys_of_the_surface(self):
+        need = ("size", "element_size") if self.surface == "rectangle" else ("file",)
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"surface '{self.surface}' needs {', '.join(missing)}")
+        return self
+
+
+class CrackSpec(Strict):
+    """[[cracks]]: a through-crack present from the start."""
+
+    polyline: Annotated[list[Vec3], Field(min_length=2)]
+    """m, points on the mid-surface; the crack follows the chain of edges nearest to it, and an end inside the
+    surface is a crack tip"""
+
+
+class EdgeLoadSpec(Strict):
+    """[[edge_loads]]: a traction on the boundary edges that `where` selects (both ends selected)."""
+
+    where: Where
+    """selects the edges' vertices"""
+    traction: Vec3
+    """Pa, force per area of the shell's cross-section (x thickness x edge length on each edge)"""
+    ramp_time: NonNegative = 0.0
+    """s, the traction grows linearly from 0 over this time, then stays"""
+
+
+class FractureSpec(Strict):
+    """[fracture]: the crack tips' J-integral."""
+
+    j_rings: list[tuple[NonNegative, Positive]] = []
+    """m, rings (r_in, r_out) about each tip for the J-integral's domain; default three rings at 4-10, 8-14 and 12-18
+    element sizes"""
+    reference: Literal["none", "centre-crack"] = "none"
+    """the closed form in summary.json's j_reference: centre-crack, K^2 / E with K = sigma sqrt(pi a) times Tada's
+    width factor, for one crack inside a rectangle pulled by its edge loads"""
+
+
+class Scenario(ScenarioBase):
+    method: Literal["shell"]
+    """picks this method"""
+    shell: ShellSpec
+    """the mid-surface and its thickness"""
+    material: ElasticSpec
+    """density and elastic constants"""
+    cracks: list[CrackSpec] = []
+    """pre-cracks"""
+    edge_loads: list[EdgeLoadSpec] = []
+    """tractions on boundary edges"""
+    fracture: FractureSpec = FractureSpec()
+    """the J-integral's rings and reference"""
+
+    @model_validator(mode="after")
+    def _one_load_history(self):
+        ramps = {load.ramp_time for load in self.edge_loads}
+        if len(ramps) > 1:
+            raise ValueError("edge_loads: give every edge load the same ramp_time (the shell has one load history)")
+        if self.pressures:
+            raise ValueError("pressures: not available on the shell yet; load its edges with [[edge_loads]]")
+        if self.fracture.reference == "centre-crack" and (self.shell.surface != "rectangle" or len(self.cracks) != 1
+                                                          or not self.edge_loads):
+            raise ValueError('fracture.reference = "centre-crack" needs surface = "rectangle", one crack and edge '
+                             "loads")
+        return self
+
+
+def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimulation:
+    tools, supports, _ = build_loading(scenario, base)
+    spec, mat = scenario.shell, scenario.material
+    try:
+        mesh = _surface(spec, base)
+    except (SurfaceError, MeshError) as err:
+        raise ScenarioError(f"shell.{'file' if spec.surface == 'file' else 'size'}: {err}") from None
+    tips = []
+    for i, crack in enumerate(scenario.cracks):
+        try:
+            path = edge_path(mesh, crack.polyline)
+            if len(path) < 2:
+                raise SurfaceError("the polyline is shorter than an element")
+            mesh, opened = split_along(mesh, path)
+        except SurfaceError as err:
+            raise ScenarioError(f"cracks.{i}.polyline: {err}") from None
+        tips += _tips(mesh, path, opened)
+    shell = build_shell(mesh, ShellMaterial(mat.density, mat.youngs_modulus, mat.poissons_ratio))
+    scale = float(np.max(np.ptp(mesh.X, axis=0)))
+    load = np.zeros_like(mesh.X)
+    boundary = np.flatnonzero(mesh.boundary)
+    for i, edge_load in enumerate(scenario.edge_loads):
+        chosen = selection(edge_load.where).mask(mesh.X, scale)
+        edges = boundary[chosen[mesh.edge[boundary, 0]] & chosen[mesh.edge[boundary, 1]]]
+        if len(edges) == 0:
+            raise ScenarioError(f"edge_loads.{i}.where: selects no boundary edge (both ends of an edge must be "
+                                "selected); check its plane or box")
+        load += edge_loads(mesh, edges, edge_load.traction)
+    ramp = scenario.edge_loads[0].ramp_time if scenario.edge_loads else 0.0
+    factor = LoadFactor(np.array([0.0, ramp]) if ramp > 0 else np.array([0.0]),
+                        np.array([0.0, 1.0]) if ramp > 0 else np.array([1.0]), 2 if ramp > 0 else 1)
+    try:
+        constraint, projection = support_constraints(supports, mesh.X, scale)
+    except ValueError as err:
+        raise ScenarioError(f"supports: {err}") from None
+    h = mesh.element_size()
+    penalty = TOOL_PENALTY_FACTOR * mat.youngs_modulus / h
+    tool_table = tool_arrays(tools, penalty, h, -(-len(mesh.X) // BLOCK))
+    shell.nodes = shell.nodes._replace(load=load, constraint=constraint, projection=projection)
+    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
+    stable_dt = shell.stable_dt(tool_k)
+    c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
+    rings = scenario.fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
+    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, tips, rings, stable_dt, h / c,
+                          np.asarray(scenario.run.gravity, float), scenario.run.damping)
+    if scenario.fracture.reference == "centre-crack":
+        sim.j_reference = centre_crack_reference(scenario, tips)
+    return sim
+
+
+def _surface(spec: ShellSpec, base: Path | None):
+    if spec.surface == "rectangle":
+        nx, ny = (max(1, int(round(L / spec.element_size))) for L in spec.size)
+        return rectangle(spec.size[0], spec.size[1], nx, ny, spec.thickness, spec.origin)
+    import meshio
+
+    try:
+        surface = meshio.read(resolve_path(spec.file, base))
+    except Exception as err:  # meshio raises many kinds for a bad or missing file
+        raise MeshError(f"cannot read {spec.file}: {err}") from None
+    triangles = [block.data for block in surface.cells if block.type == "triangle"]
+    if not triangles:
+        raise MeshError(f"{spec.file} holds no triangles")
+    return shell_mesh(surface.points[:, :3] * spec.scale, np.concatenate(triangles), spec.thickness)
+
+
+def _tips(mesh, path, opened) -> list[CrackTip]:
+    """The ends of a cut path that stayed whole (inside the surface; an end on the boundary
+    opens, a mouth), each with the direction the crack last ran."""
+    tips = []
+    for end, before in ((path[-1], path[-2]), (path[0], path[1])):
+        if end not in opened:
+            direction = mesh.X[end] - mesh.X[before]
+            tips.append(CrackTip(mesh.X[end].copy(), direction / np.linalg.norm(direction)))
+    return tips
+
+
+def centre_crack_reference(scenario: Scenario, tips: list[CrackTip]) -> float:
+    """J = K^2 / E (J/m^2) of a centre crack 2a across a strip of width 2b under the traction
+    sigma of its edge loads: K = sigma sqrt(pi a) (1 - 0.025 alpha^2 + 0.06 alpha^4)
+    sqrt(sec(pi alpha / 2)), alpha = a / b (Tada's handbook; 0.1 %)."""
+    if len(tips) != 2:
+        raise ScenarioError('fracture.reference = "centre-crack": the crack must have two tips inside the surface')
+    a = 0.5 * float(np.linalg.norm(tips[0].position - tips[1].position))
+    along = np.abs(tips[0].direction[:2])
+    width = scenario.shell.size[0] if along[0] >= along[1] else scenario.shell.size[1]
+    sigma = max(float(np.linalg.norm(load.traction)) for load in scenario.edge_loads)
+    alpha = a / (0.5 * width)
+    K = sigma * math.sqrt(math.pi * a) * (1 - 0.025 * alpha**2 + 0.06 * alpha**4) * math.sqrt(
+        1.0 / math.cos(math.pi * alpha / 2.0))
+    return K**2 / scenario.material.youngs_modulus
