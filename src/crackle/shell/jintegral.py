@@ -46,7 +46,7 @@ def j_integral(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: 
     trace = E[:, 0, 0] + E[:, 1, 1]
     lam_t, mu_t = faces.lam_t[ring], faces.mu_t[ring]
     N = lam_t[:, None, None] * trace[:, None, None] * np.eye(2) + 2.0 * mu_t[:, None, None] * E
-    W = mu_t * np.einsum("kab,kab->k", E, E) + 0.5 * lam_t * trace**2 + bending_density(shell, x)[ring]
+    W = mu_t * np.einsum("kab,kab->k", E, E) + 0.5 * lam_t * trace**2 + bending_density(shell, x, ring)
     P = F @ N
     grad_q = np.einsum("kra,kr->ka", dm_inv, (q_face[ring, 1:] - q_face[ring, :1]))
     d = np.einsum("kia,i->ka", frame[ring], d3)
@@ -56,9 +56,9 @@ def j_integral(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: 
     return line_j / float(mesh.thickness[nearest])
 
 
-def bending_density(shell: Shell, x) -> np.ndarray:
-    """Bending energy per area of each triangle (J/m^2)."""
-    m = len(shell.mesh.tri)
-    membrane_energy, bending_energy = np.zeros(m), np.zeros(m)
-    face_energies(x, shell.faces, shell.edges, membrane_energy, bending_energy)
-    return bending_energy / shell.faces.area
+def bending_density(shell: Shell, x, which=None) -> np.ndarray:
+    """Bending energy per area (J/m^2) of the triangles `which` (default all)."""
+    which = np.arange(len(shell.mesh.tri)) if which is None else np.asarray(which, dtype=np.int64)
+    membrane_energy, bending_energy = np.zeros(len(which)), np.zeros(len(which))
+    face_energies(x, shell.faces, shell.edges, which, membrane_energy, bending_energy)
+    return bending_energy / shell.faces.area[which]

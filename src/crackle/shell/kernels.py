@@ -306,28 +306,27 @@ def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, gr
 
 
 @njit(cache=True)
-def face_energies(x, faces, edges, membrane_out, bending_out):
-    """Each triangle's membrane and bending strain energy (J) at positions x."""
+def face_energies(x, faces, edges, which, membrane_out, bending_out):
+    """The membrane and bending strain energy (J) at positions x of the triangles `which`, into
+    membrane_out[k] and bending_out[k] for which[k]."""
     tri, area = faces.tri, faces.area
     ends, opposite, theta0 = edges.ends, edges.opposite, edges.theta0
-    n_edge = ends.shape[0]
-    angle = np.zeros(n_edge)
-    for e in range(n_edge):
-        if opposite[e, 1] >= 0:
-            angle[e] = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1]) - theta0[e]
-    for f in range(tri.shape[0]):
-        membrane_out[f] = membrane(x, tri[f, 0], tri[f, 1], tri[f, 2], faces.dm_inv[f], area[f], faces.lam_t[f],
+    for k in range(which.shape[0]):
+        f = which[k]
+        membrane_out[k] = membrane(x, tri[f, 0], tri[f, 1], tri[f, 2], faces.dm_inv[f], area[f], faces.lam_t[f],
                                    faces.mu_t[f])[9]
-        d0 = angle[faces.face_edge[f, 0]]
-        d1 = angle[faces.face_edge[f, 1]]
-        d2 = angle[faces.face_edge[f, 2]]
-        m0, m1, m2 = bending_moments(faces.bend, f, d0, d1, d2)
-        bending_out[f] = 0.5 * (m0 * d0 + m1 * d1 + m2 * d2)
+        d = np.zeros(3)
+        for i in range(3):
+            e = faces.face_edge[f, i]
+            if opposite[e, 1] >= 0:
+                d[i] = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1]) - theta0[e]
+        m0, m1, m2 = bending_moments(faces.bend, f, d[0], d[1], d[2])
+        bending_out[k] = 0.5 * (m0 * d[0] + m1 * d[1] + m2 * d[2])
 
 
 def strain_energies(x, faces, edges) -> tuple[float, float]:
     """(membrane, bending) strain energy (J) at positions x."""
     m = faces.tri.shape[0]
     membrane_energy, bending_energy = np.zeros(m), np.zeros(m)
-    face_energies(x, faces, edges, membrane_energy, bending_energy)
+    face_energies(x, faces, edges, np.arange(m), membrane_energy, bending_energy)
     return float(membrane_energy.sum()), float(bending_energy.sum())

@@ -117,15 +117,11 @@ def rectangle(width: float, height: float, nx: int, ny: int, thickness: float, o
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     X = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=1) + np.asarray(origin, float)
     idx = np.arange((nx + 1) * (ny + 1)).reshape(nx + 1, ny + 1)
-    tris = []
-    for i in range(nx):
-        for j in range(ny):
-            a, b, c, d = idx[i, j], idx[i + 1, j], idx[i + 1, j + 1], idx[i, j + 1]
-            if (i + j) % 2 == 0:
-                tris += [(a, b, c), (a, c, d)]
-            else:
-                tris += [(a, b, d), (b, c, d)]
-    return shell_mesh(X, np.array(tris), thickness)
+    a, b, c, d = (v.ravel() for v in (idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]))
+    even = (np.add.outer(np.arange(nx), np.arange(ny)) % 2 == 0).ravel()
+    first = np.where(even[:, None], np.stack([a, b, c], axis=1), np.stack([a, b, d], axis=1))
+    second = np.where(even[:, None], np.stack([a, c, d], axis=1), np.stack([b, c, d], axis=1))
+    return shell_mesh(X, np.stack([first, second], axis=1).reshape(-1, 3), thickness)
 
 
 def edge_path(mesh: ShellMesh, polyline) -> np.ndarray:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..solver import stability
 from ..solver.integrator import FREE
-from .kernels import Edges, Faces, Nodes, dihedral_angle, internal_forces, strain_energies
+from .kernels import Edges, Faces, Nodes, element_forces, internal_forces, strain_energies
 from .mesh import ShellMesh
 
 
@@ -92,12 +92,10 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial):
         has = mesh.edge_face[:, s] >= 0
         f = mesh.edge_face[has, s]
         local_index[has, s] = np.argmax(mesh.face_edge[f] == np.flatnonzero(has)[:, None], axis=1)
-    theta0 = np.zeros(k)
-    for e in np.flatnonzero(~mesh.boundary):
-        theta0[e] = dihedral_angle(mesh.X, mesh.edge[e, 0], mesh.edge[e, 1], mesh.edge_opposite[e, 0],
-                                   mesh.edge_opposite[e, 1])
     edges = Edges(ends=mesh.edge.copy(), opposite=mesh.edge_opposite.copy(), face=mesh.edge_face.copy(),
-                  local=local_index, theta=theta0.copy(), theta0=theta0, force=np.zeros((k, 4, 3)))
+                  local=local_index, theta=np.zeros(k), theta0=np.zeros(k), force=np.zeros((k, 4, 3)))
+    element_forces(mesh.X, faces, edges)  # the reference dihedral angles, into edges.theta
+    edges.theta0[:] = edges.theta
     n = len(mesh.X)
     mass = np.zeros(n)
     node_area = np.zeros(n)
