@@ -20,11 +20,12 @@ from ..geometry.meshes import MeshError
 from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
-from ..schema import NonNegative, Positive, Strict, Vec3
+from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, LoadFactor
 from .mesh import SurfaceError, edge_path, rectangle, shell_mesh, split_along
 from .model import ShellMaterial, build_shell, edge_loads
+from .growth import GrowthLaw
 from .simulation import CrackTip, ShellSimulation
 
 
@@ -81,6 +82,12 @@ class FractureSpec(Strict):
     j_rings: list[tuple[NonNegative, Positive]] = []
     """m, rings (r_in, r_out) about each tip for the J-integral's domain; default three rings at 4-10, 8-14 and 12-18
     element sizes"""
+    toughness: PositiveOrInf = math.inf
+    """J/m^2, Gc: a tip grows where its J (mean over the rings) reaches it (Griffith; inf: no growth)"""
+    max_speed: Positive | None = None
+    """m/s, V_max of the speed law V = V_max min(1, (J / Gc - 1)^m); default the Rayleigh wave speed"""
+    speed_exponent: Positive = 1.0
+    """m of the speed law"""
     reference: Literal["none", "centre-crack"] = "none"
     """the closed form in summary.json's j_reference: centre-crack, K^2 / E with K = sigma sqrt(pi a) times Tada's
     width factor, for one crack inside a rectangle pulled by its edge loads"""
@@ -157,10 +164,15 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     stable_dt = shell.stable_dt(tool_k)
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
     rings = scenario.fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
+    fracture = scenario.fracture
+    growth = None
+    if math.isfinite(fracture.toughness):
+        growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, tips, rings, stable_dt, h / c,
-                          np.asarray(scenario.run.gravity, float), scenario.run.damping)
-    if scenario.fracture.reference == "centre-crack":
-        sim.j_reference = centre_crack_reference(scenario, tips)
+                          np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
+    if fracture.reference == "centre-crack":
+        sim.j_reference = centre_crack_reference(scenario, [mesh.X[tip.vertex] for tip in tips],
+                                                 [tip.direction for tip in tips])
     return sim
 
 
@@ -187,18 +199,25 @@ def _tips(mesh, path, opened) -> list[CrackTip]:
     for end, before in ((path[-1], path[-2]), (path[0], path[1])):
         if end not in opened:
             direction = mesh.X[end] - mesh.X[before]
-            tips.append(CrackTip(mesh.X[end].copy(), direction / np.linalg.norm(direction)))
+            tips.append(CrackTip(int(end), direction / np.linalg.norm(direction)))
     return tips
 
 
-def centre_crack_reference(scenario: Scenario, tips: list[CrackTip]) -> float:
+def rayleigh_speed(material: ElasticSpec) -> float:
+    """m/s, c_R ~ c_s (0.862 + 1.14 nu) / (1 + nu) (Viktorov's fit; 0.5 % for 0 <= nu <= 0.5)."""
+    nu = material.poissons_ratio
+    c_s = math.sqrt(material.youngs_modulus / (2.0 * (1.0 + nu) * material.density))
+    return c_s * (0.862 + 1.14 * nu) / (1.0 + nu)
+
+
+def centre_crack_reference(scenario: Scenario, tips: list[np.ndarray], directions: list[np.ndarray]) -> float:
     """J = K^2 / E (J/m^2) of a centre crack 2a across a strip of width 2b under the traction
     sigma of its edge loads: K = sigma sqrt(pi a) (1 - 0.025 alpha^2 + 0.06 alpha^4)
     sqrt(sec(pi alpha / 2)), alpha = a / b (Tada's handbook; 0.1 %)."""
     if len(tips) != 2:
         raise ScenarioError('fracture.reference = "centre-crack": the crack must have two tips inside the surface')
-    a = 0.5 * float(np.linalg.norm(tips[0].position - tips[1].position))
-    along = np.abs(tips[0].direction[:2])
+    a = 0.5 * float(np.linalg.norm(tips[0] - tips[1]))
+    along = np.abs(directions[0][:2])
     width = scenario.shell.size[0] if along[0] >= along[1] else scenario.shell.size[1]
     sigma = max(float(np.linalg.norm(load.traction)) for load in scenario.edge_loads)
     alpha = a / (0.5 * width)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..loading.loadcell import LoadCell, ToolSprings
-from ..solver.failures import FailureRecorder
+from .growth import GROWTH_CHECK, Advance, GrowthLaw, cut_edge, step_ahead
 from .jintegral import j_integral
 from .kernels import advance
 from .model import Shell
@@ -15,15 +15,18 @@ from .model import Shell
 
 @dataclass
 class CrackTip:
-    position: np.ndarray  # m, reference configuration
+    vertex: int  # the tip's vertex (not split: the crack ends there)
     direction: np.ndarray  # unit vector the crack runs along at the tip
+    extension: float = 0.0  # m grown since the start
+    pending: float = 0.0  # m run (speed x time) since the last cut, not yet an edge
+    active: bool = True  # False once the crack reached a boundary
 
 
 class ShellSimulation:
     method = "shell"
 
     def __init__(self, shell: Shell, tools, tool_names, load_factor, tips, rings, stable_dt, wave_transit, gravity,
-                 damping):
+                 damping, growth: GrowthLaw | None = None):
         self.shell, self.tools, self.load_factor = shell, tools, load_factor
         self._tool_names = list(tool_names)
         self.tips, self.rings = list(tips), [tuple(map(float, r)) for r in rings]
@@ -36,7 +39,10 @@ class ShellSimulation:
         self.steps = 0
         self._springs = ToolSprings(tools, tool_names)
         self.load_cell = LoadCell(tools)
-        self._failures = FailureRecorder(0)  # no crack growth yet: nothing fails
+        self.growth = growth
+        self.advances: list[Advance] = []  # every cut, in order
+        self._reported = 0  # advances already in events.csv
+        self.fracture_energy = 0.0  # J: the bending energy the cuts' free edges released at once
         self.warnings: list[str] = []
 
     @property
@@ -44,11 +50,48 @@ class ShellSimulation:
         return self.shell.nodes
 
     def advance(self, n_steps: int, dt: float) -> None:
-        s = self.shell
-        advance(n_steps, self.steps, dt, s.nodes, s.faces, s.edges, self.tools, self.load_factor, self.gravity,
-                self.damping)
-        self.steps += n_steps
-        self.time = self.steps * dt
+        end = self.steps + n_steps
+        while self.steps < end:
+            stop = end if self.growth is None else min(end, (self.steps // GROWTH_CHECK + 1) * GROWTH_CHECK)
+            s = self.shell
+            advance(stop - self.steps, self.steps, dt, s.nodes, s.faces, s.edges, self.tools, self.load_factor,
+                    self.gravity, self.damping)
+            self.steps = stop
+            self.time = self.steps * dt
+            if self.growth is not None and self.steps % GROWTH_CHECK == 0:
+                self._grow(dt)
+
+    def _grow(self, dt: float) -> None:
+        """Griffith's check and the speed law at each running tip; cut the edges it has passed."""
+        for k, tip in enumerate(self.tips):
+            if not tip.active:
+                continue
+            j = float(np.mean(self._tip_j(tip)))
+            tip.pending += self.growth.speed(j) * GROWTH_CHECK * dt
+            while tip.active:
+                ahead = step_ahead(self.shell, tip.vertex, tip.direction)
+                if ahead is None:
+                    tip.active = False
+                    break
+                vertex, length = ahead
+                if tip.pending < length:
+                    break
+                through = self._cut(tip.vertex, vertex, dt)
+                tip.pending -= length
+                tip.extension += length
+                direction = self.shell.mesh.X[vertex] - self.shell.mesh.X[tip.vertex]
+                tip.vertex, tip.direction = vertex, direction / np.linalg.norm(direction)
+                self.advances.append(Advance(self.time, self.shell.mesh.X[vertex].copy(), k))
+                tip.active = not through
+
+    def _cut(self, a: int, b: int, dt: float) -> bool:
+        """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
+        n = self.nodes
+        before = sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v))
+        self.shell, opened = cut_edge(self.shell, a, b)
+        n = self.nodes
+        self.fracture_energy += before - sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v))
+        return b in opened
 
     def state_is_finite(self) -> bool:
         n = self.nodes
@@ -56,7 +99,8 @@ class ShellSimulation:
 
     @property
     def broken(self) -> int:
-        return 0
+        """Edges cut by crack growth."""
+        return len(self.advances)
 
     def _tool_springs(self) -> ToolSprings:
         n = self.nodes
@@ -73,23 +117,34 @@ class ShellSimulation:
             "energy.contact": float(np.sum(self._tool_springs().energy)),
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping)),
+            "energy.fracture": self.fracture_energy,
             "energy.external": float(np.sum(n.w_external)),
         }
 
+    def _tip_j(self, tip: CrackTip) -> list[float]:
+        X = self.shell.mesh.X
+        return [j_integral(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring) for ring in self.rings]
+
     def j_values(self) -> np.ndarray:
         """J (J/m^2) at each tip (rows) over each ring (columns), at the current positions."""
-        return np.array([[j_integral(self.shell, self.nodes.x, tip.position, tip.direction, *ring)
-                          for ring in self.rings] for tip in self.tips]).reshape(len(self.tips), len(self.rings))
+        return np.array([self._tip_j(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
     def sample(self, dt: float) -> dict[str, float]:
-        row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt), "broken": 0}
+        row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
+               "broken": self.broken}
         for k, values in enumerate(self.j_values()):
             row[f"j.tip{k}"] = float(np.mean(values))
+        for k, tip in enumerate(self.tips):
+            row[f"crack.tip{k}"] = tip.extension
         return row
 
     def new_events(self):
-        return self._failures.new(np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0, dtype=np.int8),
-                                  lambda ids: np.zeros((len(ids), 3)))
+        """Each cut (a tip moving one edge) once: its time, the new tip's reference position,
+        mode tension (straight-ahead growth), the tip's number as the id."""
+        new = self.advances[self._reported:]
+        self._reported = len(self.advances)
+        return (np.array([a.time for a in new]), np.array([a.position for a in new]).reshape(-1, 3),
+                ["tension"] * len(new), np.array([a.tip for a in new], dtype=np.int64))
 
     def fields(self) -> dict:
         n, mesh = self.nodes, self.shell.mesh
@@ -116,12 +171,17 @@ class ShellSimulation:
             "nodes": len(self.shell.mesh.X),
             "elements": len(self.shell.mesh.tri),
             "element_size": self.shell.mesh.element_size(),
-            "crack_tips": [tip.position.tolist() for tip in self.tips],
+            "crack_tips": [self.shell.mesh.X[tip.vertex].tolist() for tip in self.tips],
+            "crack_extension": [tip.extension for tip in self.tips],
             "j_rings": [list(r) for r in self.rings],
             "j_tips": j.tolist(),
             "j_integral": float(np.mean(j[0])) if len(self.tips) else None,
             "warnings": list(self.warnings),
         }
+        if self.growth is not None:
+            thickness = float(np.median(self.shell.mesh.thickness))
+            out["griffith_energy"] = self.growth.toughness * thickness * sum(tip.extension for tip in self.tips)
+            out["growth_start_time"] = self.advances[0].time if self.advances else None
         if self.j_reference is not None:
             out["j_reference"] = self.j_reference
             out["j_ratio"] = out["j_integral"] / self.j_reference if out["j_integral"] is not None else None

@@ -1,0 +1,86 @@
+"""Crack growth on the shell (paper 002 sections 5-6): Griffith's criterion on the J-integral, the
+crack speed law, and the topology update that moves a tip along the mesh by splitting vertices.
+
+Every GROWTH_CHECK steps (a fixed grid of step numbers, so the run does not depend on how it is
+split into calls), each tip's J (the mean over its rings) is compared with Gc. Where J >= Gc the
+tip runs at V = V_max min(1, (J / Gc - 1)^m) (the paper's power law in G / Gc - 1, capped at
+V_max), its advance accumulating over the checks; once the advance reaches the next edge ahead
+(the tip's edge best aligned with its direction), that edge is cut (mesh.split_along): the tip
+vertex splits in two and the edge's far end is the new tip (node release). The new mesh's arrays
+are rebuilt and the state carried over: positions and velocities of the old vertices, the
+parent's for each new copy (the split conserves mass and momentum), the supports and tool state
+of the parent, the work counters on the old vertices (the copies start at zero).
+
+The direction is straight ahead (the last segment's): exact for mode I; the direction of the
+maximum energy release rate under mixed mode is not there yet. Energy: cutting an edge does not
+move anything, so no energy appears or vanishes at the cut except the bending energy of the
+triangles whose edge became free (their free-edge angle is condensed: `energy.fracture`
+books that jump); the membrane energy near the tip is then released by the motion (kinetic,
+then damping). The Griffith energy Gc x thickness x extension is in the summary, not the audit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mesh import split_along
+from .model import Shell, build_shell
+
+GROWTH_CHECK = 20  # steps between checks
+
+
+@dataclass
+class GrowthLaw:
+    toughness: float  # J/m^2, Gc
+    max_speed: float  # m/s, V_max
+    exponent: float = 1.0  # m
+
+    def speed(self, j: float) -> float:
+        """V (m/s) at J (J/m^2): 0 below Gc."""
+        if not j >= self.toughness:
+            return 0.0
+        return self.max_speed * min(1.0, (j / self.toughness - 1.0) ** self.exponent)
+
+
+@dataclass
+class Advance:
+    time: float
+    position: np.ndarray  # reference, the new tip
+    tip: int
+
+
+def step_ahead(shell: Shell, vertex: int, direction: np.ndarray) -> tuple[int, float] | None:
+    """The neighbour of `vertex` along the edge best aligned with `direction` (within 60 deg),
+    and that edge's length; None if there is none (the crack reached a boundary)."""
+    mesh = shell.mesh
+    edges = np.flatnonzero(np.any(mesh.edge == vertex, axis=1) & ~mesh.boundary)
+    best, best_cos, best_length = None, 0.5, 0.0
+    for e in edges:
+        other = int(mesh.edge[e, 0] if mesh.edge[e, 1] == vertex else mesh.edge[e, 1])
+        d = mesh.X[other] - mesh.X[vertex]
+        length = float(np.linalg.norm(d))
+        cos = float(np.dot(d, direction)) / length
+        if cos > best_cos + 1e-12:
+            best, best_cos, best_length = other, cos, length
+    return None if best is None else (best, best_length)
+
+
+def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
+    """The shell with the edge (a, b) cut and its state carried over (module docstring), and the
+    vertices the cut opened (a always; b too when it is on a boundary: the crack went through)."""
+    mesh, parent = split_along(shell.mesh, np.array([a, b]))
+    new = build_shell(mesh, shell.material)
+    old, n_old = shell.nodes, len(shell.mesh.X)
+    source = np.concatenate([np.arange(n_old), parent])
+    carried = {}
+    for name in ("x", "v", "constraint", "tool", "tool_offset", "friction", "load"):
+        carried[name] = getattr(old, name)[source].copy()
+    for name in ("w_external", "w_damping", "d_friction"):
+        counter = np.zeros(len(source))
+        counter[:n_old] = getattr(old, name)
+        carried[name] = counter
+    carried["load"][n_old:] = 0.0  # the parent keeps its share of an edge load
+    new.nodes = new.nodes._replace(projection=old.projection, **carried)
+    return new, parent
