@@ -11,8 +11,10 @@ are rebuilt and the state carried over: positions and velocities of the old vert
 parent's for each new copy (the split conserves mass and momentum), the supports and tool state
 of the parent, the work counters on the old vertices (the copies start at zero).
 
-The direction is straight ahead (the last segment's): exact for mode I; the direction of the
-maximum energy release rate under mixed mode is not there yet. Energy: cutting an edge does not
+The direction: the maximum tangential stress criterion (Erdogan and Sih; K_I and K_II from J and
+the crack faces' displacements, jintegral.stress_intensity): straight ahead in mode I, 70.5 deg
+off in pure mode II; the cut then takes the tip's edge nearest to that heading, so the path
+follows the mesh's edges (no remeshing at the tip yet). Energy: cutting an edge does not
 move anything, so no energy appears or vanishes at the cut except the bending energy of the
 triangles whose edge became free (their free-edge angle is condensed: `energy.fracture`
 books that jump); the membrane energy near the tip is then released by the motion (kinetic,
@@ -49,6 +51,7 @@ class Advance:
     time: float
     position: np.ndarray  # reference, the new tip
     tip: int
+    mode: int  # solver.failures code of the tip's mixity
 
 
 def step_ahead(shell: Shell, vertex: int, direction: np.ndarray) -> tuple[int, float] | None:

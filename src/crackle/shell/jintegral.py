@@ -62,3 +62,52 @@ def bending_density(shell: Shell, x, which=None) -> np.ndarray:
     membrane_energy, bending_energy = np.zeros(len(which)), np.zeros(len(which))
     face_energies(x, shell.faces, shell.edges, which, membrane_energy, bending_energy)
     return bending_energy / shell.faces.area[which]
+
+
+def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float, pairs: int = 4) -> tuple[float, float]:
+    """(K_I, K_II) (Pa m^1/2) at the tip vertex: the magnitude from J (K_I^2 + K_II^2 = E J,
+    plane stress), the mode mixity psi = atan(K_II / K_I) from the crack faces' relative
+    displacement behind the tip (both ~ K sqrt(r) there: opening along the in-plane normal m for
+    mode I, sliding along the crack's direction d for mode II), summed over the vertex pairs 2 to
+    `pairs` cells behind the tip with weights 1 / sqrt(r). The faces' displacement alone gives K
+    10-20 % low with constant-strain triangles (their error next to the tip), the same for both
+    modes: their ratio is what is used. m = n x d with n the surface normal: K_II > 0 when the m
+    side slides along +d."""
+    if not j > 0.0:
+        return 0.0, 0.0
+    mesh = shell.mesh
+    X = mesh.X
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    faces_at_tip = np.flatnonzero(np.any(mesh.tri == tip, axis=1))
+    n = np.cross(X[mesh.tri[faces_at_tip, 1]] - X[mesh.tri[faces_at_tip, 0]],
+                 X[mesh.tri[faces_at_tip, 2]] - X[mesh.tri[faces_at_tip, 0]]).sum(axis=0)
+    m = np.cross(n / np.linalg.norm(n), d)
+    # Coincident vertex pairs (a vertex and its copy) on the line behind the tip.
+    rel = X - X[tip]
+    along = rel @ d
+    h = mesh.element_size()
+    on_line = np.flatnonzero((along < -1e-6 * h) & (np.linalg.norm(rel - along[:, None] * d, axis=1) < 1e-6 * h))
+    distances = np.unique(np.round(-along[on_line] / h, 6))
+    opening = sliding = 0.0
+    for r in distances[1:pairs] * h:
+        pair = on_line[np.abs(-along[on_line] - r) < 1e-5 * h]
+        if len(pair) != 2:
+            break  # the crack turned or ended
+        side = [float(np.sum((X[mesh.tri[np.any(mesh.tri == v, axis=1)]].mean(axis=1) - X[tip]) @ m)) for v in pair]
+        upper, lower = (pair[0], pair[1]) if side[0] > side[1] else (pair[1], pair[0])
+        jump = (x[upper] - X[upper]) - (x[lower] - X[lower])
+        opening += float(jump @ m) / np.sqrt(r)
+        sliding += float(jump @ d) / np.sqrt(r)
+    psi = np.arctan2(sliding, opening)
+    k = np.sqrt(shell.material.youngs_modulus * j)
+    return float(k * np.cos(psi)), float(k * np.sin(psi))
+
+
+def mts_kink_angle(k1: float, k2: float) -> float:
+    """The kink angle (rad, counter-clockwise from the crack's direction towards m) of the
+    maximum tangential stress criterion (Erdogan and Sih 1963): -70.5 deg for pure mode II with
+    K_II > 0, 0 for pure mode I."""
+    if k2 == 0.0:
+        return 0.0
+    ratio = k1 / k2
+    return 2.0 * np.arctan(0.25 * (ratio - np.sign(k2) * np.sqrt(ratio * ratio + 8.0)))

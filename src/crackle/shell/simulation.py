@@ -7,8 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..loading.loadcell import LoadCell, ToolSprings
+from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, cut_edge, step_ahead
-from .jintegral import j_integral
+from .jintegral import j_integral, mts_kink_angle, stress_intensity
 from .kernels import advance
 from .model import Shell
 
@@ -67,9 +68,13 @@ class ShellSimulation:
             if not tip.active:
                 continue
             j = float(np.mean(self._tip_j(tip)))
-            tip.pending += self.growth.speed(j) * GROWTH_CHECK * dt
+            speed = self.growth.speed(j)
+            if speed == 0.0:
+                continue
+            tip.pending += speed * GROWTH_CHECK * dt
+            heading, mode = self._heading(tip, j)
             while tip.active:
-                ahead = step_ahead(self.shell, tip.vertex, tip.direction)
+                ahead = step_ahead(self.shell, tip.vertex, heading)
                 if ahead is None:
                     tip.active = False
                     break
@@ -81,8 +86,20 @@ class ShellSimulation:
                 tip.extension += length
                 direction = self.shell.mesh.X[vertex] - self.shell.mesh.X[tip.vertex]
                 tip.vertex, tip.direction = vertex, direction / np.linalg.norm(direction)
-                self.advances.append(Advance(self.time, self.shell.mesh.X[vertex].copy(), k))
+                self.advances.append(Advance(self.time, self.shell.mesh.X[vertex].copy(), k, mode))
                 tip.active = not through
+
+    def _heading(self, tip: CrackTip, j: float) -> tuple[np.ndarray, int]:
+        """The direction the tip grows in: its direction turned by the maximum tangential stress
+        criterion's kink angle for its K_I and K_II (jintegral.stress_intensity), in the
+        surface's tangent plane; and the failure mode of that mixity (K_II^2 / K^2)."""
+        k1, k2 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
+        angle = mts_kink_angle(k1, k2)
+        X, tri = self.shell.mesh.X, self.shell.mesh.tri
+        around = tri[np.any(tri == tip.vertex, axis=1)]
+        normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
+        side = np.cross(normal / np.linalg.norm(normal), tip.direction)
+        return np.cos(angle) * tip.direction + np.sin(angle) * side, failure_mode(k2 * k2 / (k1 * k1 + k2 * k2))
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
@@ -140,11 +157,11 @@ class ShellSimulation:
 
     def new_events(self):
         """Each cut (a tip moving one edge) once: its time, the new tip's reference position,
-        mode tension (straight-ahead growth), the tip's number as the id."""
+        the mode of the tip's mixity, the tip's number as the id."""
         new = self.advances[self._reported:]
         self._reported = len(self.advances)
         return (np.array([a.time for a in new]), np.array([a.position for a in new]).reshape(-1, 3),
-                ["tension"] * len(new), np.array([a.tip for a in new], dtype=np.int64))
+                [MODE_NAMES[a.mode] for a in new], np.array([a.tip for a in new], dtype=np.int64))
 
     def fields(self) -> dict:
         n, mesh = self.nodes, self.shell.mesh
