@@ -479,7 +479,7 @@ class ScenarioBase(Strict):
     description: str = ""
     """free text; its first line is what crackle examples lists"""
     method: str = "fdem"
-    """the discretisation: fdem, or lattice (a toy that holds the driver to a second method)"""
+    """the discretisation: fdem, dem, meshfree, shell, or lattice (a toy that holds the driver to a second method)"""
     tools: list[ToolSpec] = []
     """rigid tools"""
     plates: PlatesSpec | None = None
