@@ -86,4 +86,6 @@ def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
         carried[name] = counter
     carried["load"][n_old:] = 0.0  # the parent keeps its share of an edge load
     new.nodes = new.nodes._replace(projection=old.projection, **carried)
+    for name in ("pressure", "pressure_sign", "pressure_delay"):  # the cut keeps the triangles' order
+        getattr(new.faces, name)[:] = getattr(shell.faces, name)
     return new, parent

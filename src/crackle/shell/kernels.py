@@ -39,15 +39,20 @@ Nodes = namedtuple(
 # load: (n, 3) N, the nodal external force at load factor 1 (edge tractions, lumped);
 # face_slot / edge_slot: CSR (by node, in face then corner order) into Faces.force (face * 3 +
 # corner) and Edges.force (edge * 4 + slot).
-Faces = namedtuple("Faces", "tri dm_inv area lam_t mu_t bend face_edge force moment")
+Faces = namedtuple("Faces", "tri dm_inv area lam_t mu_t bend face_edge force moment pressure pressure_sign "
+                             "pressure_delay pressure_force")
 # dm_inv: (m, 4) the inverse of the reference edge matrix in the face's own frame, row-major;
 # lam_t, mu_t: plane-stress Lame constants times thickness (N/m); bend: (m, 6) H's upper
-# triangle (00 01 02 11 12 22); force (m, 3, 3) per corner; moment (m, 3) dE/dtheta per local edge.
+# triangle (00 01 02 11 12 22); force (m, 3, 3) per corner; moment (m, 3) dE/dtheta per local edge;
+# pressure (m,) the row of the face's pressure history in Pressures (-1: none), pressure_sign +1
+# where it pushes along the face's normal, -1 against; pressure_delay (m,) s, a travelling
+# front's arrival (nothing before it); pressure_force (m, 3) the force on each corner (external).
 Edges = namedtuple("Edges", "ends opposite face local theta theta0 force")
 # ends (k, 2), opposite (k, 2) (-1 on a boundary), face (k, 2), local (k, 2) the edge's index in
 # each face; theta (k,) the current dihedral angle, theta0 the reference one; force (k, 4, 3) on
 # ends[0], ends[1], opposite[0], opposite[1].
 LoadFactor = namedtuple("LoadFactor", "times values n")  # the history that scales Nodes.load
+Pressures = namedtuple("Pressures", "times values counts")  # one padded row per pressure history
 
 
 @njit(cache=True, inline="always")
@@ -137,7 +142,7 @@ def _angle_block(lo, hi, x, edges):
 
 
 @block_kernel
-def _face_block(lo, hi, x, faces, edges):
+def _face_block(lo, hi, t, x, faces, edges, pressures):
     tri, dm_inv, area, force, moment = faces.tri, faces.dm_inv, faces.area, faces.force, faces.moment
     face_edge, theta, theta0 = faces.face_edge, edges.theta, edges.theta0
     for f in range(lo, hi):
@@ -161,6 +166,19 @@ def _face_block(lo, hi, x, faces, edges):
             force[f, c, 2] = s * (pz0 * g0 + pz1 * g1)
         for d in range(3):
             force[f, 0, d] = -(force[f, 1, d] + force[f, 2, d])
+        k = faces.pressure[f]
+        if k >= 0:
+            # A follower pressure: p / 6 x the current area vector (twice the area along the
+            # normal) on each corner.
+            delay = faces.pressure_delay[f]
+            p = 0.0
+            if t >= delay:
+                p = faces.pressure_sign[f] * interp_history(t - delay, pressures.times[k], pressures.values[k],
+                                                            pressures.counts[k]) / 6.0
+            nx, ny, nz = _normal(x, a0, a1, a2)
+            faces.pressure_force[f, 0] = p * nx
+            faces.pressure_force[f, 1] = p * ny
+            faces.pressure_force[f, 2] = p * nz
         e0, e1, e2 = face_edge[f, 0], face_edge[f, 1], face_edge[f, 2]
         m0, m1, m2 = bending_moments(faces.bend, f, theta[e0] - theta0[e0], theta[e1] - theta0[e1],
                                      theta[e2] - theta0[e2])
@@ -189,6 +207,7 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
                 alpha):
     x, v, mass, area, radius = nodes.x, nodes.v, nodes.mass, nodes.area, nodes.radius
     face_force, edge_force = faces.force, edges.force
+    pressure, pressure_force = faces.pressure, faces.pressure_force
     face_start, face_slot, edge_start, edge_slot = nodes.face_start, nodes.face_slot, nodes.edge_start, nodes.edge_slot
     n_tool = tools.kind.shape[0]
     force_slots = tools.force_slots
@@ -198,6 +217,9 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
         fx = 0.0
         fy = 0.0
         fz = 0.0
+        px = 0.0
+        py = 0.0
+        pz = 0.0
         for r in range(face_start[g], face_start[g + 1]):
             k = face_slot[r]
             f = k // 3
@@ -205,6 +227,10 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
             fx += face_force[f, c, 0]
             fy += face_force[f, c, 1]
             fz += face_force[f, c, 2]
+            if pressure[f] >= 0:
+                px += pressure_force[f, 0]
+                py += pressure_force[f, 1]
+                pz += pressure_force[f, 2]
         for r in range(edge_start[g], edge_start[g + 1]):
             k = edge_slot[r]
             e = k // 4
@@ -217,16 +243,17 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
             g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
             force_slots, tool_v_prev, tool_v_next, nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction,
         )
-        update_velocity(g, v, fx, fy, fz, m * gravity[0] + scale * load[g, 0], m * gravity[1] + scale * load[g, 1],
-                        m * gravity[2] + scale * load[g, 2], cx, cy, cz, tool_work, m, alpha, dt, nodes.constraint,
-                        nodes.projection, nodes.w_external, nodes.w_damping)
+        update_velocity(g, v, fx, fy, fz, m * gravity[0] + scale * load[g, 0] + px,
+                        m * gravity[1] + scale * load[g, 1] + py, m * gravity[2] + scale * load[g, 2] + pz, cx, cy, cz,
+                        tool_work, m, alpha, dt, nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping)
         move(g, x, v, dt)
 
 
 @njit(parallel=True, cache=True)
 def element_forces(x, faces, edges):
     """The three element passes at positions x: Faces.force, Edges.force (and the angles and
-    moments) in place."""
+    moments) in place; pressures are left out (they are external loads)."""
+    no_pressure = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
     n_face = faces.tri.shape[0]
     n_edge = edges.ends.shape[0]
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
@@ -234,7 +261,7 @@ def element_forces(x, faces, edges):
         _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
     for blk in prange((n_face + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
-        _face_block(lo, min(lo + BLOCK, n_face), x, faces, edges)
+        _face_block(lo, min(lo + BLOCK, n_face), -np.inf, x, faces, edges, no_pressure)
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
@@ -275,7 +302,7 @@ def internal_forces(x, nodes, faces, edges, out):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, gravity, alpha):
+def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, pressures, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt);
     arrays updated in place."""
     n_tool = tools.kind.shape[0]
@@ -293,7 +320,7 @@ def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, gr
             _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
         for blk in prange((n_face + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
-            _face_block(lo, min(lo + BLOCK, n_face), x, faces, edges)
+            _face_block(lo, min(lo + BLOCK, n_face), t, x, faces, edges, pressures)
         for blk in prange((n_edge + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)

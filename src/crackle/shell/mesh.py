@@ -124,6 +124,24 @@ def rectangle(width: float, height: float, nx: int, ny: int, thickness: float, o
     return shell_mesh(X, np.stack([first, second], axis=1).reshape(-1, 3), thickness)
 
 
+def cylinder(radius: float, length: float, around: int, along: int, thickness: float, origin=(0.0, 0.0, 0.0)) -> ShellMesh:
+    """An open cylinder about the z axis through origin (the centre of its first end), `around`
+    cells round (rounded up to a multiple of 4: the diagonals alternate, and vertices lie on the
+    x and y axes' planes) and `along` along z, normals outward."""
+    around = -(-around // 4) * 4
+    phi = 2.0 * np.pi * np.arange(around) / around
+    z = np.linspace(0.0, length, along + 1)
+    X = np.stack([np.repeat(radius * np.cos(phi), along + 1), np.repeat(radius * np.sin(phi), along + 1),
+                  np.tile(z, around)], axis=1) + np.asarray(origin, float)
+    idx = np.arange(around * (along + 1)).reshape(around, along + 1)
+    nxt = np.roll(idx, -1, axis=0)
+    a, b, c, d = (v.ravel() for v in (idx[:, :-1], nxt[:, :-1], nxt[:, 1:], idx[:, 1:]))
+    even = (np.add.outer(np.arange(around), np.arange(along)) % 2 == 0).ravel()
+    first = np.where(even[:, None], np.stack([a, b, c], axis=1), np.stack([a, b, d], axis=1))
+    second = np.where(even[:, None], np.stack([a, c, d], axis=1), np.stack([b, c, d], axis=1))
+    return shell_mesh(X, np.stack([first, second], axis=1).reshape(-1, 3), thickness)
+
+
 def edge_path(mesh: ShellMesh, polyline) -> np.ndarray:
     """The chain of vertices, joined by edges, that follows a polyline (k >= 2 points on the
     surface) most closely: per segment, the shortest path in the edge graph between the vertices

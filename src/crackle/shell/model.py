@@ -85,7 +85,8 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial):
     upper = np.stack([H[:, 0, 0], H[:, 0, 1], H[:, 0, 2], H[:, 1, 1], H[:, 1, 2], H[:, 2, 2]], axis=1)
     faces = Faces(tri=mesh.tri.copy(), dm_inv=np.ascontiguousarray(dm_inv), area=area, lam_t=lam * mesh.thickness,
                   mu_t=mu * mesh.thickness, bend=np.ascontiguousarray(upper), face_edge=mesh.face_edge.copy(),
-                  force=np.zeros((m, 3, 3)), moment=np.zeros((m, 3)))
+                  force=np.zeros((m, 3, 3)), moment=np.zeros((m, 3)), pressure=np.full(m, -1, dtype=np.int64),
+                  pressure_sign=np.ones(m), pressure_delay=np.zeros(m), pressure_force=np.zeros((m, 3)))
     k = len(mesh.edge)
     local_index = np.zeros((k, 2), dtype=np.int64)
     for s in range(2):

@@ -2,7 +2,8 @@
 
 [shell] the mid-surface (a rectangle meshed at element_size, or any triangle surface meshio
 reads) and its thickness; [material] the elastic constants; [[cracks]] pre-cracks as polylines on
-the surface (cut along the nearest chain of edges); [[edge_loads]] tractions on boundary edges;
+the surface (cut along the nearest chain of edges); [[edge_loads]] tractions on boundary edges; [[pressures]] the shared section on triangles (a side
+to act from, optionally a travelling front);
 [fracture] the J-integral's rings and the closed form to compare with. Tools, supports, run
 control and outputs are the shared ones.
 """
@@ -17,13 +18,14 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..geometry.meshes import MeshError
-from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
+from ..loading import History
+from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
-from .kernels import BLOCK, LoadFactor
-from .mesh import SurfaceError, edge_path, rectangle, shell_mesh, split_along
+from .kernels import BLOCK, LoadFactor, Pressures
+from .mesh import SurfaceError, cylinder, edge_path, rectangle, shell_mesh, split_along
 from .model import ShellMaterial, build_shell, edge_loads
 from .growth import GrowthLaw
 from .simulation import CrackTip, ShellSimulation
@@ -32,16 +34,22 @@ from .simulation import CrackTip, ShellSimulation
 class ShellSpec(Strict):
     """[shell]: the mid-surface and its thickness."""
 
-    surface: Literal["rectangle", "file"]
-    """rectangle: size and element_size, in the x-y plane from origin; file: a triangle surface (file)"""
+    surface: Literal["rectangle", "cylinder", "file"]
+    """rectangle: size and element_size, in the x-y plane from origin; cylinder: radius, length and element_size,
+    along z from origin (the centre of its first end), open ends, normals outward; file: a triangle surface
+    (file)"""
     thickness: Positive
     """m, the shell's thickness"""
     size: tuple[Positive, Positive] | None = None
     """m, rectangle: its sides along x and y"""
+    radius: Positive | None = None
+    """m, cylinder: the mid-surface's radius"""
+    length: Positive | None = None
+    """m, cylinder: along z"""
     origin: Vec3 = (0.0, 0.0, 0.0)
-    """m, rectangle: its lower corner"""
+    """m, rectangle: its lower corner; cylinder: the centre of its first end"""
     element_size: Positive | None = None
-    """m, rectangle: the side of its square cells (two triangles each)"""
+    """m, rectangle and cylinder: the side of their (nearly) square cells, two triangles each"""
     file: str | None = None
     """file: any triangle surface meshio reads (.stl, .msh, .obj, .vtu ...), relative to the scenario's folder; its
     triangles oriented alike"""
@@ -50,7 +58,8 @@ class ShellSpec(Strict):
 
     @model_validator(mode="after")
     def _keys_of_the_surface(self):
-        need = ("size", "element_size") if self.surface == "rectangle" else ("file",)
+        need = {"rectangle": ("size", "element_size"), "cylinder": ("radius", "length", "element_size"),
+                "file": ("file",)}[self.surface]
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"surface '{self.surface}' needs {', '.join(missing)}")
@@ -88,9 +97,11 @@ class FractureSpec(Strict):
     """m/s, V_max of the speed law V = V_max min(1, (J / Gc - 1)^m); default the Rayleigh wave speed"""
     speed_exponent: Positive = 1.0
     """m of the speed law"""
-    reference: Literal["none", "centre-crack"] = "none"
+    reference: Literal["none", "centre-crack", "axial-crack-folias"] = "none"
     """the closed form in summary.json's j_reference: centre-crack, K^2 / E with K = sigma sqrt(pi a) times Tada's
-    width factor, for one crack inside a rectangle pulled by its edge loads"""
+    width factor, for one crack inside a rectangle pulled by its edge loads; axial-crack-folias, (M sigma
+    sqrt(pi a))^2 / E for an axial crack in a cylinder under internal pressure (sigma = p R / t), j_bracket the
+    values of two estimates of the bulging factor M (Folias, Kiefner) and j_reference their geometric mean"""
 
 
 class Scenario(ScenarioBase):
@@ -112,17 +123,26 @@ class Scenario(ScenarioBase):
         ramps = {load.ramp_time for load in self.edge_loads}
         if len(ramps) > 1:
             raise ValueError("edge_loads: give every edge load the same ramp_time (the shell has one load history)")
-        if self.pressures:
-            raise ValueError("pressures: not available on the shell yet; load its edges with [[edge_loads]]")
+        for i, pressure in enumerate(self.pressures):
+            if pressure.faces != "where" or pressure.wall is None:
+                raise ValueError(f'pressures.{i}: on a shell give faces = "where" (a triangle is loaded when its three '
+                                 'corners are selected) and wall = "inner" (the pressure pushes along the triangles\' '
+                                 'normals) or "outer" (against them)')
+            if pressure.front_speed is not None and pressure.front_direction is None and self.shell.surface != "cylinder":
+                raise ValueError(f"pressures.{i}.front_direction: needed for a front on a surface that is not a cylinder")
         if self.fracture.reference == "centre-crack" and (self.shell.surface != "rectangle" or len(self.cracks) != 1
                                                           or not self.edge_loads):
             raise ValueError('fracture.reference = "centre-crack" needs surface = "rectangle", one crack and edge '
                              "loads")
+        if self.fracture.reference == "axial-crack-folias" and (self.shell.surface != "cylinder"
+                                                                or len(self.cracks) != 1 or len(self.pressures) != 1):
+            raise ValueError('fracture.reference = "axial-crack-folias" needs surface = "cylinder", one crack and one '
+                             "pressure")
         return self
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimulation:
-    tools, supports, _ = build_loading(scenario, base)
+    tools, supports, pressures = build_loading(scenario, base)
     spec, mat = scenario.shell, scenario.material
     try:
         mesh = _surface(spec, base)
@@ -149,6 +169,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
             raise ScenarioError(f"edge_loads.{i}.where: selects no boundary edge (both ends of an edge must be "
                                 "selected); check its plane or box")
         load += edge_loads(mesh, edges, edge_load.traction)
+    pressure_table = _pressures(shell, pressures, scale)
     ramp = scenario.edge_loads[0].ramp_time if scenario.edge_loads else 0.0
     factor = LoadFactor(np.array([0.0, ramp]) if ramp > 0 else np.array([0.0]),
                         np.array([0.0, 1.0]) if ramp > 0 else np.array([1.0]), 2 if ramp > 0 else 1)
@@ -168,18 +189,49 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     growth = None
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent)
-    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, tips, rings, stable_dt, h / c,
+    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt, h / c,
                           np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
+    if fracture.reference != "none" and len(tips) != 2:
+        raise ScenarioError(f'fracture.reference = "{fracture.reference}": the crack must have two tips inside the '
+                            "surface")
     if fracture.reference == "centre-crack":
         sim.j_reference = centre_crack_reference(scenario, [mesh.X[tip.vertex] for tip in tips],
                                                  [tip.direction for tip in tips])
+    elif fracture.reference == "axial-crack-folias":
+        a = 0.5 * float(np.linalg.norm(mesh.X[tips[0].vertex] - mesh.X[tips[1].vertex]))
+        sim.j_bracket = folias_bracket(a, spec.radius, spec.thickness, abs(pressures[0].history.values[-1]),
+                                       mat.youngs_modulus)
+        sim.j_reference = math.sqrt(sim.j_bracket[0] * sim.j_bracket[1])
     return sim
+
+
+def _pressures(shell, pressures, scale) -> Pressures:
+    """Each pressure's triangles (all three corners selected) in Faces, with its side and a front's
+    delays; the histories as a table."""
+    mesh, faces = shell.mesh, shell.faces
+    centroids = mesh.X[mesh.tri].mean(axis=1)
+    for k, pressure in enumerate(pressures):
+        chosen = np.all(pressure.faces.mask(mesh.X, scale)[mesh.tri], axis=1)
+        if not chosen.any():
+            raise ScenarioError(f"pressures.{k}.where: selects no triangle (all three corners must be selected)")
+        faces.pressure[chosen] = k
+        faces.pressure_sign[chosen] = 1.0 if pressure.wall == "inner" else -1.0
+        if pressure.front_speed is not None:
+            direction = np.asarray(pressure.front_direction or (0.0, 0.0, 1.0), float)
+            along = (centroids[chosen] - np.asarray(pressure.front_origin, float)) @ (direction / np.linalg.norm(direction))
+            faces.pressure_delay[chosen] = along / pressure.front_speed
+    times, values, counts = history_tables([p.history for p in pressures] or [History.constant(0.0)])
+    return Pressures(times, values, counts)
 
 
 def _surface(spec: ShellSpec, base: Path | None):
     if spec.surface == "rectangle":
         nx, ny = (max(1, int(round(L / spec.element_size))) for L in spec.size)
         return rectangle(spec.size[0], spec.size[1], nx, ny, spec.thickness, spec.origin)
+    if spec.surface == "cylinder":
+        around = max(3, int(round(2.0 * math.pi * spec.radius / spec.element_size)))
+        along = max(1, int(round(spec.length / spec.element_size)))
+        return cylinder(spec.radius, spec.length, around, along, spec.thickness, spec.origin)
     import meshio
 
     try:
@@ -203,6 +255,17 @@ def _tips(mesh, path, opened) -> list[CrackTip]:
     return tips
 
 
+def folias_bracket(a: float, radius: float, thickness: float, pressure: float, youngs_modulus: float) -> list[float]:
+    """J = (M sigma sqrt(pi a))^2 / E (J/m^2) of an axial crack 2a in a pressurised cylinder,
+    sigma = p R / t, for two estimates of the bulging factor with lambda = a / sqrt(R t): Kiefner's
+    M = sqrt(1 + 1.255 lambda^2 - 0.0135 lambda^4) and Folias' M = sqrt(1 + 1.61 lambda^2); sorted."""
+    lam2 = a * a / (radius * thickness)
+    sigma = pressure * radius / thickness
+    values = [(m2 * sigma**2 * math.pi * a) / youngs_modulus
+              for m2 in (1.0 + 1.255 * lam2 - 0.0135 * lam2 * lam2, 1.0 + 1.61 * lam2)]
+    return sorted(values)
+
+
 def rayleigh_speed(material: ElasticSpec) -> float:
     """m/s, c_R ~ c_s (0.862 + 1.14 nu) / (1 + nu) (Viktorov's fit; 0.5 % for 0 <= nu <= 0.5)."""
     nu = material.poissons_ratio
@@ -214,8 +277,6 @@ def centre_crack_reference(scenario: Scenario, tips: list[np.ndarray], direction
     """J = K^2 / E (J/m^2) of a centre crack 2a across a strip of width 2b under the traction
     sigma of its edge loads: K = sigma sqrt(pi a) (1 - 0.025 alpha^2 + 0.06 alpha^4)
     sqrt(sec(pi alpha / 2)), alpha = a / b (Tada's handbook; 0.1 %)."""
-    if len(tips) != 2:
-        raise ScenarioError('fracture.reference = "centre-crack": the crack must have two tips inside the surface')
     a = 0.5 * float(np.linalg.norm(tips[0] - tips[1]))
     along = np.abs(directions[0][:2])
     width = scenario.shell.size[0] if along[0] >= along[1] else scenario.shell.size[1]

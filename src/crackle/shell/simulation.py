@@ -26,16 +26,17 @@ class CrackTip:
 class ShellSimulation:
     method = "shell"
 
-    def __init__(self, shell: Shell, tools, tool_names, load_factor, tips, rings, stable_dt, wave_transit, gravity,
-                 damping, growth: GrowthLaw | None = None):
-        self.shell, self.tools, self.load_factor = shell, tools, load_factor
+    def __init__(self, shell: Shell, tools, tool_names, load_factor, pressures, tips, rings, stable_dt, wave_transit,
+                 gravity, damping, growth: GrowthLaw | None = None):
+        self.shell, self.tools, self.load_factor, self.pressures = shell, tools, load_factor, pressures
         self._tool_names = list(tool_names)
         self.tips, self.rings = list(tips), [tuple(map(float, r)) for r in rings]
         self.stable_dt = float(stable_dt)
         self.wave_transit = float(wave_transit)
         self.gravity = np.asarray(gravity, dtype=float)
         self.damping = float(damping)
-        self.j_reference: float | None = None
+        self.j_reference: float | None = None  # a closed form of the case (fracture.reference)
+        self.j_bracket: list[float] | None = None  # the range of several estimates, where there are
         self.time = 0.0
         self.steps = 0
         self._springs = ToolSprings(tools, tool_names)
@@ -56,7 +57,7 @@ class ShellSimulation:
             stop = end if self.growth is None else min(end, (self.steps // GROWTH_CHECK + 1) * GROWTH_CHECK)
             s = self.shell
             advance(stop - self.steps, self.steps, dt, s.nodes, s.faces, s.edges, self.tools, self.load_factor,
-                    self.gravity, self.damping)
+                    self.pressures, self.gravity, self.damping)
             self.steps = stop
             self.time = self.steps * dt
             if self.growth is not None and self.steps % GROWTH_CHECK == 0:
@@ -199,6 +200,8 @@ class ShellSimulation:
             thickness = float(np.median(self.shell.mesh.thickness))
             out["griffith_energy"] = self.growth.toughness * thickness * sum(tip.extension for tip in self.tips)
             out["growth_start_time"] = self.advances[0].time if self.advances else None
+        if self.j_bracket is not None:
+            out["j_bracket"] = list(self.j_bracket)
         if self.j_reference is not None:
             out["j_reference"] = self.j_reference
             out["j_ratio"] = out["j_integral"] / self.j_reference if out["j_integral"] is not None else None
