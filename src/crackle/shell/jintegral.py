@@ -17,10 +17,12 @@ not in it yet): exact for in-plane loading, where the bending energy is zero."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from .kernels import face_energies
-from .model import Shell
+from .kernels import face_energies, strain_energies
+from .model import Shell, build_arrays
 
 
 def j_integral(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: float) -> float:
@@ -111,3 +113,27 @@ def mts_kink_angle(k1: float, k2: float) -> float:
         return 0.0
     ratio = k1 / k2
     return 2.0 * np.arctan(0.25 * (ratio - np.sign(k2) * np.sqrt(ratio * ratio + 8.0)))
+
+
+def energy_release_rate(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: float,
+                        step: float = 1e-4) -> float:
+    """G (J/m^2) at a crack tip by virtual crack extension: the derivative of the strain energy
+    (membrane and bending) with respect to moving the reference positions of the vertices about
+    the tip by q d (q the J-integral's weight on the ring r_in..r_out), at fixed current
+    positions, G = -dU/da / t (central difference of two rebuilt models, `step` x the element
+    size). At equilibrium this is the energy released per crack area under the loads as they
+    are (the envelope theorem: the loads' potential does not depend on the reference
+    positions), bending and pressure included, which the domain J above leaves out."""
+    mesh = shell.mesh
+    tip = np.asarray(tip, dtype=float)
+    d = np.asarray(direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
+    eps = step * mesh.element_size()
+    energies = []
+    for sign in (1.0, -1.0):
+        moved = replace(mesh, X=mesh.X + sign * eps * q[:, None] * d)
+        faces, edges, *_ = build_arrays(moved, shell.material)
+        energies.append(sum(strain_energies(x, faces, edges)))
+    nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
+    return -(energies[0] - energies[1]) / (2.0 * eps) / float(mesh.thickness[nearest])

@@ -9,7 +9,7 @@ import numpy as np
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, cut_edge, step_ahead
-from .jintegral import j_integral, mts_kink_angle, stress_intensity
+from .jintegral import energy_release_rate, j_integral, mts_kink_angle, stress_intensity
 from .kernels import advance
 from .model import Shell
 
@@ -147,6 +147,13 @@ class ShellSimulation:
         """J (J/m^2) at each tip (rows) over each ring (columns), at the current positions."""
         return np.array([self._tip_j(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
+    def g_values(self) -> np.ndarray:
+        """G (J/m^2) by virtual crack extension at each tip (rows) over each ring (columns), at the
+        current positions: bending and pressure included (jintegral.energy_release_rate)."""
+        X = self.shell.mesh.X
+        return np.array([[energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring)
+                          for ring in self.rings] for tip in self.tips]).reshape(len(self.tips), len(self.rings))
+
     def sample(self, dt: float) -> dict[str, float]:
         row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
                "broken": self.broken}
@@ -183,7 +190,7 @@ class ShellSimulation:
         return X.min(axis=0), X.max(axis=0)
 
     def summary(self) -> dict:
-        j = self.j_values()
+        j, g = self.j_values(), self.g_values()
         out = {
             "triangles": len(self.shell.mesh.tri),
             "nodes": len(self.shell.mesh.X),
@@ -194,6 +201,8 @@ class ShellSimulation:
             "j_rings": [list(r) for r in self.rings],
             "j_tips": j.tolist(),
             "j_integral": float(np.mean(j[0])) if len(self.tips) else None,
+            "g_tips": g.tolist(),
+            "energy_release_rate": float(np.mean(g[0])) if len(self.tips) else None,
             "warnings": list(self.warnings),
         }
         if self.growth is not None:
@@ -205,6 +214,8 @@ class ShellSimulation:
         if self.j_reference is not None:
             out["j_reference"] = self.j_reference
             out["j_ratio"] = out["j_integral"] / self.j_reference if out["j_integral"] is not None else None
+            out["g_ratio"] = (out["energy_release_rate"] / self.j_reference
+                              if out["energy_release_rate"] is not None else None)
         return out
 
     def extra_plots(self, out_dir) -> None:
