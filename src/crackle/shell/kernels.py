@@ -202,42 +202,47 @@ def _hinge_block(lo, hi, x, faces, edges):
         _dihedral_gradient(x, ends[e, 0], ends[e, 1], opposite[e, 0], opposite[e, 1], force, e, -total)
 
 
+@njit(cache=True, inline="always")
+def _gathered(g, nodes, faces, edges):
+    """Node g's internal force (fx, fy, fz: its corners' membrane forces and its hinges' bending
+    forces) and pressure force (px, py, pz), from the element passes' slots in a fixed order."""
+    face_force, edge_force, pressure, pressure_force = faces.force, edges.force, faces.pressure, faces.pressure_force
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    px = 0.0
+    py = 0.0
+    pz = 0.0
+    for r in range(nodes.face_start[g], nodes.face_start[g + 1]):
+        k = nodes.face_slot[r]
+        f = k // 3
+        c = k - 3 * f
+        fx += face_force[f, c, 0]
+        fy += face_force[f, c, 1]
+        fz += face_force[f, c, 2]
+        if pressure[f] >= 0:
+            px += pressure_force[f, 0]
+            py += pressure_force[f, 1]
+            pz += pressure_force[f, 2]
+    for r in range(nodes.edge_start[g], nodes.edge_start[g + 1]):
+        k = nodes.edge_slot[r]
+        e = k // 4
+        s = k - 4 * e
+        fx += edge_force[e, s, 0]
+        fy += edge_force[e, s, 1]
+        fz += edge_force[e, s, 2]
+    return fx, fy, fz, px, py, pz
+
+
 @block_kernel
 def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, tool_v_next, load_factor, gravity,
                 alpha):
-    x, v, mass, area, radius = nodes.x, nodes.v, nodes.mass, nodes.area, nodes.radius
-    face_force, edge_force = faces.force, edges.force
-    pressure, pressure_force = faces.pressure, faces.pressure_force
-    face_start, face_slot, edge_start, edge_slot = nodes.face_start, nodes.face_slot, nodes.edge_start, nodes.edge_slot
+    x, v, mass, area, radius, load = nodes.x, nodes.v, nodes.mass, nodes.area, nodes.radius, nodes.load
     n_tool = tools.kind.shape[0]
     force_slots = tools.force_slots
     scale = interp_history(t, load_factor.times, load_factor.values, load_factor.n)
-    load = nodes.load
     for g in range(lo, hi):
-        fx = 0.0
-        fy = 0.0
-        fz = 0.0
-        px = 0.0
-        py = 0.0
-        pz = 0.0
-        for r in range(face_start[g], face_start[g + 1]):
-            k = face_slot[r]
-            f = k // 3
-            c = k - 3 * f
-            fx += face_force[f, c, 0]
-            fy += face_force[f, c, 1]
-            fz += face_force[f, c, 2]
-            if pressure[f] >= 0:
-                px += pressure_force[f, 0]
-                py += pressure_force[f, 1]
-                pz += pressure_force[f, 2]
-        for r in range(edge_start[g], edge_start[g + 1]):
-            k = edge_slot[r]
-            e = k // 4
-            s = k - 4 * e
-            fx += edge_force[e, s, 0]
-            fy += edge_force[e, s, 1]
-            fz += edge_force[e, s, 2]
+        fx, fy, fz, px, py, pz = _gathered(g, nodes, faces, edges)
         m = mass[g]
         cx, cy, cz, tool_work = contact_with_tools(
             g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
@@ -250,10 +255,10 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
 
 
 @njit(parallel=True, cache=True)
-def element_forces(x, faces, edges):
-    """The three element passes at positions x: Faces.force, Edges.force (and the angles and
-    moments) in place; pressures are left out (they are external loads)."""
-    no_pressure = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
+def element_passes(t, x, faces, edges, pressures):
+    """The three element passes at time t and positions x: edge angles, faces (membrane forces,
+    bending moments, pressure forces), hinges; Faces.force, Edges.force and the pressure forces
+    in place."""
     n_face = faces.tri.shape[0]
     n_edge = edges.ends.shape[0]
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
@@ -261,34 +266,26 @@ def element_forces(x, faces, edges):
         _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
     for blk in prange((n_face + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
-        _face_block(lo, min(lo + BLOCK, n_face), -np.inf, x, faces, edges, no_pressure)
+        _face_block(lo, min(lo + BLOCK, n_face), t, x, faces, edges, pressures)
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
 
 
+# Pressures before the time begins (t = -inf): none acts (the statics' and Lanczos' forces).
+NO_PRESSURE = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
+
+
+def element_forces(x, faces, edges):
+    """The element passes' internal forces at positions x, pressures left out (external loads)."""
+    element_passes(-np.inf, x, faces, edges, NO_PRESSURE)
+
+
 @njit(parallel=True, cache=True)
 def gather_forces(nodes, faces, edges, out):
     """The internal force on each node (N) from the element passes' slots, into out (n, 3)."""
-    n = out.shape[0]
-    for g in prange(n):
-        fx = 0.0
-        fy = 0.0
-        fz = 0.0
-        for r in range(nodes.face_start[g], nodes.face_start[g + 1]):
-            k = nodes.face_slot[r]
-            f = k // 3
-            c = k - 3 * f
-            fx += faces.force[f, c, 0]
-            fy += faces.force[f, c, 1]
-            fz += faces.force[f, c, 2]
-        for r in range(nodes.edge_start[g], nodes.edge_start[g + 1]):
-            k = nodes.edge_slot[r]
-            e = k // 4
-            s = k - 4 * e
-            fx += edges.force[e, s, 0]
-            fy += edges.force[e, s, 1]
-            fz += edges.force[e, s, 2]
+    for g in prange(out.shape[0]):
+        fx, fy, fz, _, _, _ = _gathered(g, nodes, faces, edges)
         out[g, 0] = fx
         out[g, 1] = fy
         out[g, 2] = fz
@@ -307,23 +304,13 @@ def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, pr
     arrays updated in place."""
     n_tool = tools.kind.shape[0]
     n_node = nodes.x.shape[0]
-    n_face = faces.tri.shape[0]
-    n_edge = edges.ends.shape[0]
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     x = nodes.x
     for step in range(n_steps):
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
-        for blk in prange((n_edge + BLOCK - 1) // BLOCK):
-            lo = blk * BLOCK
-            _angle_block(lo, min(lo + BLOCK, n_edge), x, edges)
-        for blk in prange((n_face + BLOCK - 1) // BLOCK):
-            lo = blk * BLOCK
-            _face_block(lo, min(lo + BLOCK, n_face), t, x, faces, edges, pressures)
-        for blk in prange((n_edge + BLOCK - 1) // BLOCK):
-            lo = blk * BLOCK
-            _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
+        element_passes(t, x, faces, edges, pressures)
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _node_block(lo, min(lo + BLOCK, n_node), blk, t, dt, nodes, faces, edges, tools, tool_v_prev,
