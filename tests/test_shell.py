@@ -433,3 +433,20 @@ def test_energy_release_rate_by_virtual_crack_extension_equals_j_in_plane():
     for r_in, r_out in RINGS:
         j = j_integral(shell, x, (a, 0, 0), (1, 0, 0), r_in * a, r_out * a)
         assert energy_release_rate(shell, x, (a, 0, 0), (1, 0, 0), r_in * a, r_out * a) == pytest.approx(j, rel=1e-4)
+
+
+def test_shell_tear_example_quick(tmp_path):
+    """The shipped example shell-tear --quick (a 0.5 mm aluminium sheet with a 30 mm edge crack,
+    its two flaps pulled out of plane by rigid grips, 800 triangles, 2 ms): completed, the energy
+    audit closes to 1e-4 (measured 2e-5, contact and damping included), the grips pull (force
+    > 10 N), and G by virtual crack extension is path independent over the two rings in this
+    bending-dominated case, within 3 % (measured 1.5 %; 7.1 and 7.2 kJ/m^2), where the domain J,
+    without the moments' share, is not (1.07 and -0.04 kJ/m^2)."""
+    out = tmp_path / "tear"
+    assert main(["run", "shell-tear", "--quick", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "completed" and s["triangles"] == 800
+    assert abs(s["energy_error"]) < 1e-4
+    assert s["peak_force"] > 10.0
+    g = s["g_tips"][0]
+    assert min(g) > 1000.0 and np.ptp(g) < 0.03 * np.mean(g)

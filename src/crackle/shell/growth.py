@@ -38,6 +38,7 @@ class GrowthLaw:
     toughness: float  # J/m^2, Gc
     max_speed: float  # m/s, V_max
     exponent: float = 1.0  # m
+    criterion: str = "j"  # "j": the domain J; "g": G by virtual crack extension
 
     def speed(self, j: float) -> float:
         """V (m/s) at J (J/m^2): 0 below Gc."""

@@ -97,6 +97,10 @@ class FractureSpec(Strict):
     """m/s, V_max of the speed law V = V_max min(1, (J / Gc - 1)^m); default the Rayleigh wave speed"""
     speed_exponent: Positive = 1.0
     """m of the speed law"""
+    criterion: Literal["j", "g"] = "j"
+    """what Griffith's check compares with Gc: j, the domain J (cheap; exact for in-plane loading), or g, the energy
+    release rate by virtual crack extension (bending and pressure included; two rebuilds of the model per ring and
+    check: for sheets that bend or tear out of plane)"""
     reference: Literal["none", "centre-crack", "axial-crack-folias"] = "none"
     """the closed form in summary.json's j_reference: centre-crack, K^2 / E with K = sigma sqrt(pi a) times Tada's
     width factor, for one crack inside a rectangle pulled by its edge loads; axial-crack-folias, (M sigma
@@ -188,7 +192,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     fracture = scenario.fracture
     growth = None
     if math.isfinite(fracture.toughness):
-        growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent)
+        growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
+                           fracture.criterion)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt, h / c,
                           np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     if fracture.reference != "none" and len(tips) != 2:

@@ -68,7 +68,7 @@ class ShellSimulation:
         for k, tip in enumerate(self.tips):
             if not tip.active:
                 continue
-            j = float(np.mean(self._tip_j(tip)))
+            j = float(np.mean(self._tip_g(tip) if self.growth.criterion == "g" else self._tip_j(tip)))
             speed = self.growth.speed(j)
             if speed == 0.0:
                 continue
@@ -147,12 +147,15 @@ class ShellSimulation:
         """J (J/m^2) at each tip (rows) over each ring (columns), at the current positions."""
         return np.array([self._tip_j(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
+    def _tip_g(self, tip: CrackTip) -> list[float]:
+        X = self.shell.mesh.X
+        return [energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring)
+                for ring in self.rings]
+
     def g_values(self) -> np.ndarray:
         """G (J/m^2) by virtual crack extension at each tip (rows) over each ring (columns), at the
         current positions: bending and pressure included (jintegral.energy_release_rate)."""
-        X = self.shell.mesh.X
-        return np.array([[energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring)
-                          for ring in self.rings] for tip in self.tips]).reshape(len(self.tips), len(self.rings))
+        return np.array([self._tip_g(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
     def sample(self, dt: float) -> dict[str, float]:
         row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
