@@ -116,24 +116,26 @@ def mts_kink_angle(k1: float, k2: float) -> float:
 
 
 def energy_release_rate(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: float,
-                        step: float = 1e-4) -> float:
-    """G (J/m^2) at a crack tip by virtual crack extension: the derivative of the strain energy
-    (membrane and bending) with respect to moving the reference positions of the vertices about
-    the tip by q d (q the J-integral's weight on the ring r_in..r_out), at fixed current
-    positions, G = -dU/da / t (central difference of two rebuilt models, `step` x the element
-    size). At equilibrium this is the energy released per crack area under the loads as they
-    are (the envelope theorem: the loads' potential does not depend on the reference
-    positions), bending and pressure included, which the domain J above leaves out."""
+                        external: np.ndarray | None = None, step: float = 1e-4) -> float:
+    """G (J/m^2) at a crack tip by virtual crack extension: move the vertices about the tip by
+    q d in the reference and the current configuration alike (the displacements fixed; q the
+    J-integral's weight on the ring r_in..r_out), G = -(dU/da - f . q d) / t, U the strain energy
+    (membrane and bending: two rebuilt models, a central difference of `step` x the element
+    size) and f the external nodal forces (`external` (n, 3): pressures, edge loads) that the
+    moved vertices carry along. For in-plane loading this is the domain J above, term by term;
+    it also holds bending and pressure, which that J leaves out. Like J it leaves out the
+    kinetic terms: a quasi-static measure."""
     mesh = shell.mesh
     tip = np.asarray(tip, dtype=float)
     d = np.asarray(direction, dtype=float)
     d = d / np.linalg.norm(d)
     q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
     eps = step * mesh.element_size()
+    shift = eps * q[:, None] * d
     energies = []
     for sign in (1.0, -1.0):
-        moved = replace(mesh, X=mesh.X + sign * eps * q[:, None] * d)
-        faces, edges, *_ = build_arrays(moved, shell.material)
-        energies.append(sum(strain_energies(x, faces, edges)))
+        faces, edges, *_ = build_arrays(replace(mesh, X=mesh.X + sign * shift), shell.material)
+        energies.append(sum(strain_energies(x + sign * shift, faces, edges)))
+    work = 0.0 if external is None else float(np.sum(external * q[:, None] * d))
     nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
-    return -(energies[0] - energies[1]) / (2.0 * eps) / float(mesh.thickness[nearest])
+    return -((energies[0] - energies[1]) / (2.0 * eps) - work) / float(mesh.thickness[nearest])

@@ -147,9 +147,20 @@ class ShellSimulation:
         """J (J/m^2) at each tip (rows) over each ring (columns), at the current positions."""
         return np.array([self._tip_j(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
+    def external_forces(self) -> np.ndarray:
+        """(n, 3) N: the pressures' and edge loads' nodal forces now (the pressures as the last
+        step's face pass left them)."""
+        n, faces, tri = self.nodes, self.shell.faces, self.shell.mesh.tri
+        lf = self.load_factor
+        forces = np.interp(self.time, lf.times[:lf.n], lf.values[:lf.n]) * n.load
+        loaded = faces.pressure >= 0
+        for c in range(3):
+            np.add.at(forces, tri[loaded, c], faces.pressure_force[loaded])
+        return forces
+
     def _tip_g(self, tip: CrackTip) -> list[float]:
-        X = self.shell.mesh.X
-        return [energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring)
+        X, external = self.shell.mesh.X, self.external_forces()
+        return [energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring, external=external)
                 for ring in self.rings]
 
     def g_values(self) -> np.ndarray:
