@@ -123,7 +123,7 @@ class Scenario(ScenarioBase):
     """the J-integral's rings and reference"""
 
     @model_validator(mode="after")
-    def _one_load_history(self):
+    def _loads_and_references(self):
         ramps = {load.ramp_time for load in self.edge_loads}
         if len(ramps) > 1:
             raise ValueError("edge_loads: give every edge load the same ramp_time (the shell has one load history)")
@@ -188,14 +188,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
     stable_dt = shell.stable_dt(tool_k)
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
-    rings = scenario.fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
     fracture = scenario.fracture
+    rings = fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
     growth = None
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
                            fracture.criterion)
-    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt, h / c,
-                          np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
+    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
+                          h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     if fracture.reference != "none" and len(tips) != 2:
         raise ScenarioError(f'fracture.reference = "{fracture.reference}": the crack must have two tips inside the '
                             "surface")
