@@ -37,10 +37,6 @@ class ShellMesh:
         """Mask of the boundary edges (one face)."""
         return self.edge_face[:, 1] < 0
 
-    def areas(self) -> np.ndarray:
-        a, b, c = (self.X[self.tri[:, i]] for i in range(3))
-        return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-
     def element_size(self) -> float:
         """Median edge length (m)."""
         return float(np.median(np.linalg.norm(self.X[self.edge[:, 1]] - self.X[self.edge[:, 0]], axis=1)))
