@@ -12,6 +12,7 @@ import pytest
 from crackle.dem.build import build_dem_simulation
 from crackle.dem.kernels import BONDED, BROKEN, GONE
 from crackle.dem.model import BondLaw
+from crackle.scenario import ScenarioError, load_scenario
 from crackle.solver.energy import energy_error
 from crackle.solver.failures import MODE_SHEAR, MODE_TENSION
 
@@ -362,3 +363,10 @@ def test_love_weber_stress_matches_the_platen_stress(tmp_path):
     holder = np.all((sim.particles.x[:, None, :] >= first[None] - 1e-12) & (sim.particles.x[:, None, :] < first[None] + cell), axis=2)
     assert np.all(holder.sum(axis=1) == 1)  # every particle in exactly one cell
     assert np.all(frame.point_data["radius"][n:] == 0.0)
+
+
+def test_clamped_supports_are_refused_for_particles():
+    """A DEM particle's spin has no support: kind = "clamped" exits with the field and the fix."""
+    with pytest.raises(ScenarioError, match=r'supports\.0\.kind: "clamped" is not available for DEM.*use "fixed"'):
+        load_scenario("dem-ucs", overrides=['supports=[{kind="clamped", where={plane_point=[0, 0, 0], '
+                                            'plane_normal=[0, 0, 1]}}]'])

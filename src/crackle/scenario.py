@@ -306,10 +306,10 @@ class Where(Strict):
 
 
 class SupportSpec(Strict):
-    """[[supports]]: nodes held fixed, or on rollers (blocked along `normal`)."""
+    """[[supports]]: nodes held fixed, clamped, or on rollers (blocked along `normal`)."""
 
-    kind: Literal["fixed", "roller"]
-    """fixed: no motion; roller: no motion along normal"""
+    kind: Literal["fixed", "roller", "clamped"]
+    """fixed: no motion; roller: no motion along normal; clamped: no motion, and on a shell the boundary edges between selected nodes keep their slope (a solid's fixed nodes are already clamped: the same as fixed there; DEM: not available)"""
     where: Where
     """which nodes"""
     normal: Vec3 = (0.0, 0.0, 1.0)
@@ -487,7 +487,7 @@ class ScenarioBase(Strict):
     loading: LoadingSpec = LoadingSpec()
     """rotates all tools, e.g. a loading angle"""
     supports: list[SupportSpec] = []
-    """fixed and roller supports"""
+    """fixed, clamped and roller supports"""
     pressures: list[PressureSpec] = []
     """pressure histories on faces"""
     analysis: AnalysisSpec = AnalysisSpec()

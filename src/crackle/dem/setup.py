@@ -155,6 +155,14 @@ class Scenario(ScenarioBase):
     flaw: FlawSpec | None = None
     """a pre-existing crack (optional)"""
 
+    @model_validator(mode="after")
+    def _no_clamped_supports(self):
+        for i, support in enumerate(self.supports):
+            if support.kind == "clamped":
+                raise ValueError(f'supports.{i}.kind: "clamped" is not available for DEM particles (their spin is not '
+                                 'held); use "fixed"')
+        return self
+
 
 def domain_of(spec: DemSpecimen):
     """The packing domain of a specimen section."""

@@ -172,7 +172,8 @@ class Selection:
 
 @dataclass(frozen=True)
 class Support:
-    """fixed: no motion; roller: no motion along `normal` (slides in the plane)."""
+    """fixed: no motion; clamped: no motion (a shell also holds its slope there); roller: no motion
+    along `normal` (slides in the plane)."""
 
     kind: str
     where: Selection

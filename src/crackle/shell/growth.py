@@ -75,9 +75,9 @@ def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
     """The shell with the edge (a, b) cut and its state carried over (module docstring), and the
     vertices the cut opened (a always; b too when it is on a boundary: the crack went through)."""
     mesh, parent = split_along(shell.mesh, np.array([a, b]))
-    new = build_shell(mesh, shell.material)
     old, n_old = shell.nodes, len(shell.mesh.X)
     source = np.concatenate([np.arange(n_old), parent])
+    new = build_shell(mesh, shell.material, None if shell.clamped is None else shell.clamped[source])
     carried = {}
     for name in ("x", "v", "constraint", "tool", "tool_offset", "friction", "load"):
         carried[name] = getattr(old, name)[source].copy()
@@ -89,4 +89,30 @@ def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
     new.nodes = new.nodes._replace(projection=old.projection, **carried)
     for name in ("pressure", "pressure_sign", "pressure_delay"):  # the cut keeps the triangles' order
         getattr(new.faces, name)[:] = getattr(shell.faces, name)
+    _carry_edge_state(shell, new, source)
     return new, parent
+
+
+def _carry_edge_state(old: Shell, new: Shell, source: np.ndarray) -> None:
+    """The mid-edge rotations, their rates and damping work from each old edge to the new edge
+    between the same vertices (a copy counts as its parent); the cut edge's two sides are
+    boundary edges, without xi: only its damping work moves, to the first of them."""
+    n = len(source)
+
+    def keys(ends):
+        a, b = np.sort(ends, axis=1).T
+        return a * n + b
+
+    old_keys = keys(old.edges.ends)
+    new_keys = keys(source[new.edges.ends])
+    order = np.argsort(old_keys)
+    at = np.searchsorted(old_keys[order], new_keys)
+    match = order[np.minimum(at, len(order) - 1)]
+    found = old_keys[match] == new_keys
+    first = np.zeros(len(new_keys), dtype=bool)
+    first[np.unique(new_keys, return_index=True)[1]] = True
+    take = found & first
+    interior = new.edges.xi_inertia > 0.0
+    for name in ("xi", "xi_rate"):
+        getattr(new.edges, name)[take & interior] = getattr(old.edges, name)[match[take & interior]]
+    new.edges.xi_damping[take] = old.edges.xi_damping[match[take]]

@@ -134,8 +134,8 @@ def energy_release_rate(shell: Shell, x: np.ndarray, tip, direction, r_in: float
     shift = eps * q[:, None] * d
     energies = []
     for sign in (1.0, -1.0):
-        faces, edges, *_ = build_arrays(replace(mesh, X=mesh.X + sign * shift), shell.material)
-        energies.append(sum(strain_energies(x + sign * shift, faces, edges)))
+        faces, edges, *_ = build_arrays(replace(mesh, X=mesh.X + sign * shift), shell.material, shell.clamped)
+        energies.append(sum(strain_energies(x + sign * shift, faces, edges._replace(xi=shell.edges.xi))))
     work = 0.0 if external is None else float(np.sum(external * q[:, None] * d))
     nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
     return -((energies[0] - energies[1]) / (2.0 * eps) - work) / float(mesh.thickness[nearest])

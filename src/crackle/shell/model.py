@@ -11,8 +11,11 @@ import numpy as np
 
 from ..solver import stability
 from ..solver.integrator import FREE
-from .kernels import Edges, Faces, Nodes, element_forces, internal_forces, strain_energies
+from .kernels import CLAMPED, Edges, Faces, Nodes, element_forces, internal_forces, strain_energies
 from .mesh import ShellMesh
+
+
+XI_FREQUENCY_STEP = 0.5  # the mid-edge rotations' own frequency x the membrane's step
 
 
 @dataclass(frozen=True)
@@ -47,11 +50,13 @@ def face_frames(mesh: ShellMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return frame, local, normal
 
 
-def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndarray, nu: float) -> np.ndarray:
+def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndarray, nu: float,
+                  clamped_edge: np.ndarray) -> np.ndarray:
     """Per triangle the 3 x 3 form H of its bending energy 1/2 dtheta^T H dtheta (kernels):
     H = A D [nu c c^T + (1 - nu) G], c_i = |e_i| / (2 A), G_ij = c_i c_j (m_i . m_j)^2, m_i the
     outward normal of edge i in the triangle's plane. A boundary edge's angle is free (no
-    neighbour holds it): it is condensed out, which sets the moment across a free edge to zero."""
+    neighbour holds it) unless the edge is clamped: it is condensed out, which sets the moment
+    across a free edge to zero."""
     edge_vec = np.stack([local[:, (i + 2) % 3] - local[:, (i + 1) % 3] for i in range(3)], axis=1)  # (m, 3, 2)
     length = np.linalg.norm(edge_vec, axis=2)
     outward = np.stack([edge_vec[..., 1], -edge_vec[..., 0]], axis=2) / length[..., None]
@@ -60,7 +65,7 @@ def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndar
     cos2 = np.einsum("mik,mjk->mij", outward, outward) ** 2
     H = (area * bending_stiffness)[:, None, None] * (nu * c[:, :, None] * c[:, None, :]
                                                       + (1.0 - nu) * c[:, :, None] * c[:, None, :] * cos2)
-    free = mesh.boundary[mesh.face_edge]  # (m, 3)
+    free = (mesh.boundary & ~clamped_edge)[mesh.face_edge]  # (m, 3)
     for f in np.flatnonzero(free.any(axis=1)):
         b, i = free[f], ~free[f]
         Hc = np.zeros((3, 3))
@@ -72,16 +77,25 @@ def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndar
     return H
 
 
-def build_arrays(mesh: ShellMesh, material: ShellMaterial):
+def clamped_edges(mesh: ShellMesh, clamped: np.ndarray | None) -> np.ndarray:
+    """Mask of the boundary edges whose two ends are clamped vertices (clamped: (n,) bool or None)."""
+    if clamped is None:
+        return np.zeros(len(mesh.edge), dtype=bool)
+    return mesh.boundary & clamped[mesh.edge[:, 0]] & clamped[mesh.edge[:, 1]]
+
+
+def build_arrays(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray | None = None):
     """(Faces, Edges, mass, area, radius, face CSR, edge CSR) of the shell: what Nodes and the
-    kernels need besides the loads."""
+    kernels need besides the loads. `clamped` (n,) marks the vertices whose boundary edges hold
+    their slope (a clamped support)."""
     frame, local, _ = face_frames(mesh)
     m = len(mesh.tri)
     Dm = np.stack([local[:, 1], local[:, 2]], axis=2)  # (m, 2, 2): columns are corners 1 and 2
     dm_inv = np.linalg.inv(Dm).reshape(m, 4)
     area = 0.5 * np.abs(np.linalg.det(Dm))
     lam, mu = material.lame_plane_stress()
-    H = bending_forms(mesh, local, material.bending_stiffness(mesh.thickness), material.poissons_ratio)
+    held = clamped_edges(mesh, clamped)
+    H = bending_forms(mesh, local, material.bending_stiffness(mesh.thickness), material.poissons_ratio, held)
     upper = np.stack([H[:, 0, 0], H[:, 0, 1], H[:, 0, 2], H[:, 1, 1], H[:, 1, 2], H[:, 2, 2]], axis=1)
     faces = Faces(tri=mesh.tri.copy(), dm_inv=np.ascontiguousarray(dm_inv), area=area, lam_t=lam * mesh.thickness,
                   mu_t=mu * mesh.thickness, bend=np.ascontiguousarray(upper), face_edge=mesh.face_edge.copy(),
@@ -93,8 +107,12 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial):
         has = mesh.edge_face[:, s] >= 0
         f = mesh.edge_face[has, s]
         local_index[has, s] = np.argmax(mesh.face_edge[f] == np.flatnonzero(has)[:, None], axis=1)
-    edges = Edges(ends=mesh.edge.copy(), opposite=mesh.edge_opposite.copy(), face=mesh.edge_face.copy(),
-                  local=local_index, theta=np.zeros(k), theta0=np.zeros(k), force=np.zeros((k, 4, 3)))
+    opposite = mesh.edge_opposite.copy()
+    opposite[held, 1] = CLAMPED
+    edges = Edges(ends=mesh.edge.copy(), opposite=opposite, face=mesh.edge_face.copy(), local=local_index,
+                  theta=np.zeros(k), theta0=np.zeros(k), force=np.zeros((k, 4, 3)), ghost=_ghosts(mesh, held),
+                  xi=np.zeros(k), xi_rate=np.zeros(k), xi_inertia=_xi_inertia(mesh, material, H, area, local_index),
+                  xi_force=np.zeros(k), xi_damping=np.zeros(k))
     element_forces(mesh.X, faces, edges)  # the reference dihedral angles, into edges.theta
     edges.theta0[:] = edges.theta
     n = len(mesh.X)
@@ -109,6 +127,36 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial):
     edge_nodes = np.concatenate([mesh.edge, mesh.edge_opposite], axis=1)  # slots e0, e1, oa, ob
     edge_start, edge_slot = _csr(edge_nodes.ravel(), n)
     return faces, edges, mass, node_area, radius, (face_start, face_slot), (edge_start, edge_slot)
+
+
+def _xi_inertia(mesh: ShellMesh, material: ShellMaterial, H: np.ndarray, area: np.ndarray,
+                local_index: np.ndarray) -> np.ndarray:
+    """(k,) kg m^2, the rotary inertia of each interior edge's xi (0 on a boundary edge). A
+    Kirchhoff-Love shell has none, so it is chosen for the step: xi's own frequency
+    sqrt(k_xi / J), k_xi = d^2E/dxi^2 = 4 (H_ii of both faces), is XI_FREQUENCY_STEP / dt_m with
+    dt_m = the smallest triangle altitude / the plate wave speed (the membrane's step, an upper
+    bound of the shell's): xi then follows the faces within a few steps and never limits them."""
+    interior = mesh.edge_face[:, 1] >= 0
+    k_xi = np.zeros(len(mesh.edge))
+    for s in range(2):
+        f, i = mesh.edge_face[interior, s], local_index[interior, s]
+        k_xi[interior] += 4.0 * H[f, i, i]
+    X, tri = mesh.X, mesh.tri
+    longest = np.max([np.linalg.norm(X[tri[:, (c + 1) % 3]] - X[tri[:, c]], axis=1) for c in range(3)], axis=0)
+    E, nu, rho = material.youngs_modulus, material.poissons_ratio, material.density
+    dt_m = float(np.min(2.0 * area / longest)) / np.sqrt(E / (rho * (1.0 - nu * nu)))
+    return k_xi * (dt_m / XI_FREQUENCY_STEP) ** 2
+
+
+def _ghosts(mesh: ShellMesh, held: np.ndarray) -> np.ndarray:
+    """(k, 3) m: on each held edge its wing's tip mirrored across the edge line (a flat hinge in
+    the reference state); zeros elsewhere."""
+    ghost = np.zeros((len(mesh.edge), 3))
+    e0, e1, tip = (mesh.X[mesh.edge[held, 0]], mesh.X[mesh.edge[held, 1]], mesh.X[mesh.edge_opposite[held, 0]])
+    along = (e1 - e0) / np.linalg.norm(e1 - e0, axis=1)[:, None]
+    foot = e0 + np.einsum("kd,kd->k", tip - e0, along)[:, None] * along
+    ghost[held] = 2.0 * foot - tip
+    return ghost
 
 
 def _csr(owner: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -143,6 +191,7 @@ class Shell:
     faces: Faces
     edges: Edges
     nodes: Nodes
+    clamped: np.ndarray | None = None  # (n,) the vertices of clamped supports (build_arrays)
 
     @cached_property
     def frames(self) -> np.ndarray:
@@ -153,9 +202,10 @@ class Shell:
         """Internal forces (N) at positions x into out (n, 3)."""
         internal_forces(x, self.nodes, self.faces, self.edges, out)
 
-    def strain_energies(self, x: np.ndarray) -> tuple[float, float]:
-        """(membrane, bending) strain energy (J) at positions x."""
-        return strain_energies(x, self.faces, self.edges)
+    def strain_energies(self, x: np.ndarray, xi: np.ndarray | None = None) -> tuple[float, float]:
+        """(membrane, bending) strain energy (J) at positions x and mid-edge rotations xi (default
+        the edges' own)."""
+        return strain_energies(x, self.faces, self.edges if xi is None else self.edges._replace(xi=xi))
 
     def stable_dt(self, tool_k=0.0) -> float:
         """The largest stable step times stability.STEP_MARGIN, by Lanczos on the shell's forces
@@ -163,13 +213,15 @@ class Shell:
         return stability.stable_step(self.mesh.X, self.nodes.mass, self.forces, self.mesh.element_size(), tool_k)
 
 
-def build_shell(mesh: ShellMesh, material: ShellMaterial) -> Shell:
-    """A Shell at rest in its reference state, with no loads, supports or tools."""
-    faces, edges, mass, area, radius, (face_start, face_slot), (edge_start, edge_slot) = build_arrays(mesh, material)
+def build_shell(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray | None = None) -> Shell:
+    """A Shell at rest in its reference state, with no loads, supports or tools; the boundary
+    edges between `clamped` vertices hold their slope (their nodes still need a support)."""
+    faces, edges, mass, area, radius, (face_start, face_slot), (edge_start, edge_slot) = build_arrays(mesh, material,
+                                                                                                      clamped)
     n = len(mesh.X)
     nodes = Nodes(x=mesh.X.copy(), v=np.zeros((n, 3)), mass=mass, area=area, radius=radius,
                   constraint=np.full(n, FREE, dtype=np.int16), projection=np.zeros((1, 3, 3)),
                   tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n), friction=np.zeros((n, 3)),
                   d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n), load=np.zeros((n, 3)),
                   face_start=face_start, face_slot=face_slot, edge_start=edge_start, edge_slot=edge_slot)
-    return Shell(mesh, material, faces, edges, nodes)
+    return Shell(mesh, material, faces, edges, nodes, clamped)

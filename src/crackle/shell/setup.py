@@ -162,8 +162,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
         except SurfaceError as err:
             raise ScenarioError(f"cracks.{i}.polyline: {err}") from None
         tips += _tips(mesh, path, opened)
-    shell = build_shell(mesh, ShellMaterial(mat.density, mat.youngs_modulus, mat.poissons_ratio))
     scale = float(np.max(np.ptp(mesh.X, axis=0)))
+    clamped = np.zeros(len(mesh.X), dtype=bool)
+    for support in supports:
+        if support.kind == "clamped":
+            clamped |= support.where.mask(mesh.X, scale)
+    shell = build_shell(mesh, ShellMaterial(mat.density, mat.youngs_modulus, mat.poissons_ratio),
+                        clamped if clamped.any() else None)
     load = np.zeros_like(mesh.X)
     boundary = np.flatnonzero(mesh.boundary)
     for i, edge_load in enumerate(scenario.edge_loads):

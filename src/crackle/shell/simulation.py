@@ -104,12 +104,17 @@ class ShellSimulation:
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
-        n = self.nodes
-        before = sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v))
+        before = self._cut_energy(dt)
         self.shell, opened = cut_edge(self.shell, a, b)
-        n = self.nodes
-        self.fracture_energy += before - sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v))
+        self.fracture_energy += before - self._cut_energy(dt)
         return b in opened
+
+    def _cut_energy(self, dt: float) -> float:
+        """J: what a cut can change at once: the strain energy (a new free edge's condensed
+        bending) and the kinetic energy of the mid-edge rotations (the cut edge's is gone)."""
+        n, e = self.nodes, self.shell.edges
+        return (sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate))
+                + 0.5 * float(np.sum(e.xi_inertia * e.xi_rate**2)))
 
     def state_is_finite(self) -> bool:
         n = self.nodes
@@ -126,15 +131,17 @@ class ShellSimulation:
 
     def energies(self, dt: float) -> dict[str, float]:
         n = self.nodes
-        # Potentials at the mid-step positions pair with the half-step velocities.
-        membrane, bending = self.shell.strain_energies(n.x - 0.5 * dt * n.v)
+        e = self.shell.edges
+        # Potentials at the mid-step positions (and rotations) pair with the half-step rates.
+        membrane, bending = self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate)
         return {
-            "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))),
+            "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))
+                                    + 0.5 * np.sum(e.xi_inertia * e.xi_rate**2)),
             "energy.membrane": membrane,
             "energy.bending": bending,
             "energy.contact": float(np.sum(self._tool_springs().energy)),
             "energy.friction": float(np.sum(n.d_friction)),
-            "energy.damping": float(np.sum(n.w_damping)),
+            "energy.damping": float(np.sum(n.w_damping) + np.sum(e.xi_damping)),
             "energy.fracture": self.fracture_energy,
             "energy.external": float(np.sum(n.w_external)),
         }

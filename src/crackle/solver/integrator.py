@@ -113,12 +113,12 @@ def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.
         sel = sup.where.mask(points, scale)
         if not sel.any():
             raise ValueError(f"a {sup.kind} support selects no node: check its plane or box")
-        if sup.kind == "fixed":
+        if sup.kind in ("fixed", "clamped"):  # a shell also holds a clamped edge's rotation (shell.model)
             blocked = np.eye(3)
         elif sup.kind == "roller":
             blocked = np.asarray(sup.normal, float)[None, :]
         else:
-            raise ValueError(f"support kind must be 'fixed' or 'roller', not {sup.kind!r}")
+            raise ValueError(f"support kind must be 'fixed', 'clamped' or 'roller', not {sup.kind!r}")
         for node in np.flatnonzero(sel):
             normals_of.setdefault(int(node), []).append(blocked)
     constraint = np.full(len(points), FREE, dtype=np.int16)
