@@ -1,5 +1,5 @@
 """Throughput of the shell's explicit step (edge angles, face membrane and moments, hinge forces,
-node gather with tools and the integrator) and the cost of one J-integral.
+node gather with tools and the integrator, the mid-edge rotations' step) and the cost of one J-integral.
 
 Set-up, per size: a square 1 mm steel sheet of about N triangles (a structured rectangle), free,
 with a centre crack of 20 cells, every node given a random velocity (in plane and out of it,

@@ -52,11 +52,11 @@ def face_frames(mesh: ShellMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndarray, nu: float,
                   clamped_edge: np.ndarray) -> np.ndarray:
-    """Per triangle the 3 x 3 form H of its bending energy 1/2 dtheta^T H dtheta (kernels):
-    H = A D [nu c c^T + (1 - nu) G], c_i = |e_i| / (2 A), G_ij = c_i c_j (m_i . m_j)^2, m_i the
-    outward normal of edge i in the triangle's plane. A boundary edge's angle is free (no
-    neighbour holds it) unless the edge is clamped: it is condensed out, which sets the moment
-    across a free edge to zero."""
+    """Per triangle the 3 x 3 form H of its bending energy 1/2 d^T H d in its three edges' turns d
+    (kernels): H = A D [nu c c^T + (1 - nu) G], c_i = |e_i| / (2 A), G_ij = c_i c_j (m_i . m_j)^2,
+    m_i the outward normal of edge i in the triangle's plane. A free boundary edge's turn is held
+    by nothing: it is condensed out, which sets the moment across a free edge to zero (a clamped
+    edge keeps its turn against the held normal)."""
     edge_vec = np.stack([local[:, (i + 2) % 3] - local[:, (i + 1) % 3] for i in range(3)], axis=1)  # (m, 3, 2)
     length = np.linalg.norm(edge_vec, axis=2)
     outward = np.stack([edge_vec[..., 1], -edge_vec[..., 0]], axis=2) / length[..., None]
