@@ -11,7 +11,7 @@ the turn of the triangle's normal against edge i's mid-edge normal. That normal 
 the two faces turned by a rotation xi_e of its own (one degree of freedom per interior edge):
 d_i = (theta_e - theta_e^0) + 2 s xi_e, theta_e the dihedral angle, s = +1 on the edge's first
 face and -1 on its second. With xi = 0 (the bisector) the operator stores 2 / (1 - nu) times the
-energy of a twist on a regular mesh and a simply supported plate comes out 38 % too stiff; with
+energy of a twist on a regular mesh and a simply supported plate deflects 0.62-0.65 of its closed form; with
 xi free (the moments of the two faces across an edge then agree at equilibrium) it converges to
 the plate's closed forms. Objective: dihedral angles and xi do not change under rigid motion. The
 plate energy A D / 2 [nu (tr K)^2 + (1 - nu) K : K] is a quadratic form 1/2 d^T H d: H per
