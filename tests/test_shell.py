@@ -553,3 +553,124 @@ def test_square_plates_under_pressure_converge_to_the_closed_forms(tmp_path):
     coarse, fine = (plate_centre_deflection(tmp_path, "clamped", cells) - 1.0 for cells in (16, 32))
     assert abs(fine) < 0.03
     assert abs(coarse) > 2.5 * abs(fine)
+
+
+def test_tip_neighbours_turn_onto_the_heading_keeping_a_linear_field():
+    """Local remeshing at a crack tip (growth.align_ahead) on the criss-cross mesh, at a tip with
+    eight neighbours and one with four, for headings 5 to 120 deg off the crack: the edge that
+    the cut will take is turned onto the heading, or 3/4 or 1/2 of the way (measured: the whole
+    turn, within 0.5 deg, in 12 of the 18 cases, the rest within 4.9-20 deg where the mesh's
+    nearest edge was 19.5-45 deg off; asserted: 12 whole turns, none worse than 22.5 deg); the vertices move in the reference plane (z = 0 exactly), the crack's flanks and the
+    outer boundary not at all; a linear displacement and velocity field stays exact at the moved
+    vertices (1e-15 m), so a uniform membrane strain keeps its energy (1e-12) and the mass is
+    conserved (1e-12); no triangle thinner than ALTITUDE_KEPT x the thinnest before."""
+    from crackle.shell.growth import ALTITUDE_KEPT, align_ahead, step_ahead
+    from crackle.shell.mesh import altitudes
+
+    F = np.array([[1.01, 0.003, 0.0], [-0.002, 0.995, 0.0], [0.0, 0.0, 1.0]])
+    G = np.array([[30.0, -5.0, 0.0], [2.0, 10.0, 0.0], [0.0, 0.0, 0.0]])
+    base = rectangle(0.1, 0.1, 20, 20, 0.001, origin=(-0.05, -0.05, 0.0))
+    errors = []
+    for end in (0.0, 0.005):  # the tip with eight neighbours, then four
+        path = edge_path(base, [(-0.025, 0.0, 0.0), (end, 0.0, 0.0)])
+        mesh, _ = split_along(base, path)
+        tip = path[-1]
+        fixed = np.unique(mesh.edge[mesh.boundary])
+        shell = build_shell(mesh, STEEL)
+        shell.nodes.x[:] = mesh.X @ F.T + [1e-3, 2e-3, 0.0]
+        shell.nodes.v[:] = mesh.X @ G.T
+        thinnest = altitudes(mesh.X, mesh.tri).min()
+        energy = sum(shell.strain_energies(shell.nodes.x))
+        for degrees in (5.0, 10.0, 20.0, 30.0, -22.5, -40.0, -70.5, 100.0, 120.0):
+            heading = np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees)), 0.0])
+            new = align_ahead(shell, tip, heading, thinnest)
+            assert new is not None
+            X = new.mesh.X
+            vertex, _ = step_ahead(new, tip, heading)
+            arm = X[vertex] - X[tip]
+            errors.append(abs(math.degrees(math.atan2(arm[1], arm[0])) - degrees))
+            assert np.all(X[:, 2] == 0.0) and np.array_equal(X[fixed], mesh.X[fixed])
+            assert np.abs(new.nodes.x - (X @ F.T + [1e-3, 2e-3, 0.0])).max() < 1e-15
+            assert np.abs(new.nodes.v - X @ G.T).max() < 1e-15
+            assert sum(new.strain_energies(new.nodes.x)) == pytest.approx(energy, rel=1e-12)
+            assert new.nodes.mass.sum() == pytest.approx(shell.nodes.mass.sum(), rel=1e-12)
+            assert altitudes(X, new.mesh.tri).min() >= ALTITUDE_KEPT * thinnest * (1 - 1e-12)
+    assert max(errors) <= 22.5 + 1e-9 and sum(e < 0.5 for e in errors) >= 12
+    # Aligned already, or a heading back into the crack: nothing to move.
+    assert align_ahead(shell, tip, np.array([1.0, 0.0, 0.0]), thinnest) is None
+    assert align_ahead(shell, tip, np.array([-1.0, 0.0, 0.0]), thinnest) is None
+
+
+KINK = """
+name = "shear-kink"
+method = "shell"
+[shell]
+surface = "rectangle"
+size = [0.1, 0.2]
+origin = [-0.05, -0.1, 0.0]
+element_size = 0.005
+thickness = 0.001
+[material]
+density = 7800.0
+youngs_modulus = 200e9
+poissons_ratio = 0.3
+[[cracks]]
+polyline = [[-0.025, 0.0, 0.0], [0.025, 0.0, 0.0]]
+[[edge_loads]]
+where = { plane_point = [0.0, 0.1, 0.0], plane_normal = [0.0, 1.0, 0.0] }
+traction = [100e6, 0.0, 0.0]
+ramp_time = 2e-4
+[[edge_loads]]
+where = { plane_point = [0.0, -0.1, 0.0], plane_normal = [0.0, 1.0, 0.0] }
+traction = [-100e6, 0.0, 0.0]
+ramp_time = 2e-4
+[[edge_loads]]
+where = { plane_point = [0.05, 0.0, 0.0], plane_normal = [1.0, 0.0, 0.0] }
+traction = [0.0, 100e6, 0.0]
+ramp_time = 2e-4
+[[edge_loads]]
+where = { plane_point = [-0.05, 0.0, 0.0], plane_normal = [1.0, 0.0, 0.0] }
+traction = [0.0, -100e6, 0.0]
+ramp_time = 2e-4
+[[supports]]
+kind = "roller"
+normal = [0.0, 0.0, 1.0]
+where = { box_min = [-1.0, -1.0, -1.0], box_max = [1.0, 1.0, 1.0] }
+[[supports]]
+kind = "fixed"
+where = { box_min = [-0.051, -0.101, -1.0], box_max = [-0.049, -0.099, 1.0] }
+[[supports]]
+kind = "roller"
+normal = [0.0, 1.0, 0.0]
+where = { box_min = [0.049, -0.101, -1.0], box_max = [0.051, -0.099, 1.0] }
+[fracture]
+toughness = 2000.0
+j_rings = [[0.005, 0.0125], [0.010, 0.0175], [0.015, 0.0225]]
+[run]
+end_time = 2.2e-4
+damping = 1e5
+"""
+
+
+def test_mode_ii_crack_kinks_at_the_mts_angle_off_the_mesh_lines(tmp_path):
+    """The centre crack (5 mm cells) under pure in-plane shear (tau ramped to 100 MPa on the four
+    sides), Gc = 2 kJ/m^2: growth starts in mode II and the first cut at each tip runs at the
+    maximum tangential stress kink, -70.5 deg from the crack (and its image, +109.5 deg from the
+    x axis, at the other tip), within 3 deg (the issue's tolerance), although the mesh's edges
+    there run at -45 and -90 deg (19.5 deg off at best: the tip's neighbours were turned,
+    growth.align_ahead); the energy audit with the cuts and moves closes to 1 %."""
+    path = tmp_path / "kink.toml"
+    path.write_text(KINK)
+    scenario, _ = load_scenario(path)
+    sim = build_simulation(scenario)
+    dt = 0.7 * sim.stable_dt
+    origin = {0: np.array([0.025, 0.0]), 1: np.array([-0.025, 0.0])}
+    while sim.time < scenario.run.end_time:
+        sim.advance(20, dt)
+    first = {}
+    for advance in sim.advances:
+        first.setdefault(advance.tip, advance.position[:2] - origin[advance.tip])
+    assert set(first) == {0, 1}
+    assert math.degrees(math.atan2(first[0][1], first[0][0])) == pytest.approx(-70.5, abs=3.0)
+    assert math.degrees(math.atan2(first[1][1], first[1][0])) == pytest.approx(109.5, abs=3.0)
+    assert abs(relative_imbalance(sim.energies(dt))) < 0.01

@@ -13,24 +13,32 @@ of the parent, the work counters on the old vertices (the copies start at zero).
 
 The direction: the maximum tangential stress criterion (Erdogan and Sih; K_I and K_II from J and
 the crack faces' displacements, jintegral.stress_intensity): straight ahead in mode I, 70.5 deg
-off in pure mode II; the cut then takes the tip's edge nearest to that heading, so the path
-follows the mesh's edges (no remeshing at the tip yet). Energy: cutting an edge does not
-move anything, so no energy appears or vanishes at the cut except the bending energy of the
-triangles whose edge became free (their free-edge angle is condensed: `energy.fracture`
-books that jump); the membrane energy near the tip is then released by the motion (kinetic,
-then damping). The Griffith energy Gc x thickness x extension is in the summary, not the audit.
+off in pure mode II. So that the path is not locked to the mesh's edge directions, the tip's edge
+nearest to that heading is first turned onto it (local remeshing by moving one vertex,
+`align_ahead`): its far vertex moves in the reference surface, within its own triangles, to
+the point at the same distance from the tip along the heading, as far as its triangles stay
+well shaped; its state is interpolated from the triangle it lands in. Then that edge is cut.
+
+Energy: cutting an edge does not move anything, so no energy appears or vanishes at the cut
+except the bending energy of the triangles whose edge became free (their free-edge angle is
+condensed); moving a vertex changes the strain and kinetic energy a little (its triangles' shape,
+its mass, its interpolated state). `energy.fracture` books both jumps; the membrane energy near
+the tip is then released by the motion (kinetic, then damping). The Griffith energy Gc x
+thickness x extension is in the summary, not the audit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .mesh import split_along
+from .mesh import altitudes, split_along
 from .model import Shell, build_shell
 
 GROWTH_CHECK = 20  # steps between checks
+ALTITUDE_KEPT = 0.7  # x the starting mesh's smallest altitude: no move makes a triangle thinner (the step)
+ALIGNED_ANGLE = np.radians(0.5)  # rad, an edge this close to the heading is not turned
 
 
 @dataclass
@@ -75,8 +83,137 @@ def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
     """The shell with the edge (a, b) cut and its state carried over (module docstring), and the
     vertices the cut opened (a always; b too when it is on a boundary: the crack went through)."""
     mesh, parent = split_along(shell.mesh, np.array([a, b]))
+    return _continued(shell, mesh, np.concatenate([np.arange(len(shell.mesh.X)), parent])), parent
+
+
+def align_ahead(shell: Shell, tip: int, heading: np.ndarray, thinnest: float) -> Shell | None:
+    """The shell with an edge at the crack tip turned onto the tip's heading (a unit tangent
+    vector) by moving the tip's neighbours in the reference surface, or None where no turn is
+    needed (an edge within ALIGNED_ANGLE) or none keeps the mesh good enough. The edges tried
+    are the two nearest the heading, one on each side. Turning the edge to a neighbour b: every
+    neighbour keeps its distance from the tip, and their angles about it are stretched on one
+    side of b and squeezed on the other, up to the nearest neighbours that cannot move (the
+    crack's flanks, a boundary, the edge of a support's or a tool's region, a load: _movable), so
+    no one triangle takes the whole turn. The whole turn, else 3/4 or 1/2 of it (the least
+    missed first), is taken if every triangle changed keeps its orientation and an altitude of
+    at least ALTITUDE_KEPT x `thinnest` (the starting mesh's smallest: the stable step). A moved
+    vertex's position and velocity are interpolated in the triangle of the old mesh its new
+    reference point lands in (a linear field stays exact); the topology does not change."""
+    mesh = shell.mesh
+    X = mesh.X
+    ring = np.unique(mesh.edge[np.any(mesh.edge == tip, axis=1)])
+    ring = ring[ring != tip]
+    movable = np.array([_movable(shell, u) for u in ring])
+    normal = _normals(X, mesh.tri[np.any(mesh.tri == tip, axis=1)]).sum(axis=0)
+    normal /= np.linalg.norm(normal)
+    e1 = heading - (heading @ normal) * normal
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    arms = X[ring] - X[tip]
+    theta = np.arctan2(arms @ e2, arms @ e1)  # the heading at 0
+    if np.min(np.abs(theta)) < ALIGNED_ANGLE:
+        return None
+    sides = [np.flatnonzero(theta > 0.0), np.flatnonzero(theta < 0.0)]
+    candidates = sorted((abs(theta[side[np.argmin(np.abs(theta[side]))]]), int(side[np.argmin(np.abs(theta[side]))]))
+                        for side in sides if len(side))
+    for share in (1.0, 0.75, 0.5):
+        for _, b in candidates:
+            if movable[b]:
+                new = _turned(shell, tip, ring, movable, theta, b, share, (e1, e2), thinnest)
+                if new is not None:
+                    return new
+    return None
+
+
+def _turned(shell: Shell, tip: int, ring, movable, theta, b: int, share: float, frame, thinnest: float) -> Shell | None:
+    """align_ahead's move of the tip's neighbours ring (angles theta from the heading) that turns
+    the edge to ring[b] by `share` of its angle; None if the mesh would not stay good enough."""
+    mesh, nodes = shell.mesh, shell.nodes
+    X = mesh.X
+    phi = np.angle(np.exp(1j * (theta - theta[b])))  # about ring[b], in (-pi, pi]
+    anchors = phi[~movable]
+    if not len(anchors):
+        return None
+    hi = np.min(anchors[anchors > 0.0]) if np.any(anchors > 0.0) else np.min(anchors) + 2.0 * np.pi
+    lo = np.max(anchors[anchors < 0.0]) if np.any(anchors < 0.0) else np.max(anchors) - 2.0 * np.pi
+    t = share * np.angle(np.exp(-1j * theta[b]))  # towards the heading, about ring[b]
+    if not lo < t < hi:
+        return None
+    inside = movable & (phi > lo) & (phi < hi)
+    turned = np.where(phi <= 0.0, lo + (phi - lo) * (t - lo) / (0.0 - lo), t + phi * (hi - t) / hi) + theta[b]
+    patch = mesh.tri[np.any(np.isin(mesh.tri, ring[inside]), axis=1)]
+    moved = X.copy()
+    located = []
+    for k in np.flatnonzero(inside):
+        aim = X[tip] + np.linalg.norm(X[ring[k]] - X[tip]) * (np.cos(turned[k]) * frame[0] + np.sin(turned[k]) * frame[1])
+        face, weights, moved[ring[k]] = _closest_on(X, patch, aim)
+        located.append((ring[k], patch[face], weights))
+    if (np.min(altitudes(moved, patch)) < ALTITUDE_KEPT * thinnest
+            or np.any(np.einsum("kd,kd->k", _normals(moved, patch), _normals(X, patch)) <= 0.0)):
+        return None
+    new = _continued(shell, replace(mesh, X=moved), np.arange(len(X)))
+    for u, corners, weights in located:
+        new.nodes.x[u] = weights @ nodes.x[corners]
+        new.nodes.v[u] = weights @ nodes.v[corners]
+    return new
+
+
+def _movable(shell: Shell, vertex: int) -> bool:
+    """Whether `vertex` may move in the reference: off every boundary and crack face, not loaded
+    or clamped, and inside any support's or tool's region (those are placed by region: its whole
+    star is held alike, a roller on the whole sheet, say)."""
+    mesh, nodes = shell.mesh, shell.nodes
+    if np.any(mesh.edge[mesh.boundary] == vertex) or np.any(nodes.load[vertex] != 0.0):
+        return False
+    if shell.clamped is not None and shell.clamped[vertex]:
+        return False
+    star = np.unique(mesh.tri[np.any(mesh.tri == vertex, axis=1)])
+    return bool(np.all(nodes.constraint[star] == nodes.constraint[vertex]) and np.all(nodes.tool[star] == nodes.tool[vertex]))
+
+
+def _normals(X, tri) -> np.ndarray:
+    return np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]])
+
+
+def _closest_on(X, tri, point) -> tuple[int, np.ndarray, np.ndarray]:
+    """The triangle (index into tri), the barycentric weights and the point of the triangles tri
+    nearest to `point`."""
+    best = (np.inf, 0, None, None)
+    for f, corners in enumerate(tri):
+        weights = _closest_barycentric(X[corners], point)
+        q = weights @ X[corners]
+        distance = float(np.linalg.norm(q - point))
+        if distance < best[0] - 1e-15:
+            best = (distance, f, weights, q)
+    return best[1], best[2], best[3]
+
+
+def _closest_barycentric(corners, point) -> np.ndarray:
+    """Barycentric weights of the point of a triangle nearest to `point`: the projection onto its
+    plane if inside, else the nearest point of its edges."""
+    a, b, c = corners
+    e1, e2 = b - a, c - a
+    gram = np.array([[e1 @ e1, e1 @ e2], [e1 @ e2, e2 @ e2]])
+    s, t = np.linalg.solve(gram, [e1 @ (point - a), e2 @ (point - a)])
+    if s >= 0.0 and t >= 0.0 and s + t <= 1.0:
+        return np.array([1.0 - s - t, s, t])
+    best, weights = np.inf, None
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        p, q = corners[i], corners[j]
+        u = float(np.clip((point - p) @ (q - p) / ((q - p) @ (q - p)), 0.0, 1.0))
+        distance = np.linalg.norm(p + u * (q - p) - point)
+        if distance < best:
+            best, weights = distance, np.zeros(3)
+            weights[i], weights[j] = 1.0 - u, u
+    return weights
+
+
+def _continued(shell: Shell, mesh, source: np.ndarray) -> Shell:
+    """A shell on `mesh` whose vertex i continues the old vertex source[i] (the vertices past the
+    old count are new copies): positions, velocities, supports and tool state carried, the
+    copies' edge loads and work counters zero (the parent keeps them), the faces' pressures (a
+    cut or a move keeps the triangles' order) and the edges' state (_carry_edge_state)."""
     old, n_old = shell.nodes, len(shell.mesh.X)
-    source = np.concatenate([np.arange(n_old), parent])
     new = build_shell(mesh, shell.material, None if shell.clamped is None else shell.clamped[source])
     carried = {}
     for name in ("x", "v", "constraint", "tool", "tool_offset", "friction", "load"):
@@ -85,12 +222,12 @@ def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:
         counter = np.zeros(len(source))
         counter[:n_old] = getattr(old, name)
         carried[name] = counter
-    carried["load"][n_old:] = 0.0  # the parent keeps its share of an edge load
+    carried["load"][n_old:] = 0.0
     new.nodes = new.nodes._replace(projection=old.projection, **carried)
-    for name in ("pressure", "pressure_sign", "pressure_delay"):  # the cut keeps the triangles' order
+    for name in ("pressure", "pressure_sign", "pressure_delay"):
         getattr(new.faces, name)[:] = getattr(shell.faces, name)
     _carry_edge_state(shell, new, source)
-    return new, parent
+    return new
 
 
 def _carry_edge_state(old: Shell, new: Shell, source: np.ndarray) -> None:

@@ -24,6 +24,8 @@ import numpy as np
 from .kernels import face_energies, strain_energies
 from .model import Shell, build_arrays
 
+BRANCH_COS = np.cos(np.radians(20.0))  # a crack-face pair this far off the tip's direction is behind a kink
+
 
 def j_integral(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: float) -> float:
     """J (J/m^2) at the crack tip `tip` (a point, m) running along `direction` (a vector in the
@@ -69,40 +71,74 @@ def bending_density(shell: Shell, x, which=None) -> np.ndarray:
 def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float, pairs: int = 4) -> tuple[float, float]:
     """(K_I, K_II) (Pa m^1/2) at the tip vertex: the magnitude from J (K_I^2 + K_II^2 = E J,
     plane stress), the mode mixity psi = atan(K_II / K_I) from the crack faces' relative
-    displacement behind the tip (both ~ K sqrt(r) there: opening along the in-plane normal m for
-    mode I, sliding along the crack's direction d for mode II), summed over the vertex pairs 2 to
-    `pairs` cells behind the tip with weights 1 / sqrt(r). The faces' displacement alone gives K
-    10-20 % low with constant-strain triangles (their error next to the tip), the same for both
-    modes: their ratio is what is used. m = n x d with n the surface normal: K_II > 0 when the m
-    side slides along +d."""
+    displacement behind the tip (both ~ K sqrt(r) there: opening across the crack, sliding along
+    it), summed over the vertex pairs 2 to `pairs` along the crack's faces from the tip (_flank_pairs)
+    with weights 1 / sqrt(r), each in the frame of its chord to the tip; only the pairs on the
+    tip's own branch count (chord within BRANCH_COS of `direction`: behind a kink the faces carry
+    the old branch's mixity), the nearest alone if it is the only one. The faces' displacement alone gives K 10-20 % low with constant-strain triangles (their
+    error next to the tip), the same for both modes: their ratio is what is used. Sliding is
+    along the chord towards the tip (d at the tip), opening along m = n x d with n the surface
+    normal: K_II > 0 when the m side slides towards the tip."""
     if not j > 0.0:
         return 0.0, 0.0
     mesh = shell.mesh
     X = mesh.X
-    d = np.asarray(direction, float) / np.linalg.norm(direction)
-    faces_at_tip = np.flatnonzero(np.any(mesh.tri == tip, axis=1))
-    n = np.cross(X[mesh.tri[faces_at_tip, 1]] - X[mesh.tri[faces_at_tip, 0]],
-                 X[mesh.tri[faces_at_tip, 2]] - X[mesh.tri[faces_at_tip, 0]]).sum(axis=0)
-    m = np.cross(n / np.linalg.norm(n), d)
-    # Coincident vertex pairs (a vertex and its copy) on the line behind the tip.
-    rel = X - X[tip]
-    along = rel @ d
-    h = mesh.element_size()
-    on_line = np.flatnonzero((along < -1e-6 * h) & (np.linalg.norm(rel - along[:, None] * d, axis=1) < 1e-6 * h))
-    distances = np.unique(np.round(-along[on_line] / h, 6))
+    heading = np.asarray(direction, float) / np.linalg.norm(direction)
+    branch = []  # the pairs on the tip's own branch: a kink behind it ends that
+    for pair in _flank_pairs(mesh, tip, pairs):
+        chord = X[tip] - X[pair[0]]
+        if chord @ heading < BRANCH_COS * np.linalg.norm(chord):
+            break
+        branch.append(pair)
     opening = sliding = 0.0
-    for r in distances[1:pairs] * h:
-        pair = on_line[np.abs(-along[on_line] - r) < 1e-5 * h]
-        if len(pair) != 2:
-            break  # the crack turned or ended
-        side = [float(np.sum((X[mesh.tri[np.any(mesh.tri == v, axis=1)]].mean(axis=1) - X[tip]) @ m)) for v in pair]
-        upper, lower = (pair[0], pair[1]) if side[0] > side[1] else (pair[1], pair[0])
+    for upper, lower in branch[1:] or branch:
+        chord = X[tip] - X[upper]
+        r = float(np.linalg.norm(chord))
+        d = chord / r
+        m = np.cross(_vertex_normal(mesh, upper) + _vertex_normal(mesh, lower), d)
+        side = [float(np.sum((X[mesh.tri[np.any(mesh.tri == v, axis=1)]].mean(axis=1) - X[v]) @ m)) for v in (upper, lower)]
+        if side[0] < side[1]:
+            upper, lower = lower, upper
         jump = (x[upper] - X[upper]) - (x[lower] - X[lower])
-        opening += float(jump @ m) / np.sqrt(r)
+        opening += float(jump @ m) / np.linalg.norm(m) / np.sqrt(r)
         sliding += float(jump @ d) / np.sqrt(r)
     psi = np.arctan2(sliding, opening)
     k = np.sqrt(shell.material.youngs_modulus * j)
     return float(k * np.cos(psi)), float(k * np.sin(psi))
+
+
+def _flank_pairs(mesh, tip: int, count: int) -> list[tuple[int, int]]:
+    """Up to `count` pairs of coincident vertices (a vertex and its copy) on the crack's two
+    faces, in order from the tip: the two boundary edges at the tip are the crack's faces, and
+    each face is followed along the boundary while the two walks stay on coincident vertices
+    (so the crack's far end, a kink or a curve, and another crack elsewhere do not matter)."""
+    bounding = mesh.edge[mesh.boundary]
+    at_tip = bounding[np.any(bounding == tip, axis=1)]
+    if len(at_tip) != 2:
+        return []
+    walks = [[tip, int(e[0] if e[1] == tip else e[1])] for e in at_tip]
+    apart = 1e-9 * mesh.element_size()
+    pairs = []
+    while len(pairs) < count:
+        a, b = walks[0][-1], walks[1][-1]
+        if a == b or np.linalg.norm(mesh.X[a] - mesh.X[b]) > apart:
+            break
+        pairs.append((a, b))
+        for walk in walks:
+            following = bounding[np.any(bounding == walk[-1], axis=1)].ravel()
+            following = following[(following != walk[-1]) & (following != walk[-2])]
+            if len(following) != 1:
+                return pairs
+            walk.append(int(following[0]))
+    return pairs
+
+
+def _vertex_normal(mesh, vertex: int) -> np.ndarray:
+    """The unit normal at a vertex: the sum of its triangles' area vectors, normalised."""
+    tri = mesh.tri[np.any(mesh.tri == vertex, axis=1)]
+    X = mesh.X
+    n = np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]).sum(axis=0)
+    return n / np.linalg.norm(n)
 
 
 def mts_kink_angle(k1: float, k2: float) -> float:

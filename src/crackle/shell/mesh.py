@@ -65,6 +65,16 @@ def shell_mesh(X, tri, thickness) -> ShellMesh:
     return ShellMesh(X, tri, thickness, edge, edge_face, edge_opposite, face_edge)
 
 
+def altitudes(X, tri) -> np.ndarray:
+    """Each triangle's smallest altitude (m), twice its area over its longest edge: the length
+    that sets its stable step."""
+    a, b, c = X[tri[:, 0]], X[tri[:, 1]], X[tri[:, 2]]
+    twice_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)],
+                     axis=0)
+    return twice_area / longest
+
+
 def _edges(X, tri):
     m = len(tri)
     # Half-edge (f, i): from tri[f, i+1] to tri[f, i+2], opposite corner i.

@@ -12,7 +12,7 @@ import numpy as np
 from ..solver import stability
 from ..solver.integrator import FREE
 from .kernels import CLAMPED, Edges, Faces, Nodes, element_forces, internal_forces, strain_energies
-from .mesh import ShellMesh
+from .mesh import ShellMesh, altitudes
 
 
 XI_FREQUENCY_STEP = 0.5  # the mid-edge rotations' own frequency x the membrane's step
@@ -111,7 +111,7 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray |
     opposite[held, 1] = CLAMPED
     edges = Edges(ends=mesh.edge.copy(), opposite=opposite, face=mesh.edge_face.copy(), local=local_index,
                   theta=np.zeros(k), theta0=np.zeros(k), force=np.zeros((k, 4, 3)), ghost=_ghosts(mesh, held),
-                  xi=np.zeros(k), xi_rate=np.zeros(k), xi_inertia=_xi_inertia(mesh, material, H, area, local_index),
+                  xi=np.zeros(k), xi_rate=np.zeros(k), xi_inertia=_xi_inertia(mesh, material, H, local_index),
                   xi_force=np.zeros(k), xi_damping=np.zeros(k))
     element_forces(mesh.X, faces, edges)  # the reference dihedral angles, into edges.theta
     edges.theta0[:] = edges.theta
@@ -129,8 +129,7 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray |
     return faces, edges, mass, node_area, radius, (face_start, face_slot), (edge_start, edge_slot)
 
 
-def _xi_inertia(mesh: ShellMesh, material: ShellMaterial, H: np.ndarray, area: np.ndarray,
-                local_index: np.ndarray) -> np.ndarray:
+def _xi_inertia(mesh: ShellMesh, material: ShellMaterial, H: np.ndarray, local_index: np.ndarray) -> np.ndarray:
     """(k,) kg m^2, the rotary inertia of each interior edge's xi (0 on a boundary edge). A
     Kirchhoff-Love shell has none, so it is chosen for the step: xi's own frequency
     sqrt(k_xi / J), k_xi = d^2E/dxi^2 = 4 (H_ii of both faces), is XI_FREQUENCY_STEP / dt_m with
@@ -141,10 +140,8 @@ def _xi_inertia(mesh: ShellMesh, material: ShellMaterial, H: np.ndarray, area: n
     for s in range(2):
         f, i = mesh.edge_face[interior, s], local_index[interior, s]
         k_xi[interior] += 4.0 * H[f, i, i]
-    X, tri = mesh.X, mesh.tri
-    longest = np.max([np.linalg.norm(X[tri[:, (c + 1) % 3]] - X[tri[:, c]], axis=1) for c in range(3)], axis=0)
     E, nu, rho = material.youngs_modulus, material.poissons_ratio, material.density
-    dt_m = float(np.min(2.0 * area / longest)) / np.sqrt(E / (rho * (1.0 - nu * nu)))
+    dt_m = float(np.min(altitudes(mesh.X, mesh.tri))) / np.sqrt(E / (rho * (1.0 - nu * nu)))
     return k_xi * (dt_m / XI_FREQUENCY_STEP) ** 2
 
 

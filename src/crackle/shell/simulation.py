@@ -8,9 +8,10 @@ import numpy as np
 
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
-from .growth import GROWTH_CHECK, Advance, GrowthLaw, cut_edge, step_ahead
+from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
 from .jintegral import energy_release_rate, j_integral, mts_kink_angle, stress_intensity
 from .kernels import advance
+from .mesh import altitudes
 from .model import Shell
 
 
@@ -44,8 +45,9 @@ class ShellSimulation:
         self.growth = growth
         self.advances: list[Advance] = []  # every cut, in order
         self._reported = 0  # advances already in events.csv
-        self.fracture_energy = 0.0  # J: the bending energy the cuts' free edges released at once
+        self.fracture_energy = 0.0  # J: what the cuts and the moves at the tip changed at once (_replace_shell)
         self.warnings: list[str] = []
+        self._thinnest = float(np.min(altitudes(shell.mesh.X, shell.mesh.tri)))  # the step's length: moves keep to it
 
     @property
     def nodes(self):
@@ -79,14 +81,16 @@ class ShellSimulation:
                 if ahead is None:
                     tip.active = False
                     break
-                vertex, length = ahead
-                if tip.pending < length:
+                if tip.pending < ahead[1]:
                     break
+                self._replace_shell(align_ahead(self.shell, tip.vertex, heading, self._thinnest), dt)
+                vertex, _ = step_ahead(self.shell, tip.vertex, heading)
                 through = self._cut(tip.vertex, vertex, dt)
+                direction = self.shell.mesh.X[vertex] - self.shell.mesh.X[tip.vertex]
+                length = float(np.linalg.norm(direction))  # the move may have shortened it
                 tip.pending -= length
                 tip.extension += length
-                direction = self.shell.mesh.X[vertex] - self.shell.mesh.X[tip.vertex]
-                tip.vertex, tip.direction = vertex, direction / np.linalg.norm(direction)
+                tip.vertex, tip.direction = vertex, direction / length
                 self.advances.append(Advance(self.time, self.shell.mesh.X[vertex].copy(), k, mode))
                 tip.active = not through
 
@@ -104,16 +108,25 @@ class ShellSimulation:
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
-        before = self._cut_energy(dt)
-        self.shell, opened = cut_edge(self.shell, a, b)
-        self.fracture_energy += before - self._cut_energy(dt)
+        new, opened = cut_edge(self.shell, a, b)
+        self._replace_shell(new, dt)
         return b in opened
 
-    def _cut_energy(self, dt: float) -> float:
-        """J: what a cut can change at once: the strain energy (a new free edge's condensed
-        bending) and the kinetic energy of the mid-edge rotations (the cut edge's is gone)."""
+    def _replace_shell(self, new: Shell | None, dt: float) -> None:
+        """Continue with `new` (None: keep the shell) and book what the change did at once in
+        `energy.fracture`: the strain energy (a new free edge's condensed bending, a moved
+        vertex's triangles) and the kinetic energy (a moved vertex's mass and interpolated
+        velocity, the cut edge's mid-edge rotation)."""
+        if new is None:
+            return
+        before = self._jump_energy(dt)
+        self.shell = new
+        self.fracture_energy += before - self._jump_energy(dt)
+
+    def _jump_energy(self, dt: float) -> float:
         n, e = self.nodes, self.shell.edges
         return (sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate))
+                + 0.5 * float(np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)))
                 + 0.5 * float(np.sum(e.xi_inertia * e.xi_rate**2)))
 
     def state_is_finite(self) -> bool:
