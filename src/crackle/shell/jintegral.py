@@ -21,7 +21,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .kernels import face_energies, strain_energies
+from .kernels import face_energies
+from .mesh import shell_mesh
 from .model import Shell, build_arrays
 
 BRANCH_COS = np.cos(np.radians(20.0))  # a crack-face pair this far off the tip's direction is behind a kink
@@ -68,19 +69,22 @@ def bending_density(shell: Shell, x, which=None) -> np.ndarray:
     return bending_energy / shell.faces.area[which]
 
 
-def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float, pairs: int = 4) -> tuple[float, float]:
-    """(K_I, K_II) (Pa m^1/2) at the tip vertex: the magnitude from J (K_I^2 + K_II^2 = E J,
-    plane stress), the mode mixity psi = atan(K_II / K_I) from the crack faces' relative
-    displacement behind the tip (both ~ K sqrt(r) there: opening across the crack, sliding along
-    it), summed over the vertex pairs 2 to `pairs` along the crack's faces from the tip (_flank_pairs)
-    with weights 1 / sqrt(r), each in the frame of its chord to the tip; only the pairs on the
-    tip's own branch count (chord within BRANCH_COS of `direction`: behind a kink the faces carry
-    the old branch's mixity), the nearest alone if it is the only one. The faces' displacement alone gives K 10-20 % low with constant-strain triangles (their
-    error next to the tip), the same for both modes: their ratio is what is used. Sliding is
-    along the chord towards the tip (d at the tip), opening along m = n x d with n the surface
-    normal: K_II > 0 when the m side slides towards the tip."""
+def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
+                     pairs: int = 4) -> tuple[float, float, float]:
+    """(K_I, K_II, K_III) (Pa m^1/2) at the tip vertex: the magnitude from J (their squares sum
+    to E J, read as plane stress for all three: a measure of the mixity, not a plate-theory
+    K_III), the mixity from the crack faces' relative displacement behind the tip (all ~ K
+    sqrt(r) there: opening across the crack in the surface, sliding along it, tearing along the
+    normal), summed over the vertex pairs 2 to `pairs` along the crack's faces from the tip
+    (_flank_pairs) with weights 1 / sqrt(r), each in the frame of its chord to the tip; only the
+    pairs on the tip's own branch count (chord within BRANCH_COS of `direction`: behind a kink
+    the faces carry the old branch's mixity), the nearest alone if it is the only one. The
+    faces' displacement alone gives K 10-20 % low with constant-strain triangles (their error
+    next to the tip), alike for the modes: their ratios are what is used. Sliding is along the
+    chord towards the tip (d at the tip), opening along m = n x d, n the surface normal: K_II > 0
+    when the m side slides towards the tip, K_III > 0 when it moves along n."""
     if not j > 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     mesh = shell.mesh
     X = mesh.X
     heading = np.asarray(direction, float) / np.linalg.norm(direction)
@@ -90,21 +94,25 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
         if chord @ heading < BRANCH_COS * np.linalg.norm(chord):
             break
         branch.append(pair)
-    opening = sliding = 0.0
+    jumps = np.zeros(3)  # opening, sliding, tearing
     for upper, lower in branch[1:] or branch:
         chord = X[tip] - X[upper]
         r = float(np.linalg.norm(chord))
         d = chord / r
-        m = np.cross(_vertex_normal(mesh, upper) + _vertex_normal(mesh, lower), d)
+        n = _vertex_normal(mesh, upper) + _vertex_normal(mesh, lower)
+        n -= (n @ d) * d
+        n /= np.linalg.norm(n)
+        m = np.cross(n, d)
         side = [float(np.sum((X[mesh.tri[np.any(mesh.tri == v, axis=1)]].mean(axis=1) - X[v]) @ m)) for v in (upper, lower)]
         if side[0] < side[1]:
             upper, lower = lower, upper
         jump = (x[upper] - X[upper]) - (x[lower] - X[lower])
-        opening += float(jump @ m) / np.linalg.norm(m) / np.sqrt(r)
-        sliding += float(jump @ d) / np.sqrt(r)
-    psi = np.arctan2(sliding, opening)
+        jumps += np.array([jump @ m, jump @ d, jump @ n]) / np.sqrt(r)
+    size = np.linalg.norm(jumps)
+    if size == 0.0:
+        jumps, size = np.array([1.0, 0.0, 0.0]), 1.0  # nothing measured: read as mode I
     k = np.sqrt(shell.material.youngs_modulus * j)
-    return float(k * np.cos(psi)), float(k * np.sin(psi))
+    return tuple(float(k * c / size) for c in jumps)
 
 
 def _flank_pairs(mesh, tip: int, count: int) -> list[tuple[int, int]]:
@@ -141,10 +149,15 @@ def _vertex_normal(mesh, vertex: int) -> np.ndarray:
     return n / np.linalg.norm(n)
 
 
-def mts_kink_angle(k1: float, k2: float) -> float:
+def mts_kink_angle(k1: float, k2: float, k3: float = 0.0) -> float:
     """The kink angle (rad, counter-clockwise from the crack's direction towards m) of the
     maximum tangential stress criterion (Erdogan and Sih 1963): -70.5 deg for pure mode II with
-    K_II > 0, 0 for pure mode I."""
+    K_II > 0, 0 for pure mode I. The criterion knows modes I and II in the surface; a shell's
+    crack cannot twist out of it, so tearing (K_III) is counted with the opening, as a share
+    that drives the crack straight on, and a closing K_I (< 0) as none: a torn sheet's crack
+    runs straight (the in-plane mixity alone is noise there, and a negative K_I would turn the
+    crack back on itself)."""
+    k1 = np.hypot(max(k1, 0.0), k3)
     if k2 == 0.0:
         return 0.0
     ratio = k1 / k2
@@ -168,10 +181,44 @@ def energy_release_rate(shell: Shell, x: np.ndarray, tip, direction, r_in: float
     q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
     eps = step * mesh.element_size()
     shift = eps * q[:, None] * d
+    local, keep, changed, xi = _patch(shell, q > 0.0)
+    clamped = None if shell.clamped is None else shell.clamped[keep]
     energies = []
     for sign in (1.0, -1.0):
-        faces, edges, *_ = build_arrays(replace(mesh, X=mesh.X + sign * shift), shell.material, shell.clamped)
-        energies.append(sum(strain_energies(x + sign * shift, faces, edges._replace(xi=shell.edges.xi))))
+        faces, edges, *_ = build_arrays(replace(local, X=local.X + sign * shift[keep]), shell.material, clamped)
+        membrane_energy, bending_energy = np.zeros(len(changed)), np.zeros(len(changed))
+        face_energies(x[keep] + sign * shift[keep], faces, edges._replace(xi=xi), changed, membrane_energy, bending_energy)
+        energies.append(float(membrane_energy.sum() + bending_energy.sum()))
     work = 0.0 if external is None else float(np.sum(external * q[:, None] * d))
     nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
     return -((energies[0] - energies[1]) / (2.0 * eps) - work) / float(mesh.thickness[nearest])
+
+
+def _patch(shell: Shell, moved: np.ndarray):
+    """The part of the shell a virtual crack extension needs: (its mesh, the kept vertices'
+    indices, the triangles whose energy the moved vertices change, as indices into it, the
+    mid-edge rotations of its edges). A triangle's energy depends on its corners and the far
+    corners of its three neighbours, so it changes only within two layers of triangles about
+    the moved vertices; a third layer keeps those triangles' hinges interior, as in the shell."""
+    tri = shell.mesh.tri
+    n = len(shell.mesh.X)
+
+    def touching(vertices):
+        return np.flatnonzero(np.any(vertices[tri], axis=1))
+
+    def corners(faces):
+        mask = np.zeros(n, dtype=bool)
+        mask[tri[faces]] = True
+        return mask
+
+    changed = touching(corners(touching(moved)))
+    context = touching(corners(changed))
+    keep = np.unique(tri[context])
+    index = np.full(n, -1, dtype=np.int64)
+    index[keep] = np.arange(len(keep))
+    local = shell_mesh(shell.mesh.X[keep], index[tri[context]], shell.mesh.thickness[context])
+    full_keys = np.sort(shell.mesh.edge, axis=1) @ np.array([n, 1])
+    local_keys = np.sort(keep[local.edge], axis=1) @ np.array([n, 1])
+    order = np.argsort(full_keys)
+    xi = shell.edges.xi[order[np.searchsorted(full_keys[order], local_keys)]]
+    return local, keep, np.searchsorted(context, changed), xi

@@ -66,14 +66,16 @@ def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndar
     H = (area * bending_stiffness)[:, None, None] * (nu * c[:, :, None] * c[:, None, :]
                                                       + (1.0 - nu) * c[:, :, None] * c[:, None, :] * cos2)
     free = (mesh.boundary & ~clamped_edge)[mesh.face_edge]  # (m, 3)
-    for f in np.flatnonzero(free.any(axis=1)):
-        b, i = free[f], ~free[f]
-        Hc = np.zeros((3, 3))
-        if i.any():
-            Hbb = H[f][np.ix_(b, b)]
-            Hib = H[f][np.ix_(i, b)]
-            Hc[np.ix_(i, i)] = H[f][np.ix_(i, i)] - Hib @ np.linalg.solve(Hbb, Hib.T)
-        H[f] = Hc
+    # The Schur complement onto the held turns, one free edge eliminated at a time (Gauss
+    # pivots in turn give the block elimination); all three free leaves nothing.
+    for c in range(3):
+        f = np.flatnonzero(free[:, c])
+        pivot = H[f, c, c]
+        live = pivot > 0.0
+        f, pivot = f[live], pivot[live]
+        H[f] -= H[f, :, c, None] * H[f, None, c, :] / pivot[:, None, None]
+        H[np.flatnonzero(free[:, c]), c, :] = 0.0
+        H[np.flatnonzero(free[:, c]), :, c] = 0.0
     return H
 
 

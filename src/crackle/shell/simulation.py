@@ -96,15 +96,16 @@ class ShellSimulation:
 
     def _heading(self, tip: CrackTip, j: float) -> tuple[np.ndarray, int]:
         """The direction the tip grows in: its direction turned by the maximum tangential stress
-        criterion's kink angle for its K_I and K_II (jintegral.stress_intensity), in the
-        surface's tangent plane; and the failure mode of that mixity (K_II^2 / K^2)."""
-        k1, k2 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
-        angle = mts_kink_angle(k1, k2)
+        criterion's kink angle for its K_I, K_II and K_III (jintegral.stress_intensity), in the
+        surface's tangent plane; and the failure mode of that mixity (the shear modes' share,
+        (K_II^2 + K_III^2) / K^2)."""
+        k1, k2, k3 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
+        angle = mts_kink_angle(k1, k2, k3)
         X, tri = self.shell.mesh.X, self.shell.mesh.tri
         around = tri[np.any(tri == tip.vertex, axis=1)]
         normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
         side = np.cross(normal / np.linalg.norm(normal), tip.direction)
-        return np.cos(angle) * tip.direction + np.sin(angle) * side, failure_mode(k2 * k2 / (k1 * k1 + k2 * k2))
+        return np.cos(angle) * tip.direction + np.sin(angle) * side, failure_mode((k2 * k2 + k3 * k3) / (k1 * k1 + k2 * k2 + k3 * k3))
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
