@@ -237,7 +237,7 @@ def _carry_edge_state(old: Shell, new: Shell, source: np.ndarray) -> None:
     n = len(source)
 
     def keys(ends):
-        a, b = np.sort(ends, axis=1).T
+        a, b = np.sort(ends, axis=1).astype(np.int64).T
         return a * n + b
 
     old_keys = keys(old.edges.ends)

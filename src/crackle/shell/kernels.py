@@ -170,21 +170,20 @@ def _turn(edges, e, f):
     return 2.0 * xi if edges.face[e, 0] == f else -2.0 * xi
 
 
-@block_kernel
-def _xi_block(lo, hi, dt, edges, alpha):
-    """Central-difference step of the mid-edge rotations xi of edges lo..hi (the node's scheme,
-    with the mass-proportional damping's work into xi_damping)."""
-    xi, rate, inertia, moment = edges.xi, edges.xi_rate, edges.xi_inertia, edges.xi_force
-    for e in range(lo, hi):
-        j = inertia[e]
-        if j == 0.0:
-            continue
-        damping = -alpha * j * rate[e]
-        new = rate[e] + dt * (moment[e] + damping) / j
-        if alpha != 0.0:
-            edges.xi_damping[e] -= damping * 0.5 * (rate[e] + new) * dt
-        rate[e] = new
-        xi[e] += dt * new
+@njit(cache=True, inline="always")
+def _step_xi(e, dt, edges, alpha):
+    """Central-difference step of edge e's mid-edge rotation xi from its moment xi_force (the
+    node's scheme, with the mass-proportional damping's work into xi_damping)."""
+    j = edges.xi_inertia[e]
+    if j == 0.0:
+        return
+    rate = edges.xi_rate[e]
+    damping = -alpha * j * rate
+    new = rate + dt * (edges.xi_force[e] + damping) / j
+    if alpha != 0.0:
+        edges.xi_damping[e] -= damping * 0.5 * (rate + new) * dt
+    edges.xi_rate[e] = new
+    edges.xi[e] += dt * new
 
 
 @block_kernel
@@ -248,7 +247,9 @@ def _face_block(lo, hi, t, x, faces, edges, pressures):
 
 
 @block_kernel
-def _hinge_block(lo, hi, x, faces, edges):
+def _hinge_block(lo, hi, x, faces, edges, dt, alpha):
+    """The hinges' bending forces from the faces' moments; with dt > 0 also the step of the
+    interior edges' xi (their moment is complete here, and nothing later in the step reads xi)."""
     ends, opposite, face, local, force, moment = (edges.ends, edges.opposite, edges.face, edges.local, edges.force,
                                                   faces.moment)
     for e in range(lo, hi):
@@ -263,6 +264,8 @@ def _hinge_block(lo, hi, x, faces, edges):
             second = moment[face[e, 1], local[e, 1]]
             total += second
             edges.xi_force[e] = -2.0 * (moment[face[e, 0], local[e, 0]] - second)
+            if dt > 0.0:
+                _step_xi(e, dt, edges, alpha)
         else:  # a clamped edge: one face, twice the angle
             total *= 2.0
         qx, qy, qz = _second_wing(x, e, opposite, edges.ghost)
@@ -322,10 +325,11 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
 
 
 @njit(parallel=True, cache=True)
-def element_passes(t, x, faces, edges, pressures):
+def element_passes(t, x, faces, edges, pressures, dt=0.0, alpha=0.0):
     """The three element passes at time t and positions x: edge angles, faces (membrane forces,
     bending moments, pressure forces), hinges; Faces.force, Edges.force and the pressure forces
-    in place."""
+    in place; with dt > 0 the mid-edge rotations take their step (damping alpha) in the hinge
+    pass."""
     n_face = faces.tri.shape[0]
     n_edge = edges.ends.shape[0]
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
@@ -336,7 +340,7 @@ def element_passes(t, x, faces, edges, pressures):
         _face_block(lo, min(lo + BLOCK, n_face), t, x, faces, edges, pressures)
     for blk in prange((n_edge + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
-        _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges)
+        _hinge_block(lo, min(lo + BLOCK, n_edge), x, faces, edges, dt, alpha)
 
 
 # Pressures before the time begins (t = -inf): none acts (the statics' and Lanczos' forces).
@@ -371,21 +375,17 @@ def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, pr
     arrays updated in place."""
     n_tool = tools.kind.shape[0]
     n_node = nodes.x.shape[0]
-    n_edge = edges.ends.shape[0]
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     x = nodes.x
     for step in range(n_steps):
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
-        element_passes(t, x, faces, edges, pressures)
+        element_passes(t, x, faces, edges, pressures, dt, alpha)
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _node_block(lo, min(lo + BLOCK, n_node), blk, t, dt, nodes, faces, edges, tools, tool_v_prev,
                         tool_v_next, load_factor, gravity, alpha)
-        for blk in prange((n_edge + BLOCK - 1) // BLOCK):
-            lo = blk * BLOCK
-            _xi_block(lo, min(lo + BLOCK, n_edge), dt, edges, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

@@ -16,6 +16,7 @@ from .mesh import ShellMesh, altitudes
 
 
 XI_FREQUENCY_STEP = 0.5  # the mid-edge rotations' own frequency x the membrane's step
+INDEX = np.int32  # the kernels' index tables (a shell of up to ~500 M triangles)
 
 
 @dataclass(frozen=True)
@@ -99,19 +100,20 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray |
     held = clamped_edges(mesh, clamped)
     H = bending_forms(mesh, local, material.bending_stiffness(mesh.thickness), material.poissons_ratio, held)
     upper = np.stack([H[:, 0, 0], H[:, 0, 1], H[:, 0, 2], H[:, 1, 1], H[:, 1, 2], H[:, 2, 2]], axis=1)
-    faces = Faces(tri=mesh.tri.copy(), dm_inv=np.ascontiguousarray(dm_inv), area=area, lam_t=lam * mesh.thickness,
-                  mu_t=mu * mesh.thickness, bend=np.ascontiguousarray(upper), face_edge=mesh.face_edge.copy(),
-                  force=np.zeros((m, 3, 3)), moment=np.zeros((m, 3)), pressure=np.full(m, -1, dtype=np.int64),
+    # The step streams these tables every step: 32-bit indices halve their share of the traffic.
+    faces = Faces(tri=mesh.tri.astype(INDEX), dm_inv=np.ascontiguousarray(dm_inv), area=area, lam_t=lam * mesh.thickness,
+                  mu_t=mu * mesh.thickness, bend=np.ascontiguousarray(upper), face_edge=mesh.face_edge.astype(INDEX),
+                  force=np.zeros((m, 3, 3)), moment=np.zeros((m, 3)), pressure=np.full(m, -1, dtype=INDEX),
                   pressure_sign=np.ones(m), pressure_delay=np.zeros(m), pressure_force=np.zeros((m, 3)))
     k = len(mesh.edge)
-    local_index = np.zeros((k, 2), dtype=np.int64)
+    local_index = np.zeros((k, 2), dtype=INDEX)
     for s in range(2):
         has = mesh.edge_face[:, s] >= 0
         f = mesh.edge_face[has, s]
         local_index[has, s] = np.argmax(mesh.face_edge[f] == np.flatnonzero(has)[:, None], axis=1)
     opposite = mesh.edge_opposite.copy()
     opposite[held, 1] = CLAMPED
-    edges = Edges(ends=mesh.edge.copy(), opposite=opposite, face=mesh.edge_face.copy(), local=local_index,
+    edges = Edges(ends=mesh.edge.astype(INDEX), opposite=opposite.astype(INDEX), face=mesh.edge_face.astype(INDEX), local=local_index,
                   theta=np.zeros(k), theta0=np.zeros(k), force=np.zeros((k, 4, 3)), ghost=_ghosts(mesh, held),
                   xi=np.zeros(k), xi_rate=np.zeros(k), xi_inertia=_xi_inertia(mesh, material, H, local_index),
                   xi_force=np.zeros(k), xi_damping=np.zeros(k))
@@ -163,9 +165,9 @@ def _csr(owner: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     slots = np.flatnonzero(owner >= 0)
     nodes = owner[slots]
     order = np.argsort(nodes, kind="stable")
-    start = np.zeros(n + 1, dtype=np.int64)
+    start = np.zeros(n + 1, dtype=INDEX)
     np.cumsum(np.bincount(nodes, minlength=n), out=start[1:])
-    return start, slots[order].astype(np.int64)
+    return start, slots[order].astype(INDEX)
 
 
 def edge_loads(mesh: ShellMesh, edges: np.ndarray, traction) -> np.ndarray:
