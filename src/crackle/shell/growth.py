@@ -13,16 +13,16 @@ of the parent, the work counters on the old vertices (the copies start at zero).
 
 The direction: the maximum tangential stress criterion (Erdogan and Sih; K_I and K_II from J and
 the crack faces' displacements, jintegral.stress_intensity): straight ahead in mode I, 70.5 deg
-off in pure mode II. So that the path is not locked to the mesh's edge directions, the tip's edge
-nearest to that heading is first turned onto it (local remeshing by moving one vertex,
-`align_ahead`): its far vertex moves in the reference surface, within its own triangles, to
-the point at the same distance from the tip along the heading, as far as its triangles stay
-well shaped; its state is interpolated from the triangle it lands in. Then that edge is cut.
+off in pure mode II. So that the path is not locked to the mesh's edge directions, an edge at
+the tip is first turned onto that heading (local remeshing by moving vertices, `align_ahead`):
+the tip's neighbours move in the reference surface, each at its distance from the tip, as far
+as their triangles stay well shaped; their state is interpolated from the old mesh. Then the
+edge best aligned with the heading is cut.
 
 Energy: cutting an edge does not move anything, so no energy appears or vanishes at the cut
 except the bending energy of the triangles whose edge became free (their free-edge angle is
-condensed); moving a vertex changes the strain and kinetic energy a little (its triangles' shape,
-its mass, its interpolated state). `energy.fracture` books both jumps; the membrane energy near
+condensed); moving vertices changes the strain and kinetic energy a little (their triangles'
+shapes, their masses, their interpolated state). `energy.fracture` books both jumps; the membrane energy near
 the tip is then released by the motion (kinetic, then damping). The Griffith energy Gc x
 thickness x extension is in the summary, not the audit.
 """
