@@ -201,6 +201,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                            fracture.criterion)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
+    if growth is not None and fracture.criterion == "j" and _can_bend(mesh.X, scenario.edge_loads, bool(pressures or tools), scale):
+        sim.warnings.append('fracture.criterion = "j": growth compares the domain J with Gc, and J holds no share of '
+                            "the bending moments, while this sheet can bend (a curved surface, pressures, tools or "
+                            'an edge load across it): "g" (G by virtual crack extension) holds that share')
     if fracture.reference != "none" and len(tips) != 2:
         raise ScenarioError(f'fracture.reference = "{fracture.reference}": the crack must have two tips inside the '
                             "surface")
@@ -213,6 +217,18 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                                        mat.youngs_modulus)
         sim.j_reference = math.sqrt(sim.j_bracket[0] * sim.j_bracket[1])
     return sim
+
+
+def _can_bend(X: np.ndarray, edge_loads: list[EdgeLoadSpec], pressed: bool, scale: float) -> bool:
+    """Whether anything can bend the sheet: a surface off one plane, pressures or tools (pressed),
+    or an edge load with a component across the plane."""
+    centred = X - X.mean(axis=0)
+    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    if np.max(np.abs(centred @ normal)) > 1e-9 * scale:
+        return True
+    across = [abs(float(np.dot(load.traction, normal))) > 1e-12 * float(np.linalg.norm(load.traction))
+              for load in edge_loads]
+    return pressed or any(across)
 
 
 def _pressures(shell, pressures, scale) -> Pressures:

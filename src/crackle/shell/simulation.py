@@ -15,6 +15,31 @@ from .mesh import altitudes
 from .model import Shell
 
 
+# The domain J holds the membrane's share of the energy release alone (the moments' share of the
+# Eshelby stress is not in it); G by virtual crack extension holds both. Where they differ by more
+# than this fraction of G, the sheet bends at the tip and the summary says which to read.
+J_AGAINST_G = 0.05
+
+
+def bending_warnings(j: np.ndarray, g: np.ndarray, criterion: str | None) -> list[str]:
+    """One warning per tip whose domain J (mean over the rings) is off its G by more than
+    J_AGAINST_G of G: there the summary's j_integral, j_tips and (with fracture.criterion = "j")
+    the growth understate the energy release."""
+    out = []
+    for k, (j_tip, g_tip) in enumerate(zip(j, g)):
+        j_mean, g_mean = float(np.mean(j_tip)), float(np.mean(g_tip))
+        if not (np.isfinite(j_mean) and np.isfinite(g_mean)) or g_mean <= 0.0:
+            continue
+        if abs(j_mean - g_mean) <= J_AGAINST_G * g_mean:
+            continue
+        advice = ("; growth compares J with Gc: set fracture.criterion = \"g\" for a sheet that bends"
+                  if criterion == "j" else "")
+        out.append(f"crack tip {k}: the domain J ({j_mean:.4g} J/m^2, j_tips; the bending moments' share is not in "
+                   f"it) is {j_mean / g_mean - 1.0:+.0%} off G by virtual crack extension ({g_mean:.4g} J/m^2, "
+                   f"g_tips, bending included): the sheet bends at the tip, read energy_release_rate{advice}")
+    return out
+
+
 @dataclass
 class CrackTip:
     vertex: int  # the tip's vertex (not split: the crack ends there)
@@ -238,7 +263,8 @@ class ShellSimulation:
             "j_integral": float(np.mean(j[0])) if len(self.tips) else None,
             "g_tips": g.tolist(),
             "energy_release_rate": float(np.mean(g[0])) if len(self.tips) else None,
-            "warnings": list(self.warnings),
+            "warnings": [*self.warnings,
+                         *bending_warnings(j, g, self.growth.criterion if self.growth is not None else None)],
         }
         if self.growth is not None:
             thickness = float(np.median(self.shell.mesh.thickness))
