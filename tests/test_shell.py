@@ -744,3 +744,71 @@ def test_mode_ii_crack_kinks_at_the_mts_angle_off_the_mesh_lines(tmp_path):
     assert math.degrees(math.atan2(first[0][1], first[0][0])) == pytest.approx(-70.5, abs=3.0)
     assert math.degrees(math.atan2(first[1][1], first[1][0])) == pytest.approx(109.5, abs=3.0)
     assert abs(relative_imbalance(sim.energies(dt))) < 0.01
+
+
+STRIP = """
+name = "two-region strip"
+method = "shell"
+[shell]
+surface = "rectangle"
+size = [0.1, 0.02]
+element_size = 0.005
+thickness = 0.001
+[material]
+density = 7800.0
+youngs_modulus = 2e11
+poissons_ratio = 0.0
+[[regions]]
+where = {{ box_min = [{x0}, -1.0, -1.0], box_max = [1.0, 1.0, 1.0] }}
+thickness = 0.002
+[regions.material]
+density = 2700.0
+youngs_modulus = 7e10
+poissons_ratio = 0.0
+[[edge_loads]]
+where = {{ plane_point = [0.1, 0.0, 0.0], plane_normal = [1.0, 0.0, 0.0] }}
+traction = [1e6, 0.0, 0.0]
+[run]
+end_time = 1e-3
+"""
+
+
+def test_regions_carry_their_own_thickness_and_material(tmp_path, capsys):
+    """A 100 x 20 mm strip, steel 1 mm thick for x < 50 mm and a [[regions]] of aluminium 2 mm
+    thick beyond (nu = 0 in both, so each part's strain is uniform), pulled by 1 MPa on its
+    aluminium end (F = 40 N), statically: the end moves F L1 / (E1 t1 w) + F L2 / (E2 t2 w)
+    (5.0e-7 + 7.14e-7 m) and the joint the steel's share, to 1e-4 (St. Venant-Kirchhoff at a
+    strain of 1e-5); the masses add up to sum rho t A to 1e-12. The same strip wrapped onto a
+    cylinder of radius R stores D_i / 2 / R^2 per area in every triangle off the free ends, D_i
+    = E_i t_i^3 / 12 of its own region (to 1e-4). A region that selects no triangle: exit 2
+    naming regions.0.where."""
+    path = tmp_path / "strip.toml"
+    path.write_text(STRIP.format(x0=0.05 - 1e-9))
+    scenario, _ = load_scenario(path)
+    sim = build_simulation(scenario)
+    shell, nodes = sim.shell, sim.nodes
+    X = shell.mesh.X
+    centroid_x = X[shell.mesh.tri].mean(axis=1)[:, 0]
+    aluminium = centroid_x > 0.05
+    assert np.array_equal(shell.mesh.region, aluminium.astype(int))
+    np.testing.assert_array_equal(shell.mesh.thickness, np.where(aluminium, 0.002, 0.001))
+    assert nodes.mass.sum() == pytest.approx(7800 * 0.001 * 0.05 * 0.02 + 2700 * 0.002 * 0.05 * 0.02, rel=1e-12)
+    free = np.ones_like(X)
+    free[:, 1:] = 0.0
+    free[X[:, 0] < 1e-9, 0] = 0.0
+    result = relax(shell, nodes.load, free, tolerance=1e-9)
+    assert result.converged
+    force = 1e6 * 0.002 * 0.02
+    joint, end = force * 0.05 / (2e11 * 0.001 * 0.02), force * 0.05 / (7e10 * 0.002 * 0.02)
+    ux = result.x[:, 0] - X[:, 0]
+    np.testing.assert_allclose(ux[np.abs(X[:, 0] - 0.1) < 1e-9], joint + end, rtol=1e-4)
+    np.testing.assert_allclose(ux[np.abs(X[:, 0] - 0.05) < 1e-9], joint, rtol=1e-4)
+    R = 0.1
+    per_area = bending_density(shell, cylinder(X, R))
+    inner = (X[shell.mesh.tri][:, :, 0].min(axis=1) > 1e-9) & (X[shell.mesh.tri][:, :, 0].max(axis=1) < 0.1 - 1e-9)
+    D = np.where(aluminium, 7e10 * 0.002**3, 2e11 * 0.001**3) / 12.0
+    np.testing.assert_allclose(per_area[inner], (D / 2 / R**2)[inner], rtol=1e-4)
+    path.write_text(STRIP.format(x0=0.2))
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "regions.0.where" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -111,7 +111,8 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
     size = np.linalg.norm(jumps)
     if size == 0.0:
         jumps, size = np.array([1.0, 0.0, 0.0]), 1.0  # nothing measured: read as mode I
-    k = np.sqrt(shell.material.youngs_modulus * j)
+    at_tip = int(np.flatnonzero(np.any(mesh.tri == tip, axis=1))[0])
+    k = np.sqrt(shell.triangle_material.youngs_modulus[at_tip] * j)
     return tuple(float(k * c / size) for c in jumps)
 
 
@@ -216,7 +217,8 @@ def _patch(shell: Shell, moved: np.ndarray):
     keep = np.unique(tri[context])
     index = np.full(n, -1, dtype=np.int64)
     index[keep] = np.arange(len(keep))
-    local = shell_mesh(shell.mesh.X[keep], index[tri[context]], shell.mesh.thickness[context])
+    local = shell_mesh(shell.mesh.X[keep], index[tri[context]], shell.mesh.thickness[context],
+                       shell.mesh.region[context])
     full_keys = np.sort(shell.mesh.edge, axis=1) @ np.array([n, 1])
     local_keys = np.sort(keep[local.edge], axis=1) @ np.array([n, 1])
     order = np.argsort(full_keys)

@@ -31,6 +31,7 @@ class ShellMesh:
     edge_face: np.ndarray  # (k, 2) faces on each side, -1 on a boundary
     edge_opposite: np.ndarray  # (k, 2) each face's vertex off the edge, -1 on a boundary
     face_edge: np.ndarray  # (m, 3) edge opposite each corner
+    region: np.ndarray  # (m,) int, which of the shell's materials each triangle is (model.ShellMaterial)
 
     @property
     def boundary(self) -> np.ndarray:
@@ -42,9 +43,10 @@ class ShellMesh:
         return float(np.median(np.linalg.norm(self.X[self.edge[:, 1]] - self.X[self.edge[:, 0]], axis=1)))
 
 
-def shell_mesh(X, tri, thickness) -> ShellMesh:
+def shell_mesh(X, tri, thickness, region=0) -> ShellMesh:
     """A checked ShellMesh: every edge in one or two triangles, neighbours oriented alike, no
-    triangle of zero area, a positive thickness (a number or one per triangle)."""
+    triangle of zero area, a positive thickness (a number or one per triangle); region: each
+    triangle's material (a number or one per triangle; 0, the first, by default)."""
     X = np.ascontiguousarray(X, dtype=float)
     tri = np.ascontiguousarray(tri, dtype=np.int64)
     if X.ndim != 2 or X.shape[1] != 3 or tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0:
@@ -54,6 +56,7 @@ def shell_mesh(X, tri, thickness) -> ShellMesh:
     thickness = np.broadcast_to(np.asarray(thickness, dtype=float), (len(tri),)).copy()
     if not np.all(np.isfinite(thickness) & (thickness > 0)):
         raise SurfaceError("the shell's thickness must be positive")
+    region = np.broadcast_to(np.asarray(region, dtype=np.int64), (len(tri),)).copy()
     a, b, c = (X[tri[:, i]] for i in range(3))
     area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
     scale = np.max(np.ptp(X, axis=0))
@@ -62,7 +65,7 @@ def shell_mesh(X, tri, thickness) -> ShellMesh:
         raise SurfaceError(f"{len(degenerate)} triangle(s) of zero area, the first {degenerate[0]} at "
                            f"{np.round(X[tri[degenerate[0]]].mean(axis=0), 6).tolist()}")
     edge, edge_face, edge_opposite, face_edge = _edges(X, tri)
-    return ShellMesh(X, tri, thickness, edge, edge_face, edge_opposite, face_edge)
+    return ShellMesh(X, tri, thickness, edge, edge_face, edge_opposite, face_edge, region)
 
 
 def altitudes(X, tri) -> np.ndarray:
@@ -223,4 +226,4 @@ def split_along(mesh: ShellMesh, path: np.ndarray) -> tuple[ShellMesh, np.ndarra
             X.append(mesh.X[v][None, :])
             parent.append(v)
             n += 1
-    return shell_mesh(np.concatenate(X), tri, mesh.thickness), np.array(parent, dtype=np.int64)
+    return shell_mesh(np.concatenate(X), tri, mesh.thickness, mesh.region), np.array(parent, dtype=np.int64)

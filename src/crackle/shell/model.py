@@ -21,9 +21,17 @@ INDEX = np.int32  # the kernels' index tables (a shell of up to ~500 M triangles
 
 @dataclass(frozen=True)
 class ShellMaterial:
-    density: float  # kg/m^3
-    youngs_modulus: float  # Pa
-    poissons_ratio: float
+    """The shell's elastic materials: numbers (one material) or one entry per region
+    (ShellMesh.region indexes them); `of_triangles` gives each triangle its own."""
+
+    density: float | np.ndarray  # kg/m^3
+    youngs_modulus: float | np.ndarray  # Pa
+    poissons_ratio: float | np.ndarray
+
+    def of_triangles(self, region: np.ndarray) -> ShellMaterial:
+        """The material of each triangle (arrays (m,)), from its region."""
+        return ShellMaterial(*(np.atleast_1d(np.asarray(value, dtype=float))[region]
+                               for value in (self.density, self.youngs_modulus, self.poissons_ratio)))
 
     def lame_plane_stress(self) -> tuple[float, float]:
         E, nu = self.youngs_modulus, self.poissons_ratio
@@ -64,6 +72,7 @@ def bending_forms(mesh: ShellMesh, local: np.ndarray, bending_stiffness: np.ndar
     area = 0.5 * np.abs(local[:, 1, 0] * local[:, 2, 1] - local[:, 1, 1] * local[:, 2, 0])
     c = length / (2.0 * area[:, None])
     cos2 = np.einsum("mik,mjk->mij", outward, outward) ** 2
+    nu = np.broadcast_to(nu, area.shape)[:, None, None]  # one material or one per triangle
     H = (area * bending_stiffness)[:, None, None] * (nu * c[:, :, None] * c[:, None, :]
                                                       + (1.0 - nu) * c[:, :, None] * c[:, None, :] * cos2)
     free = (mesh.boundary & ~clamped_edge)[mesh.face_edge]  # (m, 3)
@@ -91,6 +100,7 @@ def build_arrays(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray |
     """(Faces, Edges, mass, area, radius, face CSR, edge CSR) of the shell: what Nodes and the
     kernels need besides the loads. `clamped` (n,) marks the vertices whose boundary edges hold
     their slope (a clamped support)."""
+    material = material.of_triangles(mesh.region)
     frame, local, _ = face_frames(mesh)
     m = len(mesh.tri)
     Dm = np.stack([local[:, 1], local[:, 2]], axis=2)  # (m, 2, 2): columns are corners 1 and 2
@@ -144,8 +154,8 @@ def _xi_inertia(mesh: ShellMesh, material: ShellMaterial, H: np.ndarray, local_i
     for s in range(2):
         f, i = mesh.edge_face[interior, s], local_index[interior, s]
         k_xi[interior] += 4.0 * H[f, i, i]
-    E, nu, rho = material.youngs_modulus, material.poissons_ratio, material.density
-    dt_m = float(np.min(altitudes(mesh.X, mesh.tri))) / np.sqrt(E / (rho * (1.0 - nu * nu)))
+    E, nu, rho = material.youngs_modulus, material.poissons_ratio, material.density  # per triangle
+    dt_m = float(np.min(altitudes(mesh.X, mesh.tri))) / float(np.max(np.sqrt(E / (rho * (1.0 - nu * nu)))))
     return k_xi * (dt_m / XI_FREQUENCY_STEP) ** 2
 
 
@@ -193,6 +203,11 @@ class Shell:
     edges: Edges
     nodes: Nodes
     clamped: np.ndarray | None = None  # (n,) the vertices of clamped supports (build_arrays)
+
+    @cached_property
+    def triangle_material(self) -> ShellMaterial:
+        """Each triangle's material (arrays (m,))."""
+        return self.material.of_triangles(self.mesh.region)
 
     @cached_property
     def frames(self) -> np.ndarray:

@@ -1,7 +1,8 @@
 """The shell's scenario sections and the build of a scenario into a ShellSimulation.
 
 [shell] the mid-surface (a rectangle meshed at element_size, or any triangle surface meshio
-reads) and its thickness; [material] the elastic constants; [[cracks]] pre-cracks as polylines on
+reads) and its thickness; [material] the elastic constants; [[regions]] triangles with their own
+thickness or material; [[cracks]] pre-cracks as polylines on
 the surface (cut along the nearest chain of edges); [[edge_loads]] tractions on boundary edges; [[pressures]] the shared section on triangles (a side
 to act from, optionally a travelling front);
 [fracture] the J-integral's rings and the closed form to compare with. Tools, supports, run
@@ -11,6 +12,7 @@ control and outputs are the shared ones.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -66,6 +68,18 @@ class ShellSpec(Strict):
         return self
 
 
+class RegionSpec(Strict):
+    """[[regions]]: triangles with a thickness or material of their own (a later region wins where
+    two overlap)."""
+
+    where: Where
+    """selects the triangles whose three corners it selects"""
+    thickness: Positive | None = None
+    """m; default [shell] thickness"""
+    material: ElasticSpec | None = None
+    """density and elastic constants; default [material]"""
+
+
 class CrackSpec(Strict):
     """[[cracks]]: a through-crack present from the start."""
 
@@ -115,6 +129,8 @@ class Scenario(ScenarioBase):
     """the mid-surface and its thickness"""
     material: ElasticSpec
     """density and elastic constants"""
+    regions: list[RegionSpec] = []
+    """parts of the surface with their own thickness or material"""
     cracks: list[CrackSpec] = []
     """pre-cracks"""
     edge_loads: list[EdgeLoadSpec] = []
@@ -152,6 +168,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
         mesh = _surface(spec, base)
     except (SurfaceError, MeshError) as err:
         raise ScenarioError(f"shell.{'file' if spec.surface == 'file' else 'size'}: {err}") from None
+    mesh, material = _regions(mesh, scenario)
     tips = []
     for i, crack in enumerate(scenario.cracks):
         try:
@@ -167,8 +184,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     for support in supports:
         if support.kind == "clamped":
             clamped |= support.where.mask(mesh.X, scale)
-    shell = build_shell(mesh, ShellMaterial(mat.density, mat.youngs_modulus, mat.poissons_ratio),
-                        clamped if clamped.any() else None)
+    shell = build_shell(mesh, material, clamped if clamped.any() else None)
     load = np.zeros_like(mesh.X)
     boundary = np.flatnonzero(mesh.boundary)
     for i, edge_load in enumerate(scenario.edge_loads):
@@ -217,6 +233,27 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                                        mat.youngs_modulus)
         sim.j_reference = math.sqrt(sim.j_bracket[0] * sim.j_bracket[1])
     return sim
+
+
+def _regions(mesh, scenario: Scenario):
+    """The mesh with each triangle's thickness and region set by [[regions]], and the shell's
+    materials: [material] first (region 0), then one per region that names its own."""
+    materials = [scenario.material]
+    thickness, region = mesh.thickness.copy(), mesh.region.copy()
+    scale = float(np.max(np.ptp(mesh.X, axis=0)))
+    for i, spec in enumerate(scenario.regions):
+        chosen = np.all(selection(spec.where).mask(mesh.X, scale)[mesh.tri], axis=1)
+        if not chosen.any():
+            raise ScenarioError(f"regions.{i}.where: selects no triangle (all three corners must be selected); check "
+                                "its plane or box")
+        if spec.thickness is not None:
+            thickness[chosen] = spec.thickness
+        if spec.material is not None:
+            region[chosen] = len(materials)
+            materials.append(spec.material)
+    material = ShellMaterial(*(np.array([getattr(m, key) for m in materials])
+                               for key in ("density", "youngs_modulus", "poissons_ratio")))
+    return replace(mesh, thickness=thickness, region=region), material
 
 
 def _can_bend(X: np.ndarray, edge_loads: list[EdgeLoadSpec], pressed: bool, scale: float) -> bool:

@@ -236,7 +236,7 @@ class ShellSimulation:
         return {
             "points": n.x,
             "point_data": {"displacement": n.x - mesh.X, "velocity": n.v},
-            "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy()})],
+            "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy()})],
         }
 
     def describe(self) -> str:
