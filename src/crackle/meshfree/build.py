@@ -30,13 +30,15 @@ class SetupError(ValueError):
 def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None,
-                              fracture_stress: float = math.inf, precracks=(), pressures=()) -> MeshfreeSimulation:
+                              fracture_stress: float = math.inf, precracks=(), pressures=(),
+                              failure_plastic_strain: float = math.inf) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
-    (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py) and
+    (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py), the
+    equivalent plastic strain that fails one (failure_plastic_strain; inf: none) and
     the pre-cracks (loading.Precrack: the links across them removed at the start) and the pressures
     on the wall faces (loading.Pressure, pressure_arrays)."""
     X = np.ascontiguousarray(plate.X, dtype=float)
@@ -78,10 +80,10 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     dt, step_ratio = stable_step(particles, links, row, table, tool_k, h)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
-    if math.isfinite(fracture_stress) or precracks:
+    if math.isfinite(fracture_stress) or math.isfinite(failure_plastic_strain) or precracks:
         breaking = LinkBreaking(X, plate.volume, plate.cells, radius, terms,
                                 stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
-                                plate.wall_frame, tool_k, step_ratio)
+                                plate.wall_frame, tool_k, step_ratio, failure_plastic_strain)
     sim = MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
                              gravity, damping, plate, breaking, loads)
     if precracks:

@@ -1,7 +1,9 @@
 """Fracture by link breaking (paper 000 section 3.3): when the maximum principal Cauchy stress at
 a particle exceeds the fracture stress (`fracture_factor` x `tensile_strength`, 3 x in the
-paper), the particle fails, once: a crack plane passes through it with its normal along that
-principal direction. The links that cross the crack are removed, in both directions, and the
+paper), or its equivalent plastic strain reaches `failure_plastic_strain` (a ductile criterion,
+as Abaqus's ductile damage initiation at a constant strain: off by default), the particle
+fails, once: a crack plane passes through it with its normal along the maximum principal
+direction. The links that cross the crack are removed, in both directions, and the
 shape-function gradients (the MLS at the quadrature points of each affected particle's cell, and
 the stabilisation's values and stiffness at the particle) are rebuilt without them: the crack hides each side
 from the other's interpolation (a visibility rule).
@@ -72,13 +74,14 @@ class LinkBreaking:
     """The crack state of a MeshfreeSimulation and the check that extends it."""
 
     def __init__(self, X, volume, cells, radius, terms, stab_scale, fracture_stress, crack_radius, links,
-                 wall_frame, tool_k=0.0, step_ratio=1.0):
+                 wall_frame, tool_k=0.0, step_ratio=1.0, failure_strain=np.inf):
         n = len(X)
         # Per particle: two unit tangents of the wall and its normal (particles.WallParticles).
         self.wall_frame = wall_frame
         self.X, self.volume, self.cells = X, volume, cells
         self.radius, self.terms, self.stab_scale = float(radius), terms, float(stab_scale)
         self.fracture_stress = float(fracture_stress)
+        self.failure_strain = float(failure_strain)  # equivalent plastic strain that fails a particle
         self.crack_radius = float(crack_radius)
         self.tree = cKDTree(X)
         self.failed = np.zeros(n, dtype=bool)
@@ -100,9 +103,11 @@ class LinkBreaking:
         self.gradient_limit = GRADIENT_GROWTH * float(np.max(_gradient_sums(self.row, links.grad, n)))
 
     # -- the criterion ---------------------------------------------------------------------------
-    def newly_failed(self, cauchy: np.ndarray, deformation: np.ndarray, pk2: np.ndarray):
-        """Particles (ids, increasing) whose maximum principal stress exceeds the fracture stress
-        and that have not failed yet, with their material crack normals: the principal
+    def newly_failed(self, cauchy: np.ndarray, deformation: np.ndarray, pk2: np.ndarray,
+                     eq_plastic: np.ndarray | None = None):
+        """Particles (ids, increasing) whose maximum principal stress exceeds the fracture stress,
+        or whose equivalent plastic strain `eq_plastic` reaches the failure strain, and that have
+        not failed yet, with their material crack normals: the maximum principal
         direction pulled back to the material, less its component through the wall (the crack
         cuts through the wall; where the direction is through the wall, the largest in-plane
         principal direction of the second Piola-Kirchhoff stress `pk2`)."""
@@ -111,11 +116,12 @@ class LinkBreaking:
         off = np.abs(s[:, 3:])
         bound = np.max(s[:, :3] + np.stack([off[:, 0] + off[:, 2], off[:, 0] + off[:, 1], off[:, 1] + off[:, 2]],
                                            axis=1), axis=1)
-        near = np.flatnonzero((bound > self.fracture_stress) & ~self.failed & ~self.detached)
+        strained = np.zeros(len(s), dtype=bool) if eq_plastic is None else eq_plastic >= self.failure_strain
+        near = np.flatnonzero(((bound > self.fracture_stress) | strained) & ~self.failed & ~self.detached)
         s = s[near]
         sigma = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
         values, vectors = np.linalg.eigh(sigma)
-        over = values[:, 2] > self.fracture_stress
+        over = (values[:, 2] > self.fracture_stress) | strained[near]
         ids = near[over]
         n_current = vectors[over, :, 2]
         F = deformation[ids].reshape(-1, 3, 3)
@@ -201,14 +207,15 @@ class LinkBreaking:
         """At a check step: fail the particles over the criterion, remove the links across their
         cracks, rebuild the affected particles and book the released energy. True if links
         changed."""
-        if not np.isfinite(self.fracture_stress):  # pre-cracks only
+        if not (np.isfinite(self.fracture_stress) or np.isfinite(self.failure_strain)):  # pre-cracks only
             return False
         cauchy = sim.cauchy_stress()
         # Blown up (non-finite stresses; numpy's eigen-solve raised on one such state of a tube run):
         # left to the driver, which stops the run as unstable and keeps its outputs.
         if not np.isfinite(cauchy).all():
             return False
-        ids, normals = self.newly_failed(cauchy, sim.particles.deformation, sim.particles.stress)
+        ids, normals = self.newly_failed(cauchy, sim.particles.deformation, sim.particles.stress,
+                                         sim.particles.eq_plastic)
         if len(ids) == 0:
             return False
         self.fail(sim, ids, normals, dt)

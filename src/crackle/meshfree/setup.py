@@ -192,6 +192,10 @@ class MeshfreeMaterial(ElasticSpec):
     (inf: no fracture)"""
     fracture_factor: Positive = 3.0
     """the fracture stress over the tensile strength (paper 000 section 3.3: 3)"""
+    failure_plastic_strain: PositiveOrInf = math.inf
+    """a particle also fails when its equivalent plastic strain reaches this (a ductile criterion, Abaqus's ductile
+    damage initiation at a constant strain; the crack plane's normal is the maximum principal direction, as for the
+    stress; inf: off, the paper's criterion alone)"""
 
     @model_validator(mode="after")
     def _keys_of_the_model(self):
@@ -272,6 +276,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
             velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
             precracks=build_precracks(scenario.precracks), pressures=pressures,
+            failure_plastic_strain=mat.failure_plastic_strain,
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None
