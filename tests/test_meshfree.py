@@ -732,6 +732,33 @@ def test_links_across_the_crack_and_only_those_are_removed():
     assert abs(before) > 0.25 * 1e-6 / 0.002 and abs(F_at(c)) < 1e-15
 
 
+def stretched_plate(notched, law, steps, after_chunk=None, **fracture):
+    """A free 40 x 40 x 2 mm aluminium plate (21 x 21 x 3 particles) stretched along x by an
+    initial velocity 20 m/s x X / 20 mm, with an edge notch along x = 0 from y = -20 to -10 mm
+    (its particles failed with normal x at t = 0) if `notched`, the `fracture` keywords of
+    build_meshfree_simulation; 20 chunks of `steps` steps, `after_chunk(sim)` after each. Returns
+    the simulation, the particles failed beyond the notch and the energies after each chunk."""
+    plate = plate_particles((-0.02, -0.02, 0.0), (0.04, 0.04, 0.002), 0.002, 3)
+    X = plate.X
+    velocity = np.zeros_like(X)
+    velocity[:, 0] = 20.0 * X[:, 0] / 0.02
+    sim = build_meshfree_simulation(plate, RHO_AL, law, velocity=velocity, **fracture)
+    dt = 0.7 * sim.stable_dt
+    notch = np.flatnonzero((np.abs(X[:, 0]) < 1e-9) & (X[:, 1] < -0.0099)) if notched else np.zeros(0, int)
+    if notched:
+        sim.breaking.fail(sim, notch, np.tile([1.0, 0.0, 0.0], (len(notch), 1)), dt)
+    rows = []
+    for _ in range(20):
+        sim.advance(steps, dt)
+        if after_chunk is not None:
+            after_chunk(sim)
+        rows.append(sim.energies(dt))
+    history = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    new = sim.breaking.failed.copy()
+    new[notch] = False
+    return sim, np.flatnonzero(new), history
+
+
 def test_notched_plate_in_tension_cracks_from_the_notch():
     """A free 40 x 40 x 2 mm aluminium plate (21 x 21 x 3 particles) stretched along x by an
     initial velocity 20 m/s x X / 20 mm, with fracture at 3 x 100 MPa and an edge notch along
@@ -743,23 +770,7 @@ def test_notched_plate_in_tension_cracks_from_the_notch():
     plate's plane (the crack cuts through the wall), and the energy audit, the released stored
     energy booked as damage, closes within 3 % (measured -1.4 %)."""
     def run(notched):
-        plate = plate_particles((-0.02, -0.02, 0.0), (0.04, 0.04, 0.002), 0.002, 3)
-        X = plate.X
-        velocity = np.zeros_like(X)
-        velocity[:, 0] = 20.0 * X[:, 0] / 0.02
-        sim = build_meshfree_simulation(plate, RHO_AL, J2Law(E_AL, NU), velocity=velocity, fracture_stress=300e6)
-        dt = 0.7 * sim.stable_dt
-        notch = np.flatnonzero((np.abs(X[:, 0]) < 1e-9) & (X[:, 1] < -0.0099)) if notched else np.zeros(0, int)
-        if notched:
-            sim.breaking.fail(sim, notch, np.tile([1.0, 0.0, 0.0], (len(notch), 1)), dt)
-        rows = []
-        for _ in range(20):
-            sim.advance(20, dt)
-            rows.append(sim.energies(dt))
-        history = {k: np.array([r[k] for r in rows]) for k in rows[0]}
-        new = sim.breaking.failed.copy()
-        new[notch] = False
-        return sim, np.flatnonzero(new), history
+        return stretched_plate(notched, J2Law(E_AL, NU), 20, fracture_stress=300e6)
 
     sim, grown, _ = run(notched=False)
     assert len(grown) == 0
@@ -787,27 +798,13 @@ def test_ductile_criterion_fails_particles_at_the_plastic_strain_from_the_notch(
     (measured -0.12 %)."""
     eps_f = 0.01
 
-    def run(notched):
-        plate = plate_particles((-0.02, -0.02, 0.0), (0.04, 0.04, 0.002), 0.002, 3)
-        X = plate.X
-        velocity = np.zeros_like(X)
-        velocity[:, 0] = 20.0 * X[:, 0] / 0.02
-        sim = build_meshfree_simulation(plate, RHO_AL, J2Law(E_AL, NU, 100e6), velocity=velocity,
-                                        failure_plastic_strain=eps_f)
-        dt = 0.7 * sim.stable_dt
-        notch = np.flatnonzero((np.abs(X[:, 0]) < 1e-9) & (X[:, 1] < -0.0099)) if notched else np.zeros(0, int)
-        if notched:
-            sim.breaking.fail(sim, notch, np.tile([1.0, 0.0, 0.0], (len(notch), 1)), dt)
-        rows = []
-        for _ in range(20):
-            sim.advance(7 * FRACTURE_CHECK, dt)  # ends on a check
-            b, ep = sim.breaking, sim.particles.eq_plastic
-            assert np.all(ep[~b.failed & ~b.detached] < eps_f)
-            rows.append(sim.energies(dt))
-        history = {k: np.array([r[k] for r in rows]) for k in rows[0]}
-        new = sim.breaking.failed.copy()
-        new[notch] = False
-        return sim, np.flatnonzero(new), history
+    def none_left_above(sim):
+        b, ep = sim.breaking, sim.particles.eq_plastic
+        assert np.all(ep[~b.failed & ~b.detached] < eps_f)
+
+    def run(notched):  # chunks of 7 checks: each ends on a check
+        return stretched_plate(notched, J2Law(E_AL, NU, 100e6), 7 * FRACTURE_CHECK, none_left_above,
+                               failure_plastic_strain=eps_f)
 
     sim, grown, _ = run(notched=False)
     assert len(grown) == 0 and sim.particles.eq_plastic.max() > 0.5 * eps_f  # it did yield
