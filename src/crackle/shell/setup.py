@@ -217,7 +217,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                            fracture.criterion)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
-    if growth is not None and fracture.criterion == "j" and _can_bend(mesh.X, scenario.edge_loads, bool(pressures or tools), scale):
+    pressed = bool(pressures or tools)
+    if growth is not None and fracture.criterion == "j" and _can_bend(mesh.X, scenario.edge_loads, pressed, scale):
         sim.warnings.append('fracture.criterion = "j": growth compares the domain J with Gc, and J holds no share of '
                             "the bending moments, while this sheet can bend (a curved surface, pressures, tools or "
                             'an edge load across it): "g" (G by virtual crack extension) holds that share')
