@@ -195,6 +195,9 @@ class ToolSpec(Strict):
     """surface: factor on the file's points (1e-3 for a file in mm)"""
     offset: Vec3 = (0.0, 0.0, 0.0)
     """m, surface: added to the scaled points"""
+    mass: Positive | None = None
+    """kg: a free rigid body (a projectile, a drop weight) launched at `speed` along `direction`, then moved
+    only by its contact with the specimen (translation, no gravity); unset: the tool follows its speed"""
 
     @model_validator(mode="after")
     def _shape_needs(self):
@@ -209,6 +212,10 @@ class ToolSpec(Strict):
             raise ValueError("direction must be a non-zero vector")
         if self.touch and self.shape not in ("box", "sphere"):
             raise ValueError("touch = true is for box and sphere tools")
+        driven = sorted({"ramp_time", "speed_table"} & self.model_fields_set)
+        if self.mass is not None and driven:
+            raise ValueError(f"{', '.join(driven)}: a tool with a mass is free and starts at `speed`; "
+                             "remove mass to drive it, or these keys to launch it")
         return self
 
 

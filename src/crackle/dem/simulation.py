@@ -159,7 +159,7 @@ class DemSimulation:
             "energy.damage": float(np.sum(self.inter.e_damage)),
             "energy.friction": float(np.sum(self.inter.e_friction) + self._dropped_friction + np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
-            "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
+            "energy.external": float(np.sum(p.w_external)) + self._initial_energy + self._springs.free_work(),
         }
 
     def sample(self, dt: float) -> dict[str, float]:

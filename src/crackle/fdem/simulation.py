@@ -132,7 +132,7 @@ class FdemSimulation:
         return f"{self.model.n_tets:,} tets, {self.model.n_interfaces:,} interfaces"
 
     def _external_work(self) -> float:
-        return float(np.sum(self.model.nodes.w_external)) + self._initial_energy
+        return float(np.sum(self.model.nodes.w_external)) + self._initial_energy + self._springs.free_work()
 
     def _kinetic(self) -> float:
         n = self.model.nodes
@@ -179,7 +179,7 @@ class FdemSimulation:
         energies = self.energies(dt)
         forces = self.tool_forces()
         m = self.model
-        row.update(tool_columns(self.tool_names(), forces, m.tools.disp))
+        row.update(tool_columns(self.tool_names(), forces, m.tools))
         row.update(energies)
         row["broken"] = self.broken
         row["fragments"] = self.fragments().count

@@ -64,7 +64,7 @@ class LatticeSimulation:
             "energy.damage": float(np.sum(self.springs.e_damage)),
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping)),
-            "energy.external": float(np.sum(n.w_external)),
+            "energy.external": float(np.sum(n.w_external)) + self._springs.free_work(),
         }
 
     def sample(self, dt: float) -> dict[str, float]:

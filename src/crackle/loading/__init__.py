@@ -70,7 +70,9 @@ TOOL_SHAPES = tuple(SHAPE_CODES)
 
 @dataclass(frozen=True)
 class Tool:
-    """A rigid tool moving by translation along `direction` at speed `speed(t)`.
+    """A rigid tool moving by translation along `direction` at speed `speed(t)`; with a `mass`, a free
+    rigid body instead (a projectile): launched at speed(0) along `direction`, then slowed or turned
+    only by the contact forces of the specimen on it (loading.tools.move_tools).
 
     Shapes (the tool is the solid region; specimen nodes inside it are pushed out):
       plane:    `point` on the plane, `normal` pointing out of the tool (towards the specimen)
@@ -97,6 +99,7 @@ class Tool:
     radius: float = 0.0
     length: float = float("inf")
     penalty: float | None = None  # N/m^3 per unit contact area; default from the specimen
+    mass: float | None = None  # kg: a free tool, launched at speed(0) and then moved by its contact forces
     surface: str | None = None  # surface: the file its triangles came from
     vertices: np.ndarray | None = field(default=None, compare=False, repr=False)  # surface: (n, 3), m
     triangles: np.ndarray | None = field(default=None, compare=False, repr=False)  # surface: (k, 3)

@@ -12,7 +12,7 @@ from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLA
 Tools = namedtuple(
     "Tools",
     "kind geom disp direction times speeds n mu penalty force_slots cell_ring cell_state cell_count "
-    "surf_grid surf_cell_start surf_cell_tris surf_tri",
+    "surf_grid surf_cell_start surf_cell_tris surf_tri mass velocity step_force",
 )
 # kind, geom (12 numbers, see Tool.geometry_row), disp (current displacement), direction (unit),
 # times / speeds / n (the speed history table), mu (Coulomb), penalty (N/m^3 per unit contact
@@ -26,6 +26,10 @@ Tools = namedtuple(
 # inflated by the contact depth, in CSR form: surf_grid[j] = (cells along x, y, z, first entry
 # of tool j in surf_cell_start); surf_cell_start[first + c] .. [first + c + 1] delimits cell c's
 # triangles (rows of surf_tri) in surf_cell_tris. Built once: the tools only translate.
+# Free tools (a projectile): mass (tool,) in kg, 0 for a driven tool; velocity (tool, 3) a free
+# tool's velocity over the last half step (its launch velocity before the first); step_force
+# (tool, 3) the last step's contact force on the specimen, which load_cell_step writes and
+# move_tools turns into the free tool's change of velocity.
 
 # Default tool penalty per unit contact area: TOOL_PENALTY_FACTOR x E / h, h the method's length
 # scale (FDEM: the median tet altitude; lattice: the spacing), the usual explicit-contact order.
@@ -57,11 +61,23 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
     mu = np.array([t.friction for t in tools], dtype=float)
     penalty = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
     surf = _surface_tool_grids(tools, geom, contact_depth)
+    mass = np.array([t.mass or 0.0 for t in tools], dtype=float)
+    launch = (speeds[:, 0:1] * direction) * (mass[:, None] > 0.0)
     return Tools(
         kind, geom, np.zeros((len(tools), 3)), direction, times, speeds, counts, mu, penalty,
         force_slots=np.zeros((len(tools), force_slots, 3)), cell_ring=np.zeros((len(tools), LOAD_CELL_RING, 3)),
         cell_state=np.zeros((len(tools), 5)), cell_count=np.array([0, 1], dtype=np.int64), **surf,
+        mass=mass, velocity=launch.reshape(-1, 3), step_force=np.zeros((len(tools), 3)),
     )
+
+
+def free_tool_work(tools: Tools) -> float:
+    """The work (J) the free tools have done on the specimen so far: the kinetic energy they lost.
+    Exact for the central-difference update of move_tools (each step m dv = -F dt, so the loss
+    is F . (v_before + v_after) / 2 dt, the work the contact force took from the tool)."""
+    launch = tools.speeds[:, 0:1] * tools.direction
+    lost = 0.5 * tools.mass * (np.einsum("ij,ij->i", launch, launch) - np.einsum("ij,ij->i", tools.velocity, tools.velocity))
+    return float(np.sum(lost))
 
 
 def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:

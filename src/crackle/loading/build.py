@@ -73,6 +73,7 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
                 radius=t.radius,
                 length=t.length,
                 penalty=t.penalty,
+                mass=t.mass,
                 **surface,
             )
         )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .arrays import LOAD_CELL_RING
+from .arrays import LOAD_CELL_RING, free_tool_work
 from .tools import tool_contact_totals
 
 
@@ -48,14 +48,18 @@ class LoadCell:
         return self.tools.cell_state[:, 3].copy(), self.tools.cell_state[:, 4].copy()
 
 
-def tool_columns(names, forces: np.ndarray, displacements: np.ndarray) -> dict[str, float]:
-    """tool.NAME.fx/fy/fz (N) and tool.NAME.ux/uy/uz (m) for each tool, in history order."""
+def tool_columns(names, forces: np.ndarray, tools) -> dict[str, float]:
+    """tool.NAME.fx/fy/fz (N) and tool.NAME.ux/uy/uz (m) for each tool (`tools`: the Tools
+    arrays), and tool.NAME.vx/vy/vz (m/s) for a free one, in history order."""
     row: dict[str, float] = {}
-    for name, f, u in zip(names, forces, displacements):
+    for j, (name, f, u) in enumerate(zip(names, forces, tools.disp)):
         for axis, k in zip("xyz", range(3)):
             row[f"tool.{name}.f{axis}"] = float(f[k])
         for axis, k in zip("xyz", range(3)):
             row[f"tool.{name}.u{axis}"] = float(u[k])
+        if tools.mass[j] > 0.0:
+            for axis, k in zip("xyz", range(3)):
+                row[f"tool.{name}.v{axis}"] = float(tools.velocity[j, k])
     return row
 
 
@@ -78,4 +82,8 @@ class ToolSprings:
     def columns(self, load_cell: LoadCell, measure) -> dict[str, float]:
         """tool.NAME.f*/u* of a history row: the load cell's forces (`measure()`, returning this
         object measured now, before the first step)."""
-        return tool_columns(self.names, load_cell.forces(lambda: measure().force.copy()), self.tools.disp)
+        return tool_columns(self.names, load_cell.forces(lambda: measure().force.copy()), self.tools)
+
+    def free_work(self) -> float:
+        """The work (J) the free tools have done on the specimen: part of energy.external."""
+        return free_tool_work(self.tools)

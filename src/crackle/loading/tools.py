@@ -56,8 +56,15 @@ def interp_history(t, times, values, n):
 
 @njit(cache=True, inline="always")
 def tool_velocities(t, dt, tools, v_prev, v_next):
-    """Each tool's velocity over the half steps before and after time t (rows of v_prev, v_next)."""
+    """Each tool's velocity over the half steps before and after time t (rows of v_prev, v_next).
+    A free tool's is its velocity now in both: move_tools sets the one after the step once the
+    step's contact force is known."""
     for j in range(tools.kind.shape[0]):
+        if tools.mass[j] > 0.0:
+            for d in range(3):
+                v_prev[j, d] = tools.velocity[j, d]
+                v_next[j, d] = tools.velocity[j, d]
+            continue
         sp = interp_history(t - 0.5 * dt, tools.times[j], tools.speeds[j], tools.n[j])
         sn = interp_history(t + 0.5 * dt, tools.times[j], tools.speeds[j], tools.n[j])
         for d in range(3):
@@ -67,8 +74,14 @@ def tool_velocities(t, dt, tools, v_prev, v_next):
 
 @njit(cache=True, inline="always")
 def move_tools(dt, tools, v_next):
-    """Advance each tool's displacement by one step at its velocity after the step."""
+    """Advance each tool's displacement by one step at its velocity after the step; after
+    load_cell_step. A free tool first takes the step's contact force: the specimen pushed on it
+    with -step_force, so m (v_after - v_before) = -step_force dt (central difference)."""
     for j in range(tools.kind.shape[0]):
+        if tools.mass[j] > 0.0:
+            for d in range(3):
+                tools.velocity[j, d] -= tools.step_force[j, d] * dt / tools.mass[j]
+                v_next[j, d] = tools.velocity[j, d]
         for d in range(3):
             tools.disp[j, d] += v_next[j, d] * dt
 
@@ -223,7 +236,7 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
                        tool_v_next, node_tool, node_offset, friction, d_friction):
     """Penalty contact of point g (position p at time t, velocity v over the half step before t,
     contact radius `radius`, contact area `area`) against every tool; returns the total force on
-    the point and the work the tools did on it over the step.
+    the point and the work the driven tools did on it over the step (free tools: free_tool_work).
 
     The penalty per point is the tool's penalty (N/m^3) times `area`. Only the first tool touched
     carries Coulomb friction, with a stick spring of the normal stiffness; its tangential force
@@ -288,7 +301,10 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
         force_slots[j, slot, 0] += fx
         force_slots[j, slot, 1] += fy
         force_slots[j, slot, 2] += fz
-        work += (fx * tvx + fy * tvy + fz * tvz) * dt
+        if tools.mass[j] == 0.0:
+            # A free tool's work is its loss of kinetic energy (loading.arrays.free_tool_work):
+            # its velocity after this step is not known yet.
+            work += (fx * tvx + fy * tvy + fz * tvz) * dt
     if touching < 0:
         offset = 0.0
         friction[g, 0] = 0.0
@@ -305,7 +321,7 @@ def load_cell_step(time, tools):
     force_slots summed in slot order, then cleared) enters a ring of the recent steps; the cell
     reads the mean over the last `window` steps (tools.cell_count = [steps seen, window]) and
     keeps the largest magnitude of that mean and its time (tools.cell_state[j] = moving sum x, y,
-    z, peak, peak time). Serial, in a fixed order: the same with any thread count."""
+    z, peak, peak time); the step's force also goes to tools.step_force (move_tools). Serial, in a fixed order: the same with any thread count."""
     slots, ring, state = tools.force_slots, tools.cell_ring, tools.cell_state
     count, window = tools.cell_count[0], tools.cell_count[1]
     pos = count % window
@@ -316,6 +332,7 @@ def load_cell_step(time, tools):
             for b in range(slots.shape[1]):
                 f += slots[j, b, a]
                 slots[j, b, a] = 0.0
+            tools.step_force[j, a] = f
             # The running sum drops the force that leaves the window (0 while the ring fills);
             # re-summed exactly once per turn of the ring so that rounding cannot build up.
             state[j, a] += f - ring[j, pos, a]

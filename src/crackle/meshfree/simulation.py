@@ -107,7 +107,7 @@ class MeshfreeSimulation:
             "energy.damping": float(np.sum(p.w_damping)),
             "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,
             **thermal,
-            "energy.external": float(np.sum(p.w_external)) + self._initial_energy,
+            "energy.external": float(np.sum(p.w_external)) + self._initial_energy + self._springs.free_work(),
         }
 
     def sample(self, dt: float) -> dict[str, float]:

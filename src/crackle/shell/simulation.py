@@ -182,7 +182,7 @@ class ShellSimulation:
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping) + np.sum(e.xi_damping)),
             "energy.fracture": self.fracture_energy,
-            "energy.external": float(np.sum(n.w_external)),
+            "energy.external": float(np.sum(n.w_external)) + self._springs.free_work(),
         }
 
     def _tip_j(self, tip: CrackTip) -> list[float]:

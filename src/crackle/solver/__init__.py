@@ -75,6 +75,18 @@ class RunControl:
 LOAD_CELL_TRANSITS = 4.0
 
 
+def _free_tools_summary(tools, names) -> dict:
+    """summary.json `free_tools` (only when a tool has a mass): per free tool its mass (kg), launch
+    speed and its velocity and speed at the end (m/s: a projectile's residual velocity)."""
+    free = {}
+    for j, name in enumerate(names):
+        if tools.mass[j] > 0.0:
+            v = tools.velocity[j]
+            free[name] = {"mass": float(tools.mass[j]), "launch_speed": float(abs(tools.speeds[j, 0])),
+                          "velocity": v.tolist(), "speed": float(np.linalg.norm(v))}
+    return {"free_tools": free} if free else {}
+
+
 def load_cell_steps(control: RunControl, dt: float, wave_transit: float) -> int:
     """The load cell's averaging window in steps of dt: run.load_cell_window, or by default
     LOAD_CELL_TRANSITS element wave transits (at most the LOAD_CELL_RING steps the cell holds)."""
@@ -276,6 +288,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
         "energy_error": energy_error(hist),
         "crackle_version": __version__,
         **({"resumed_from": resumed_from} if resumed_from is not None else {}),
+        **_free_tools_summary(sim.load_cell.tools, tool_names),
         **sim.summary(),
     }
     for warning in summary.get("warnings", [])[len(sim.warnings):]:  # those only the end of the run can tell
