@@ -15,7 +15,7 @@ from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
 from .material import T_REF, YIELD, J2Law
 from .particles import WALL_SIDES, WallParticles
-from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients
+from .shape import MAX_CONDITION, basis_terms, csr_positions, nodal_values, smoothed_gradients
 from .simulation import MeshfreeSimulation
 
 
@@ -202,6 +202,14 @@ def gershgorin_frequency2(particles, links, row, law_table, tool_k) -> float:
     the least):
     after fracture rebuilds, times the set-up ratio of the Lanczos estimate to it, the cheap
     estimate of the new omega_max^2 (fracture.LinkBreaking). row: each link's particle I."""
+    return float(np.max(gershgorin_bounds(particles, links, row, law_table, tool_k)[2]))
+
+
+def gershgorin_bounds(particles, links, row, law_table, tool_k):
+    """Per particle, the pieces of gershgorin_frequency2: the row sums G_I and S_I below and the
+    bound on omega^2 of each particle's row of the mass-scaled stiffness (its maximum is the
+    bound). fracture.LinkBreaking keeps them and refreshes those a rebuild changes
+    (refresh_gershgorin_bounds)."""
     n, count = len(particles.mass), len(row)
     neighbour, grad, value = links.neighbour, links.grad, links.value
     inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
@@ -219,8 +227,33 @@ def gershgorin_frequency2(particles, links, row, law_table, tool_k) -> float:
     S = np.bincount(row, weights=_per_link(count, lambda r: D[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
     stab = np.bincount(neighbour, weights=_per_link(count, lambda r: particles.stab_k[row[r]] * D[r] * S[row[r]]),
                        minlength=n)
-    omega2 = (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
-    return float(np.max(omega2))
+    return G, S, (elastic + stab) * inv_sqrt_m + tool_k / particles.mass
+
+
+def refresh_gershgorin_bounds(bounds, particles, links, law_table, tool_k, rows) -> None:
+    """Update gershgorin_bounds' (G, S, omega2) in place after the links of the particles `rows`
+    (increasing) changed: their row sums, then the column sums of every particle they link to,
+    through the transposed links (the same terms summed in the same order: the numbers a full
+    recomputation gives)."""
+    G, S, omega2 = bounds
+    inv_sqrt_m = 1.0 / np.sqrt(particles.mass)
+    tool_k = np.broadcast_to(tool_k, particles.mass.shape)
+    pos, first = csr_positions(links.start, rows)
+    local = np.repeat(np.arange(len(rows)), np.diff(first))
+    J = links.neighbour[pos]
+    G[rows] = np.bincount(local, weights=np.linalg.norm(links.grad[pos], axis=1) * inv_sqrt_m[J], minlength=len(rows))
+    S[rows] = np.bincount(local, weights=np.abs((rows[local] == J) - links.value[pos]) * inv_sqrt_m[J],
+                          minlength=len(rows))
+    cols = np.unique(J)
+    pos, first = csr_positions(links.back_start, cols)
+    local = np.repeat(np.arange(len(cols)), np.diff(first))
+    I = links.back_row[pos]
+    gn = np.linalg.norm(links.back_grad[pos], axis=1)
+    D = np.abs((I == cols[local]) - links.back_value[pos])
+    elastic = (3.0 * law_table[0] + 2.0 * law_table[1]) * np.bincount(
+        local, weights=particles.volume[I] * gn * G[I], minlength=len(cols))
+    stab = np.bincount(local, weights=particles.stab_k[I] * D * S[I], minlength=len(cols))
+    omega2[cols] = (elastic + stab) * inv_sqrt_m[cols] + tool_k[cols] / particles.mass[cols]
 
 
 def _per_link(count: int, term, block: int = 1 << 18) -> np.ndarray:

@@ -47,7 +47,7 @@ from scipy.spatial import cKDTree
 from ..solver.stability import STEP_MARGIN
 from .kernels import stabilisation_stiffness
 from .material import thermal_strain
-from .shape import MAX_CONDITION, cell_gradients, nodal_values
+from .shape import MAX_CONDITION, cell_gradients, csr_positions, nodal_values
 
 # A rebuilt moment matrix (a face centre or a particle next to a crack, with the quadratic or the
 # linear basis) whose condition number exceeds this counts as singular: on a tube run the set-up
@@ -94,6 +94,7 @@ class LinkBreaking:
         self.precut = np.zeros(0, dtype=np.int64)  # sorted keys of the links the pre-cracks removed
         self.precut_pairs = 0  # pairs {I, J} of linked particles the pre-cracks separated
         self._step_warned = False
+        self._bounds = None  # Gershgorin's per-particle bounds (_check_step), once computed
         # The stable-step check after rebuilds (_check_step): the tool penalties (N/m per
         # particle) and the set-up ratio of the Lanczos omega_max^2 to Gershgorin's bound.
         self.tool_k, self.step_ratio = tool_k, float(step_ratio)
@@ -199,8 +200,8 @@ class LinkBreaking:
         new = np.concatenate([new, (new % n) * n + new // n])
         self.precut = np.unique(new)
         self._block(self.precut)
-        self.precut_pairs = self._pairs(np.isin(self.key, self.precut) & (self.row != links.neighbour), links)
-        self._rebuild(sim, np.unique(self.row[np.isin(self.key, self.precut)]))
+        self.precut_pairs = self._pairs(self.precut)
+        self._rebuild(sim, np.unique(self.row[self._link_positions(self.precut)]))
 
     # -- the check -------------------------------------------------------------------------------
     def check(self, sim, dt: float) -> bool:
@@ -223,12 +224,13 @@ class LinkBreaking:
 
     def fail(self, sim, ids, normals, dt: float) -> None:
         """Fail the particles `ids` (increasing) with the material crack normals `normals`:
-        remove the links across their cracks, rebuild and book the released energy."""
+        remove the links across their cracks, rebuild and book the released energy. Only the
+        rebuilt particles change (their gradients, values, stiffness, plastic strain), so only
+        their strains and energies are compared, before and after: the cost follows the crack,
+        not the model (benchmarks/meshfree_fracture_rebuild.py)."""
         p, links = sim.particles, sim.links
         n = len(self.X)
         x_mid = p.x - 0.5 * dt * p.v
-        before = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
-        strain_before = self._green_strains(p.x, links)
         self.failed[ids] = True
         self.fail_time[ids] = sim.time
         self.normal[ids] = normals
@@ -236,56 +238,85 @@ class LinkBreaking:
         new = np.concatenate(new)
         new = np.concatenate([new, (new % n) * n + new // n])  # both directions
         self._block(new)
-        self._rebuild(sim, np.unique(self.row[np.isin(self.key, new)]))
+        # Each particle's strain and energy as the rebuild first reaches it (before it changes).
+        seen = np.zeros(n, dtype=bool)
+        touched, strain_before, energy_before = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 6))], [np.zeros(2)]
+
+        def record(rows):
+            fresh = rows[~seen[rows]]
+            seen[fresh] = True
+            touched.append(fresh)
+            strain_before.append(self._green_strains(p.x, links, fresh))
+            energy_before.append(np.sum(sim.strain_energies(x_mid, fresh), axis=0))
+
+        self._rebuild(sim, np.unique(self.row[self._link_positions(new)]), record)
+        rows = np.concatenate(touched)
         # The rebuilt approximation changes F at the rebuilt particles although nothing moved:
         # that change is no deformation, so their elastic strain carries over (the plastic strain,
         # an eigenstrain for an elastic law, takes up the difference). Otherwise a yielded
         # particle's trial stress jumps and one radial return dissipates work no step did.
-        strain_after = self._green_strains(p.x, links)
-        changed = np.flatnonzero(np.any(strain_after != strain_before, axis=1) & ~self.detached)
-        p.plastic[changed] += strain_after[changed] - strain_before[changed]
+        before = np.concatenate(strain_before)
+        after = self._green_strains(p.x, links, rows)
+        changed = np.any(after != before, axis=1) & ~self.detached[rows]
+        p.plastic[rows[changed]] += after[changed] - before[changed]
         # A free particle carries no stress: its plastic strain takes up its thermal strain (thermo
         # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
         p.plastic[self.detached] = 0.0
         p.plastic[self.detached, :3] = 0.0 - thermal_strain(p.thermal[self.detached, 0], sim.law)[:, None]
         p.stress[self.detached] = 0.0
-        after = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
-        self.damage += before - after
-        self._check_step(sim, dt)
-        present = np.isin(self.key, self.blocked) & ~np.isin(self.key, self.precut) & (self.row != links.neighbour)
-        self.broken_links = self._pairs(present, links)
+        released = float(np.sum(np.concatenate(energy_before)) - np.sum(sim.strain_energies(x_mid, rows)))
+        self.damage += released
+        self._check_step(sim, dt, rows)
+        self.broken_links = self._pairs(np.setdiff1d(self.blocked, self.precut, assume_unique=True))
 
-    def _pairs(self, mask, links) -> int:
-        """The number of pairs {I, J} among the links `mask` selects."""
-        a, b = self.row[mask], links.neighbour[mask]
-        return len(np.unique(np.minimum(a, b) * len(self.X) + np.maximum(a, b)))
+    def _link_positions(self, keys) -> np.ndarray:
+        """The positions of those of the link keys I * n + J `keys` that are links (a reversed
+        key (J, I) need not be one: a particle's links are the supports of its cell's points)."""
+        if len(self.key) == 0 or len(keys) == 0:
+            return np.zeros(0, dtype=np.int64)
+        at = np.minimum(np.searchsorted(self.key, keys), len(self.key) - 1)
+        return at[self.key[at] == keys]
 
-    def _check_step(self, sim, dt: float) -> None:
+    def _pairs(self, keys) -> int:
+        """The number of pairs {I, J} of distinct particles among the links with keys `keys`."""
+        keys = self.key[self._link_positions(keys)]
+        n = len(self.X)
+        a, b = keys // n, keys % n
+        keep = a != b
+        return len(np.unique(np.minimum(a[keep], b[keep]) * n + np.maximum(a[keep], b[keep])))
+
+    def _check_step(self, sim, dt: float, rows) -> None:
         """Warn once if the stable step of the rebuilt links fell below the step in use: one-sided
         gradients at crack faces can be stiffer. The estimate is Gershgorin's bound (cheap, numpy)
         times its set-up ratio to the Lanczos value (build.stable_step), the tools as at set-up:
-        a Lanczos run per rebuild would cost ~100 force passes."""
+        a Lanczos run per rebuild would cost ~100 force passes. The per-particle bounds are
+        kept and refreshed where the rebuild of `rows` changed them, not recomputed."""
         if self._step_warned or self.detached.all():
             return
-        from .build import gershgorin_frequency2  # build imports this module
+        from .build import gershgorin_bounds, refresh_gershgorin_bounds  # build imports this module
 
-        links = sim.links
-        omega2 = self.step_ratio * gershgorin_frequency2(sim.particles, links, self.row, sim.law, self.tool_k)
-        estimate = STEP_MARGIN * 2.0 / np.sqrt(omega2)
+        if self._bounds is None:
+            self._bounds = gershgorin_bounds(sim.particles, sim.links, self.row, sim.law, self.tool_k)
+        else:
+            refresh_gershgorin_bounds(self._bounds, sim.particles, sim.links, sim.law, self.tool_k, np.sort(rows))
+        estimate = STEP_MARGIN * 2.0 / np.sqrt(self.step_ratio * float(np.max(self._bounds[2])))
         if estimate < dt:
             self._step_warned = True
             sim.warnings.append(f"link breaking at t = {sim.time:.4g} s left an estimated stable step of "
                                 f"{estimate:.3g} s, below the step {dt:.3g} s: reduce run.safety if the run blows up")
 
-    def _green_strains(self, x, links) -> np.ndarray:
-        """Per particle, the Green-Lagrange strain (6, tensor components xx yy zz xy yz xz) of the
-        deformation gradient F = I + sum_J u_J (x) grad N_J that the links give at positions x."""
-        n = len(self.X)
-        u = (x - self.X)[links.neighbour]
-        F = np.empty((n, 3, 3))
+    def _green_strains(self, x, links, rows) -> np.ndarray:
+        """Per particle of `rows`, the Green-Lagrange strain (6, tensor components xx yy zz xy yz
+        xz) of the deformation gradient F = I + sum_J u_J (x) grad N_J that its links give at
+        positions x (summed in link order: the same numbers as over all particles at once)."""
+        pos, first = csr_positions(links.start, rows)
+        local = np.repeat(np.arange(len(rows)), np.diff(first))
+        J = links.neighbour[pos]
+        u = x[J] - self.X[J]
+        F = np.empty((len(rows), 3, 3))
         for a in range(3):
             for c in range(3):
-                F[:, a, c] = np.bincount(self.row, weights=u[:, a] * links.grad[:, c], minlength=n)
+                F[:, a, c] = np.bincount(local, weights=u[:, a] * links.grad[pos, c], minlength=len(rows))
         F += np.eye(3)
         C = np.einsum("nab,nac->nbc", F, F)
         return 0.5 * np.stack([C[:, 0, 0] - 1.0, C[:, 1, 1] - 1.0, C[:, 2, 2] - 1.0, C[:, 0, 1], C[:, 1, 2],
@@ -294,14 +325,19 @@ class LinkBreaking:
     def _block(self, keys):
         self.blocked = np.union1d(self.blocked, keys)
 
-    def _rebuild(self, sim, rows):
+    def _rebuild(self, sim, rows, record=None):
         """New gradients and stabilisation (values and stiffness) for the particles `rows` with the
-        blocked links left out; detaches those left singular and rebuilds their neighbours in turn."""
+        blocked links left out; detaches those left singular and rebuilds their neighbours in turn.
+        `record(rows)` is called before each round changes its rows. Touches the links of the
+        rebuilt and detached particles only (their positions through the CSR and its transpose)."""
         links, p, n = sim.links, sim.particles, len(self.X)
         rows = rows[~self.detached[rows]]
+        changed = []
         while len(rows):
-            in_rows = np.isin(self.row, rows)
-            links.grad[in_rows] = 0.0
+            if record is not None:
+                record(rows)
+            pos, _ = csr_positions(links.start, rows)
+            links.grad[pos] = 0.0
             r, col, grad, condition, _, owner = cell_gradients(self.X, self.volume, self.cells, self.radius,
                                                                self.terms, rows, self.tree, self.blocked,
                                                                linear_fallback=True,
@@ -310,34 +346,43 @@ class LinkBreaking:
             if not np.array_equal(self.key[np.minimum(at, len(self.key) - 1)], r * n + col):
                 raise RuntimeError("a rebuilt gradient has no link: the quadrature points' supports grew")
             links.grad[at] = grad
-            self._stabilisation(links, p, rows)
+            self._stabilisation(links, p, rows, pos)
+            changed.append(pos)
             bad = ~np.isfinite(condition) | (condition > REBUILD_CONDITION)
             steep = np.flatnonzero(_gradient_sums(r, grad, n) > self.gradient_limit)
             lost = np.union1d(owner[bad], steep)
             if len(lost) == 0:
                 break
             self.detached[lost] = True
-            touching = np.isin(self.row, lost) | np.isin(links.neighbour, lost)
+            # Every link of a lost particle, and every link to one (the transpose's rows).
+            own, _ = csr_positions(links.start, lost)
+            back, first = csr_positions(links.back_start, lost)
+            to_lost = np.searchsorted(self.key, links.back_row[back] * n + np.repeat(lost, np.diff(first)))
+            touching = np.union1d(own, to_lost)
             keys = self.key[touching]
             self._block(np.concatenate([keys, (keys % n) * n + keys // n]))
-            gone = np.isin(self.row, lost)
-            links.grad[gone] = 0.0
-            links.value[gone] = 0.0
+            links.grad[own] = 0.0
+            links.value[own] = 0.0
+            changed.append(own)
             p.stab_k[lost] = 0.0
             # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
             # reference face would push a tumbling fragment in a fixed direction).
-            faces = sim.pressures.start
-            sim.pressures.area[np.isin(np.repeat(np.arange(n), np.diff(faces)), lost)] = 0.0
-            rows = np.unique(self.row[touching & ~np.isin(self.row, lost)])
+            faces, _ = csr_positions(sim.pressures.start, lost)
+            sim.pressures.area[faces] = 0.0
+            rows = np.unique(self.row[touching])
             rows = rows[~self.detached[rows]]
-        # The gather's copies, in the transposed order (kernels.Links).
-        links.back_grad[links.to_back] = links.grad
-        links.back_value[links.to_back] = links.value
+        # The gather's copies, in the transposed order (kernels.Links), where they changed.
+        if changed:
+            pos = np.concatenate(changed)
+            links.back_grad[links.to_back[pos]] = links.grad[pos]
+            links.back_value[links.to_back[pos]] = links.value[pos]
 
-    def _stabilisation(self, links, particles, rows):
-        """The values N_K(X_J) and the stiffness k_J of the particles `rows` over the links still
-        there (build.nodal_stabilisation); k_J = 0 where even the linear basis is singular at X_J."""
-        hidden = self._is_blocked(self.key)
+    def _stabilisation(self, links, particles, rows, pos):
+        """The values N_K(X_J) and the stiffness k_J of the particles `rows` (their links at the
+        positions `pos`) over the links still there (build.nodal_stabilisation); k_J = 0 where
+        even the linear basis is singular at X_J."""
+        hidden = np.zeros(len(self.key), dtype=bool)
+        hidden[pos] = self._is_blocked(self.key[pos])
         pos, value, condition = nodal_values(self.X, self.volume, self.radius, self.terms, links.start,
                                              links.neighbour, rows, hidden, REBUILD_CONDITION)
         links.value[pos] = value

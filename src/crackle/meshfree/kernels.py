@@ -273,10 +273,13 @@ def internal_forces(dt, particles, links, law, force):
 
 
 @njit(parallel=True, cache=True)
-def strain_energies(x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, law, elastic, stabilisation):
-    """Per particle, at positions x: the elastic energy V (E - Ep) : C : (E - Ep) / 2 with its
-    current plastic strain (and temperature), and its stabilisation energy k |eps|^2 / 2 (J)."""
-    for i in prange(x.shape[0]):
+def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, law, elastic,
+                    stabilisation):
+    """Per particle of `rows`, at positions x: the elastic energy V (E - Ep) : C : (E - Ep) / 2
+    with its current plastic strain (and temperature), and its stabilisation energy k |eps|^2 / 2
+    (J), into elastic[i] and stabilisation[i]."""
+    for k in prange(rows.shape[0]):
+        i = rows[k]
         F = np.eye(3)
         a = np.zeros(3)
         for r in range(start[i], start[i + 1]):

@@ -78,14 +78,16 @@ class MeshfreeSimulation:
         p = self.particles
         return float(0.5 * np.sum(p.mass * np.einsum("ij,ij->i", p.v, p.v)))
 
-    def strain_energies(self, x) -> tuple[np.ndarray, np.ndarray]:
-        """Per particle, the elastic and the stabilisation energy (J) at positions x."""
+    def strain_energies(self, x, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """Per particle, the elastic and the stabilisation energy (J) at positions x; with `rows`,
+        of those particles only (in that order)."""
         p, s = self.particles, self.links
+        which = np.arange(len(x)) if rows is None else np.asarray(rows, dtype=np.int64)
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
-        strain_energies(np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start, s.neighbour,
-                        s.grad, s.value, self.law, elastic, stab)
-        return elastic, stab
+        strain_energies(which, np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start,
+                        s.neighbour, s.grad, s.value, self.law, elastic, stab)
+        return (elastic, stab) if rows is None else (elastic[which], stab[which])
 
     def energies(self, dt: float) -> dict[str, float]:
         p = self.particles
