@@ -760,11 +760,10 @@ def test_the_rebuild_touches_only_what_the_crack_changes():
     for k, c in enumerate(np.concatenate([line[np.argsort(p.X[line, 1])], corner])):
         x_mid = p.x - 0.5 * dt * p.v
         stored = sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
-        damage, grad = b.damage, links.grad.copy()
+        damage = b.damage
         b.fail(sim, np.array([c]), normals[k % 3][None], dt)
         drop = stored - sum(float(np.sum(e)) for e in sim.strain_energies(x_mid))
         assert abs((b.damage - damage) - drop) < 1e-12 * stored
-        assert not np.array_equal(links.grad, grad)
         assert np.array_equal(links.back_grad[links.to_back], links.grad)
         assert np.array_equal(links.back_value[links.to_back], links.value)
     assert b.detached.sum() > 10
