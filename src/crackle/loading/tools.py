@@ -321,7 +321,8 @@ def load_cell_step(time, tools):
     force_slots summed in slot order, then cleared) enters a ring of the recent steps; the cell
     reads the mean over the last `window` steps (tools.cell_count = [steps seen, window]) and
     keeps the largest magnitude of that mean and its time (tools.cell_state[j] = moving sum x, y,
-    z, peak, peak time); the step's force also goes to tools.step_force (move_tools). Serial, in a fixed order: the same with any thread count."""
+    z, peak, peak time); the step's force also goes to tools.step_force (move_tools). Serial, in
+    a fixed order: the same with any thread count."""
     slots, ring, state = tools.force_slots, tools.cell_ring, tools.cell_state
     count, window = tools.cell_count[0], tools.cell_count[1]
     pos = count % window
