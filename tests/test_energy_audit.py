@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crackle.cli import main
-from crackle.solver.energy import energy_error
+from crackle.solver.energy import created_fraction, energy_error
 
 
 def _history(external, kinetic, elastic):
@@ -69,3 +69,14 @@ field_frames = 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["energy_error"] == 0.0
     assert not any("energy balance" in w for w in summary.get("warnings", []))
+
+
+def test_instability_check_leaves_out_the_contact_springs_one_step_lag():
+    """created_fraction (the driver's instability check): a tool that reaches the specimen after
+    a gap stores contact energy in the step before its work is booked (first contact: 0 J put in,
+    1e-6 J in the springs) - not an instability (0); energy created in the body is one: 2 J of
+    kinetic energy for 1 J put in is (2 - 1) / 2 = 0.5 of the larger."""
+    first_contact = {"energy.external": 0.0, "energy.kinetic": 0.0, "energy.contact": 1e-6}
+    assert created_fraction(first_contact) == 0.0
+    unstable = {"energy.external": 1.0, "energy.kinetic": 2.0, "energy.contact": 1e-6}
+    assert created_fraction(unstable) == pytest.approx(0.5, rel=1e-12)
