@@ -216,7 +216,7 @@ def gershgorin_bounds(particles, links, row, law_table, tool_k):
     # The per-link terms are formed in blocks of links (_per_link: whole-array temporaries were
     # the set-up's peak memory); each sum over the links is still one bincount, in link order.
     gn = _per_link(count, lambda r: np.linalg.norm(grad[r], axis=1))
-    c_norm = 3.0 * law_table[0] + 2.0 * law_table[1]
+    c_norm = _stiffness_norm(law_table)
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
     G = np.bincount(row, weights=_per_link(count, lambda r: gn[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
     elastic = c_norm * np.bincount(
@@ -250,10 +250,15 @@ def refresh_gershgorin_bounds(bounds, particles, links, law_table, tool_k, rows)
     I = links.back_row[pos]
     gn = np.linalg.norm(links.back_grad[pos], axis=1)
     D = np.abs((I == cols[local]) - links.back_value[pos])
-    elastic = (3.0 * law_table[0] + 2.0 * law_table[1]) * np.bincount(
+    elastic = _stiffness_norm(law_table) * np.bincount(
         local, weights=particles.volume[I] * gn * G[I], minlength=len(cols))
     stab = np.bincount(local, weights=particles.stab_k[I] * D * S[I], minlength=len(cols))
     omega2[cols] = (elastic + stab) * inv_sqrt_m[cols] + tool_k[cols] / particles.mass[cols]
+
+
+def _stiffness_norm(law_table) -> float:
+    """|C| <= 3 lambda + 2 mu: the material's share of Gershgorin's bound."""
+    return 3.0 * law_table[0] + 2.0 * law_table[1]
 
 
 def _per_link(count: int, term, block: int = 1 << 18) -> np.ndarray:
