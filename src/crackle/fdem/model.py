@@ -172,17 +172,19 @@ def build_fdem_model(
     extrinsic = (pairs.law_table[pairs.law, LAW_EXTRINSIC] != 0.0) & (pairs.state == INTACT)
     ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
-    time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
+    surface_penalty = default_penalty if contact else 0.0
+    time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
+    step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step)
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     mass_scaling = MassScaling(target_dt)
     if target_dt is not None:
         mass_scaling = _scale_masses(bulk, time_step, target_dt, safety, max_added_mass)
-        time_step = _stable_dt(bulk, pairs, face_iface, default_penalty if contact else 0.0, tool_penalty)
+        time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     reachable = end_time is None or _fracture_reachable(
         materials, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
     )
-    model_warnings = _resolution_warnings(materials, element_size) if reachable else []
+    model_warnings = (_resolution_warnings(materials, element_size) if reachable else []) + step_advice
     for msg in model_warnings:
         warnings.warn(msg, stacklevel=2)
 
@@ -538,6 +540,38 @@ def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, t
         element_dt=2.0 / np.sqrt(total.max(axis=1)),
         bulk_dt=2.0 / np.sqrt(omega2_tet),
     )
+
+
+# A tool needs to be stiff only against what it presses on: the surface layer of tets and
+# interfaces in series. Where the interfaces are far softer than E / h (a per-area stiffness
+# from a paper, as the walnut's), a tool this many times stiffer than the stiffest interface
+# already adds less compliance than a tenth of one interface layer.
+TOOL_OVER_INTERFACE = 10.0
+
+
+def _tool_penalty_advice(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tools, penalties,
+                         step: TimeStepReport) -> list[str]:
+    """Advice when a tool's contact penalty, far stiffer than the interfaces, sets the stable step
+    (before any mass scaling): the penalty that is stiff enough and the step it would give."""
+    if step.kind != "tool penalty" or not len(pairs.pn):
+        return []
+    stiffest = float(np.max(np.maximum(pairs.pn, pairs.ps)))
+    enough = float(f"{TOOL_OVER_INTERFACE * stiffest:.2g}")  # as the advice states it
+    stiff = [(t.name, k) for t, k in zip(tools, penalties) if k > enough]
+    if not stiff:
+        return []
+    softer = _stable_dt(bulk, pairs, face_iface, surface_penalty, max([enough, *(k for k in penalties if k <= enough)]))
+    if softer.dt < 1.1 * step.dt:
+        return []
+    names = ", ".join(f"'{name}'" for name, _ in stiff)
+    worst = max(k for _, k in stiff)
+    return [
+        f"the stable step {step.dt * 1e9:.3g} ns is set by the contact penalty of tool{'s' if len(stiff) > 1 else ''} {names} ({worst:.3g} Pa/m, "
+        f"{worst / stiffest:.0f}x the stiffest interface, {stiffest:.3g} Pa/m); {TOOL_OVER_INTERFACE:g}x the "
+        f"interfaces is stiff enough (it adds under a tenth of one interface layer's compliance): "
+        + ", ".join(f"tools.{name}.penalty = {enough:g}" for name, _ in stiff)
+        + f" gives a stable step of {softer.dt * 1e9:.3g} ns (set by the {softer.kind})"
+    ]
 
 
 # A hole's stress concentration: the factor on a pressure's stress in the bound below.
