@@ -175,6 +175,8 @@ def build_fdem_model(
     surface_penalty = default_penalty if contact else 0.0
     time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step)
+    if target_dt is not None:
+        step_advice = [f"{msg}, before mass scaling (run.target_dt then needs less added mass)" for msg in step_advice]
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     mass_scaling = MassScaling(target_dt)
@@ -560,7 +562,7 @@ def _tool_penalty_advice(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty
     stiff = [(t.name, k) for t, k in zip(tools, penalties) if k > enough]
     if not stiff:
         return []
-    softer = _stable_dt(bulk, pairs, face_iface, surface_penalty, max([enough, *(k for k in penalties if k <= enough)]))
+    softer = _stable_dt(bulk, pairs, face_iface, surface_penalty, enough)  # every tool then at most `enough`
     if softer.dt < 1.1 * step.dt:
         return []
     names = ", ".join(f"'{name}'" for name, _ in stiff)
