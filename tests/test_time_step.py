@@ -82,8 +82,8 @@ def test_a_tool_far_stiffer_than_the_interfaces_gets_advice_that_holds():
     """Soft interfaces (0.2 E / h, as a paper's per-area stiffness often is) under a plate with the
     default penalty (10 E / h, 50x stiffer than they are): the plate sets the step, and set-up
     advises 10x the stiffest interface. A model built with the advised penalty has the step the
-    advice states (to 0.2 %: three digits in the message), at least
-    1.1x the first. With the default interfaces (200 E / h) there is no such advice."""
+    advice states (to 0.2 %: three digits in the message), at least 1.1x the first. With the
+    default interfaces (200 E / h) there is no such advice."""
 
     def plate(penalty=None):
         return [Tool(name="lid", shape="plane", center=(0, 0, 0.01), normal=(0, 0, -1), direction=(0, 0, -1),

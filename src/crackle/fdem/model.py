@@ -174,13 +174,13 @@ def build_fdem_model(
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
     surface_penalty = default_penalty if contact else 0.0
     time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
+    # The advice reads the unscaled masses: it comes before mass scaling changes them.
     step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step)
-    if target_dt is not None:
-        step_advice = [f"{msg}, before mass scaling (run.target_dt then needs less added mass)" for msg in step_advice]
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     mass_scaling = MassScaling(target_dt)
     if target_dt is not None:
+        step_advice = [f"{msg}, before mass scaling (run.target_dt then needs less added mass)" for msg in step_advice]
         mass_scaling = _scale_masses(bulk, time_step, target_dt, safety, max_added_mass)
         time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     reachable = end_time is None or _fracture_reachable(
