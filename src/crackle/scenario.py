@@ -187,7 +187,14 @@ class ToolSpec(Strict):
     """N/m^3 per unit contact area; default 10 E / h of the specimen"""
     touch: bool = False
     """box and sphere: shift the tool along `direction` (either way) at set-up until it just reaches the
-    specimen (no initial gap)"""
+    specimen (no initial gap); a glued tool placed ahead of the specimen along `direction` (a grip that pulls)
+    is put on the specimen's far end"""
+    glued: bool = False
+    """the points that come within glue_depth of the tool stick to it for good: it pulls as well as pushes and
+    they never slip (a glued platen, a gripped end: direct tension); friction is then unused"""
+    glue_depth: Positive | None = None
+    """m, glued: how close a point must come to stick; default a millionth of the element size (the points a
+    touching tool rests on). DEM: about a particle radius to grip the particles near an end"""
     file: str | None = None
     """surface: a triangle file meshio reads (STL, .obj, .ply, .vtu, .msh ...), relative to the scenario
     file's folder"""
@@ -210,6 +217,8 @@ class ToolSpec(Strict):
             raise ValueError(f"{', '.join(surface_only)}: only for shape = \"surface\"")
         if all(c == 0 for c in self.direction):
             raise ValueError("direction must be a non-zero vector")
+        if self.glue_depth is not None and not self.glued:
+            raise ValueError("glue_depth is for a glued tool: add glued = true, or remove glue_depth")
         if self.touch and self.shape not in ("box", "sphere"):
             raise ValueError("touch = true is for box and sphere tools")
         driven = sorted({"ramp_time", "speed_table"} & self.model_fields_set)

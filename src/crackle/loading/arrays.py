@@ -12,7 +12,7 @@ from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLA
 Tools = namedtuple(
     "Tools",
     "kind geom disp direction times speeds n mu penalty force_slots cell_ring cell_state cell_count "
-    "surf_grid surf_cell_start surf_cell_tris surf_tri mass velocity step_force",
+    "surf_grid surf_cell_start surf_cell_tris surf_tri mass velocity step_force glue",
 )
 # kind, geom (12 numbers, see Tool.geometry_row), disp (current displacement), direction (unit),
 # times / speeds / n (the speed history table), mu (Coulomb), penalty (N/m^3 per unit contact
@@ -30,6 +30,7 @@ Tools = namedtuple(
 # tool's velocity over the last half step (its launch velocity before the first); step_force
 # (tool, 3) the last step's contact force on the specimen, which load_cell_step writes and
 # move_tools turns into the free tool's change of velocity.
+# glue (tool,): 0, or the distance within which a glued tool attaches a point for good.
 
 # Default tool penalty per unit contact area: TOOL_PENALTY_FACTOR x E / h, h the method's length
 # scale (FDEM: the median tet altitude; lattice: the spacing), the usual explicit-contact order.
@@ -62,12 +63,15 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
     penalty = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
     surf = _surface_tool_grids(tools, geom, contact_depth)
     mass = np.array([t.mass or 0.0 for t in tools], dtype=float)
+    # A glued tool attaches the points within this distance (default: a millionth of the contact
+    # depth, an element's size: the points a touching tool rests on, within round-off).
+    glue = np.array([(t.glue_depth or 1e-6 * contact_depth) if t.glued else 0.0 for t in tools], dtype=float)
     launch = (speeds[:, 0:1] * direction) * (mass[:, None] > 0.0)
     return Tools(
         kind, geom, np.zeros((len(tools), 3)), direction, times, speeds, counts, mu, penalty,
         force_slots=np.zeros((len(tools), force_slots, 3)), cell_ring=np.zeros((len(tools), LOAD_CELL_RING, 3)),
         cell_state=np.zeros((len(tools), 5)), cell_count=np.array([0, 1], dtype=np.int64), **surf,
-        mass=mass, velocity=launch.reshape(-1, 3), step_force=np.zeros((len(tools), 3)),
+        mass=mass, velocity=launch.reshape(-1, 3), step_force=np.zeros((len(tools), 3)), glue=glue,
     )
 
 

@@ -74,6 +74,8 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
                 length=t.length,
                 penalty=t.penalty,
                 mass=t.mass,
+                glued=t.glued,
+                glue_depth=t.glue_depth,
                 **surface,
             )
         )
@@ -81,25 +83,37 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
 
 
 def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
-    """The tool shifted along its direction so that its leading extreme along the direction lies
-    on the specimen's extreme point along it: a platen placed on the mesh as meshed, whatever
-    the facets of a curved surface and the loading angle."""
+    """The tool shifted along its direction so that it just reaches the specimen: a platen placed
+    on the mesh as meshed, whatever the facets of a curved surface and the loading angle. A tool
+    behind the specimen along its direction (a push) puts its leading extreme on the specimen's
+    first point along it; one ahead of it (a glued grip that pulls) its trailing extreme on the
+    specimen's last point."""
     d = np.asarray(tool.direction, dtype=float)
     d /= np.linalg.norm(d)
     c = np.asarray(tool.center, dtype=float)
-    if tool.shape == "sphere":
-        lead = float(c @ d) + tool.radius
-    else:  # box: the corner furthest along d
-        a1 = np.asarray(tool.axes[0], dtype=float)
-        a1 /= np.linalg.norm(a1)
-        a2 = np.asarray(tool.axes[1], dtype=float)
-        a2 = a2 - (a2 @ a1) * a1
-        a2 /= np.linalg.norm(a2)
-        a3 = np.cross(a1, a2)
-        half = 0.5 * np.asarray(tool.size, dtype=float)
-        lead = float(c @ d) + sum(h * abs(float(a @ d)) for h, a in zip(half, (a1, a2, a3)))
-    shift = float(np.min(points @ d)) - lead
+    along = points @ d
+    if tool.glued and float(c @ d) > float(np.mean(along)):
+        half = _half_extent(tool, d)
+        shift = float(np.max(along)) - (float(c @ d) - half)
+        return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
+    lead = float(c @ d) + _half_extent(tool, d)
+    shift = float(np.min(along)) - lead
     return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
+
+
+def _half_extent(tool: Tool, d: np.ndarray) -> float:
+    """How far a sphere or box tool reaches from its centre along the unit direction d."""
+    if tool.shape == "sphere":
+        return tool.radius
+    # Box: its corner furthest along d.
+    a1 = np.asarray(tool.axes[0], dtype=float)
+    a1 /= np.linalg.norm(a1)
+    a2 = np.asarray(tool.axes[1], dtype=float)
+    a2 = a2 - (a2 @ a1) * a1
+    a2 /= np.linalg.norm(a2)
+    a3 = np.cross(a1, a2)
+    half = 0.5 * np.asarray(tool.size, dtype=float)
+    return sum(h * abs(float(a @ d)) for h, a in zip(half, (a1, a2, a3)))
 
 
 def build_pressures(specs, end_time: float) -> list[Pressure]:

@@ -232,6 +232,33 @@ def tool_gap(j, px, py, pz, radius, tools):
 
 
 @njit(cache=True, inline="always")
+def _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, tool_v_next, j, tie):
+    """Point g glued to tool j: a 3D spring of the tool's penalty (per its contact area) on the
+    point's displacement relative to the tool since it attached, carried incrementally in tie[g]
+    (the friction slot: a glued point has no Coulomb friction). It pulls as well as pushes and
+    never slips. v is the point's velocity over the half step before t, over which the tool moved
+    at tool_v_prev: the tie follows the relative displacement exactly. Returns the force on the
+    point and the tool's work on it over the step, as contact_with_tools."""
+    kn = tools.penalty[j] * area
+    tx = tie[g, 0] - kn * (vx - tool_v_prev[j, 0]) * dt
+    ty = tie[g, 1] - kn * (vy - tool_v_prev[j, 1]) * dt
+    tz = tie[g, 2] - kn * (vz - tool_v_prev[j, 2]) * dt
+    tie[g, 0] = tx
+    tie[g, 1] = ty
+    tie[g, 2] = tz
+    force_slots[j, slot, 0] += tx
+    force_slots[j, slot, 1] += ty
+    force_slots[j, slot, 2] += tz
+    work = 0.0
+    if tools.mass[j] == 0.0:
+        tvx = 0.5 * (tool_v_prev[j, 0] + tool_v_next[j, 0])
+        tvy = 0.5 * (tool_v_prev[j, 1] + tool_v_next[j, 1])
+        tvz = 0.5 * (tool_v_prev[j, 2] + tool_v_next[j, 2])
+        work = (tx * tvx + ty * tvy + tz * tvz) * dt
+    return tx, ty, tz, work
+
+
+@njit(cache=True, inline="always")
 def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, force_slots, tool_v_prev,
                        tool_v_next, node_tool, node_offset, friction, d_friction):
     """Penalty contact of point g (position p at time t, velocity v over the half step before t,
@@ -248,16 +275,29 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
     node_tool[g] and node_offset[g] carry the point's contact state between steps (see NO_TOOL,
     HIDDEN): a point exposed (HIDDEN before) while already inside a tool starts its spring
     unloaded at that depth (node_offset < 0), so that no energy comes from nowhere, and gets no
-    force until it is pushed deeper or has left the tool."""
+    force until it is pushed deeper or has left the tool.
+
+    A glued tool (tools.glue[j] > 0, the attach distance) takes a point that comes within that
+    distance of it (touching no other tool) and holds it from then on by `_glued_tie`: a gripped
+    end that pulls as well as pushes (direct tension)."""
+    prev = node_tool[g]
+    if prev >= 0 and tools.glue[prev] > 0.0:
+        return _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, tool_v_next, prev, friction)
     cx = 0.0
     cy = 0.0
     cz = 0.0
     work = 0.0
-    prev = node_tool[g]
     offset = node_offset[g]
     touching = -1
     for j in range(n_tool):
         gap, nx, ny, nz = tool_gap(j, px, py, pz, radius, tools)
+        if tools.glue[j] > 0.0 and gap <= tools.glue[j] and touching < 0 and prev != HIDDEN:
+            # Attached to a glued tool from now on, its tie unloaded at the current position.
+            touching = j
+            friction[g, 0] = 0.0
+            friction[g, 1] = 0.0
+            friction[g, 2] = 0.0
+            break
         if j == prev and offset < 0.0 and gap < 0.0:
             gap -= offset
             if gap >= 0.0 and touching < 0:
@@ -305,8 +345,9 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
             # A free tool's work is its loss of kinetic energy (loading.arrays.free_tool_work):
             # its velocity after this step is not known yet.
             work += (fx * tvx + fy * tvy + fz * tvz) * dt
-    if touching < 0:
+    if touching < 0 or tools.glue[touching] > 0.0:
         offset = 0.0
+    if touching < 0:
         friction[g, 0] = 0.0
         friction[g, 1] = 0.0
         friction[g, 2] = 0.0
@@ -357,6 +398,13 @@ def tool_contact_diagnostics(g, px, py, pz, radius, area, tools, node_tool, node
     `contact_with_tools` after its last step. Sum points in a fixed order (histories then do not
     depend on the thread count)."""
     if node_tool[g] == HIDDEN:
+        return
+    j = node_tool[g]
+    if j >= 0 and tools.glue[j] > 0.0:
+        kn = tools.penalty[j] * area
+        for d in range(3):
+            forces[j, d] += friction[g, d]
+        energy[j] += 0.5 * (friction[g, 0] ** 2 + friction[g, 1] ** 2 + friction[g, 2] ** 2) / kn
         return
     for j in range(tools.kind.shape[0]):
         gap, nx, ny, nz = tool_gap(j, px, py, pz, radius, tools)
