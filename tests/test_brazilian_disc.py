@@ -56,6 +56,9 @@ def test_splitting_fracture_along_loading_axis(quick_run):
     assert used >= 5
     assert angle <= 15.0
     assert abs(result.summary["energy_error"]) < 0.03
+    # summary.json carries the same angle and the elastic Brazilian strength of the peak.
+    assert result.summary["splitting_angle"] == pytest.approx(angle, abs=1e-9)
+    assert result.summary["brazilian_strength"] == pytest.approx(2 * result.summary["peak_force"] / (math.pi * D * T))
 
 
 def test_rotated_platens_load_the_disc_as_unrotated_ones(quick_run, tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 from pydantic import Discriminator, Tag, model_validator
 
 from ..analysis import CrackSettings, FracturePlane
+from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pulling_grip
 from ..geometry import MeshError
 from ..geometry.specimens import specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_specimen
@@ -146,6 +147,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     if sizing:
         model.warnings.insert(0, sizing)
     sim = FdemSimulation(model)
+    _strength_test(sim, scenario, tools, mesh)
     plane = scenario.analysis.fracture_plane
     if plane is not None:
         size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
@@ -159,3 +161,20 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
             top=cracks.top,
         )
     return sim
+
+
+def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, mesh) -> None:
+    """The strength test the set-up is, if any, for the summary's nominal strengths: a glued grip
+    pulling the specimen (direct tension) or a disc between platens (Brazilian)."""
+    spec = scenario.specimen
+    grip = pulling_grip(tools, mesh.points)
+    if grip is not None:
+        section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
+        sim.strength_test = TensionTest(grip, section, scenario.material.interface.tensile_strength)
+    elif spec.shape == "disc":
+        moving = [t for t in tools if any(v != 0.0 for v in t.speed.values)]
+        if moving:
+            # The loading axis: the first moving platen's direction (rotated with [loading]).
+            axis = np.asarray(spec.axis, float) / np.linalg.norm(spec.axis)
+            sim.strength_test = BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
+                                              tuple(moving[0].direction))

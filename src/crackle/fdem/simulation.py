@@ -15,9 +15,10 @@ from ..analysis import (
     propagating_plastic_zone,
     tip_and_plastic_zone,
 )
+from ..analysis.strength import BrazilianTest, TensionTest
 from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder
+from ..solver.failures import MODE_NAMES, FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 from .kernels import advance, interface_energy, tet_energy_and_stress
@@ -60,6 +61,7 @@ class FdemSimulation:
         self._tips: list[float] = []
         self._plastic_zones: list[float] = []
         self.crack_settings: CrackSettings | None = None  # crack count and speed in the summary when set
+        self.strength_test: TensionTest | BrazilianTest | None = None  # nominal strengths in the summary when set
         self._cracks: tuple[int, CrackAnalysis] | None = None  # (failures analysed, analysis)
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
@@ -293,6 +295,20 @@ class FdemSimulation:
         }
         return {k: (v if np.isfinite(v) else None) for k, v in values.items()}  # JSON has no inf/nan
 
+    def _strength_summary(self) -> dict:
+        test = self.strength_test
+        if test is None:
+            return {}
+        peaks = self.load_cell.peaks()[0]
+        if isinstance(test, TensionTest):
+            return test.summary(peaks)
+        ifs = self.model.ifs
+        failed = np.flatnonzero((ifs.state != INTACT) & (ifs.state != PRECRACK))
+        xyz = self.model.iface_centroids(ids=failed)
+        events = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+                  "mode": np.array([MODE_NAMES[k] for k in ifs.fail_mode[failed]])}
+        return test.summary(peaks, events)
+
     def summary(self) -> dict:
         m = self.model
         insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None
@@ -308,6 +324,7 @@ class FdemSimulation:
             "contact_rebuilds": self.rebuilds,
             **self._fracture_summary(),
             **self._crack_summary(),
+            **self._strength_summary(),
             "process_zones": self._process_zones(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,

@@ -1,0 +1,67 @@
+"""Nominal strengths of the standard strength tests, from the load cell's peak and the specimen.
+
+Direct tension: a specimen pulled by a glued grip; its nominal strength is the grip's peak force
+over the mean cross-section normal to the pull (volume / extent along it), and
+tensile_strength_ratio compares it with the tensile strength the material was given: 1 for a
+bar small against the characteristic length E Gf / ft^2, whatever the mesh and the insertion.
+Brazilian disc: the elastic relation 2 F / (pi D t) and the splitting fracture's angle to the
+loading axis (analysis.brazilian).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .brazilian import brazilian_strength, splitting_angle
+
+
+@dataclass(frozen=True)
+class TensionTest:
+    """A glued grip pulling the specimen: tool index, section (m^2), the material's ft (Pa)."""
+
+    tool: int
+    section: float
+    tensile_strength: float
+
+    def summary(self, peaks: np.ndarray) -> dict:
+        strength = float(peaks[self.tool]) / self.section
+        return {"loaded_area": self.section, "nominal_strength": strength,
+                "tensile_strength_ratio": strength / self.tensile_strength}
+
+
+@dataclass(frozen=True)
+class BrazilianTest:
+    """A disc between platens: diameter and thickness (m), centre, disc axis, loading axis."""
+
+    diameter: float
+    thickness: float
+    center: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    load_axis: tuple[float, float, float]
+
+    def summary(self, peaks: np.ndarray, events: dict) -> dict:
+        angle, _ = splitting_angle(events, self.load_axis, 0.5 * self.diameter, self.center, self.axis)
+        return {"brazilian_strength": brazilian_strength(float(np.max(peaks, initial=0.0)), self.diameter, self.thickness),
+                # JSON has no NaN: None until three tension or mixed failures near the centre.
+                "splitting_angle": angle if math.isfinite(angle) else None}
+
+
+def pulling_grip(tools, points: np.ndarray) -> int | None:
+    """The first glued, moving tool that lies ahead of the specimen along its direction (it pulls
+    the specimen's far end), or None."""
+    centroid = points.mean(axis=0)
+    for j, tool in enumerate(tools):
+        d = np.asarray(tool.direction, float)
+        if tool.glued and any(v != 0.0 for v in tool.speed.values) and (np.asarray(tool.center) - centroid) @ d > 0.0:
+            return j
+    return None
+
+
+def mean_section(volume: float, points: np.ndarray, direction) -> float:
+    """The mean cross-section normal to `direction`: volume over the extent along it."""
+    d = np.asarray(direction, float)
+    along = points @ (d / np.linalg.norm(d))
+    return volume / float(along.max() - along.min())
