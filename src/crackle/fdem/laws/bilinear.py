@@ -85,6 +85,11 @@ class BilinearLaw:
     insertion: Literal["intrinsic", "extrinsic"] = "intrinsic"
     """"intrinsic": every internal face carries the law from the start; "extrinsic": a face is
     inserted (at initiation) when the traction of its two tets meets the initiation criterion"""
+    insertion_stress: Literal["either", "mean"] = "either"
+    """extrinsic: the stress a tied face is checked with: "either" (the traction of each of its two tets; the face
+    opens when the more critical reaches the strength, as an intrinsic face's corners feel the more loaded side)
+    or "mean" (the traction of the two tets' mean stress, which smooths a concentration under a platen away:
+    docs/validation.md, "Strength objectivity")"""
     law: Literal["bilinear"] = "bilinear"
     """picks this law"""
 
@@ -113,7 +118,7 @@ class BilinearLaw:
         return DEFAULT_POWER_EXPONENT if self.power_exponent is None else self.power_exponent
 
     def table_row(self) -> np.ndarray:
-        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion)
+        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion, self.insertion_stress)
         row[LAW_TS] = self.shear_strength
         row[LAW_GF1] = self.fracture_energy
         row[LAW_GF2] = self.gf_shear

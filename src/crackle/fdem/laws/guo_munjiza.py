@@ -101,6 +101,11 @@ class GuoMunjizaLaw:
     insertion: Literal["intrinsic", "extrinsic"] = "intrinsic"
     """"intrinsic": every internal face carries the law from the start; "extrinsic": a face is
     inserted (at the peak of the law) when the traction of its two tets reaches the strength"""
+    insertion_stress: Literal["either", "mean"] = "either"
+    """extrinsic: the stress a tied face is checked with: "either" (the traction of each of its two tets; the face
+    opens when the more critical reaches the strength, as an intrinsic face's corners feel the more loaded side)
+    or "mean" (the traction of the two tets' mean stress, which smooths a concentration under a platen away:
+    docs/validation.md, "Strength objectivity")"""
     law: Literal["guo-munjiza"] = "guo-munjiza"
     """picks this law (the default)"""
 
@@ -122,7 +127,7 @@ class GuoMunjizaLaw:
         return softening_integral(*self.softening)
 
     def table_row(self) -> np.ndarray:
-        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion)
+        row = new_row(self.kind, self.tensile_strength, self.friction, self.insertion, self.insertion_stress)
         row[LAW_C] = self.cohesion
         row[LAW_TANPHI] = np.tan(np.radians(self.friction_angle))
         row[LAW_GF1] = self.fracture_energy
