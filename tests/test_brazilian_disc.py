@@ -81,3 +81,17 @@ def test_rotated_platens_load_the_disc_as_unrotated_ones(quick_run, tmp_path):
     assert math.hypot(fx[-1], fy[-1]) == pytest.approx(magnitude0, rel=0.05)
     # The force the top platen puts on the disc points to the centre, (sin 30, -cos 30).
     assert abs(math.degrees(math.atan2(fx[-1], -fy[-1])) - 30.0) < 3.0
+
+
+def test_extrinsic_insertion_peaks_as_intrinsic(quick_run, tmp_path):
+    """Strength that does not depend on the insertion mode: the quick disc with extrinsic faces
+    (each face checked against either of its tets' traction) peaks within 5 % of the intrinsic
+    run on the same mesh (measured 4393 N against 4361 N, +0.7 %; checked against the two tets'
+    mean stress instead, 6046 N: +39 %, docs/validation.md "Strength objectivity"), and splits
+    within 15 degrees of the loading axis (measured 9.6 degrees)."""
+    _, intrinsic = quick_run
+    result = run_scenario("brazilian-disc", tmp_path, quick=True, progress=False,
+                          overrides=["material.interface.insertion=extrinsic", "run.field_frames=0"])
+    print(f"extrinsic {result.summary['peak_force']:.0f} N, intrinsic {intrinsic.summary['peak_force']:.0f} N")
+    assert result.summary["peak_force"] == pytest.approx(intrinsic.summary["peak_force"], rel=0.05)
+    assert result.summary["splitting_angle"] <= 15.0

@@ -48,3 +48,24 @@ def test_structured_bar_breaks_at_the_tensile_strength(tmp_path):
     assert s["loaded_area"] == pytest.approx(A, rel=1e-9)
     assert s["nominal_strength"] == pytest.approx(s["peak_forces"]["right"] / A, rel=1e-9)  # the first pulling grip
     assert s["tensile_strength_ratio"] == pytest.approx(1.0, abs=0.03)
+
+
+@pytest.mark.parametrize("insertion, measured", [("intrinsic", 1.024), ("extrinsic", 1.092)])
+def test_effective_mixed_mode_breaks_the_bar_at_ft(tmp_path, insertion, measured):
+    """The face-restricted bias and its remedy. With paper 001's Mohr-Coulomb law the quick
+    unstructured bar (420 tets) peaks at 1.30 ft intrinsic and 1.35 ft extrinsic (1.3-1.5 ft at
+    every size and orientation measured: docs/validation.md, "Strength objectivity"): a face
+    inclined at theta to the crack plane opens only when sigma cos^2 theta reaches ft. With
+    mixed_mode = "effective" (Camacho-Ortiz: in tension the traction magnitude meets ft, and the
+    slip shares the damage) the inclined faces open with the crack: tensile_strength_ratio within
+    10 % of 1 in both insertion modes (measured 1.024 intrinsic, 1.092 extrinsic: its peak is the
+    grip's ring as the bar separates; the plateau before it is 0.99 ft), and the energy audit
+    closes within 1 % (measured 0.13 % / -0.08 %)."""
+    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
+        f"material.interface.insertion={insertion}", "material.interface.mixed_mode=effective",
+        "run.field_frames=0"])
+    s = result.summary
+    print(f"{insertion}: tensile_strength_ratio {s['tensile_strength_ratio']:.3f} (measured {measured})")
+    assert s["tensile_strength_ratio"] == pytest.approx(1.0, abs=0.10)
+    assert s["broken"] > 0
+    assert abs(s["energy_error"]) < 0.01

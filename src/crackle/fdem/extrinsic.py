@@ -45,7 +45,7 @@ from ..solver.integrator import block_kernel, move, update_velocity
 from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, intact_energy
 from .laws.row import LAW_SAMPLING, SAMPLE_MEAN
 from .laws.bilinear import LAW_TS
-from .laws.guo_munjiza import shear_strength
+from .laws.guo_munjiza import LAW_BETA, shear_cap, shear_strength
 
 # tied[i]: a face joining its tets rigidly, one released in this step (its clusters still to be
 # regrouped), or one carrying its law (intrinsic, inserted, failed, pre-cracked).
@@ -163,6 +163,9 @@ def _utilisation(tn, ts, law):
     """How far a traction is towards the law's insertion criterion (1 on it)."""
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:
+        beta = law[LAW_BETA]
+        if beta > 0.0 and tn > 0.0:  # the effective mixed mode: the ellipse in tension
+            return max(math.sqrt(tn * tn + (ts / beta) ** 2) / ft, ts / shear_strength(tn, law))
         return max(tn / ft, ts / shear_strength(tn, law))
     return max(max(tn, 0.0) / ft, ts / law[LAW_TS])
 
@@ -196,7 +199,11 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza: Mohr-Coulomb with tension cut-off
         cap = shear_strength(tn, law)
-        if tn < ft and ts < cap:
+        beta = law[LAW_BETA]
+        if beta > 0.0 and tn > 0.0:  # the effective mixed mode: the ellipse in tension
+            if tn * tn + (ts / beta) ** 2 < ft * ft and ts < cap:
+                return False
+        elif tn < ft and ts < cap:
             return False
         tn_c = min(tn, ft)
         # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
@@ -204,7 +211,7 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
         # The cap the law applies at zero gap: without a normal preload in compression, its
         # normal stress there is zero. A preload above it would be returned onto it in the first
         # step as if it had slid, booking less than the spring loses.
-        cap = shear_strength(max(tn_c, 0.0), law)
+        cap = shear_cap(max(tn_c, 0.0), 1.0, law)
     else:  # bilinear: maximum nominal stress
         cap = law[LAW_TS]
         if max(tn, 0.0) < ft and ts < cap:

@@ -65,7 +65,7 @@ DEFAULT_PENALTY_FACTOR = 200.0
 EXTRINSIC_PENALTY_FACTOR = 2.0
 
 # The law's own columns of its table row.
-LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ = range(OWN, OWN + 8)
+LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ, LAW_BETA = range(OWN, OWN + 9)
 
 
 @dataclass(frozen=True, config=STRICT_DATACLASS)
@@ -106,6 +106,16 @@ class GuoMunjizaLaw:
     opens when the more critical reaches the strength, as an intrinsic face's corners feel the more loaded side)
     or "mean" (the traction of the two tets' mean stress, which smooths a concentration under a platen away:
     docs/validation.md, "Strength objectivity")"""
+    mixed_mode: Literal["mohr-coulomb", "effective"] = "mohr-coulomb"
+    """how tension and shear combine on an opening face: "mohr-coulomb" (paper 001: the normal curve and the
+    Mohr-Coulomb shear cap act apart, so a face inclined to the pull opens only when its own normal traction
+    reaches ft) or "effective" (Camacho-Ortiz: in tension the tractions stay within the ellipse
+    (tn / ft)^2 + (ts / (shear_ratio ft))^2 <= z(D)^2 and the damage follows the effective opening
+    sqrt(dn^2 + shear_ratio^2 ds^2): faces inclined to the crack plane share its opening; docs/validation.md,
+    "Strength objectivity")"""
+    shear_ratio: Positive = 1.0
+    """mixed_mode = "effective": beta, the shear strength of an opening face over ft (1: the face opens when
+    the magnitude of its traction reaches ft)"""
     law: Literal["guo-munjiza"] = "guo-munjiza"
     """picks this law (the default)"""
 
@@ -134,6 +144,8 @@ class GuoMunjizaLaw:
         row[LAW_GF2] = self.gf_shear
         row[LAW_A], row[LAW_B], row[LAW_CS] = self.softening
         row[LAW_IZ] = self.softening_area
+        # 0: Mohr-Coulomb with tension cut-off; > 0: the effective mixed mode's beta.
+        row[LAW_BETA] = self.shear_ratio if self.mixed_mode == "effective" else 0.0
         return row
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
@@ -225,6 +237,21 @@ def shear_strength(sigma_n, law):
     # Keep a small positive strength so that dsp stays finite.
     floor = 1e-6 * law[LAW_C] + 1e-12
     return fs if fs > floor else floor
+
+
+@njit(cache=True, inline="always")
+def shear_cap(sigma, z, law):
+    """The shear cap of a point at normal stress sigma and softening z: z f_s(sigma) (Mohr-Coulomb
+    with tension cut-off); with the effective mixed mode (law[LAW_BETA] = beta > 0), in tension
+    also within the ellipse (sigma / (z ft))^2 + (tau / (beta z ft))^2 <= 1."""
+    cap = z * shear_strength(sigma, law)
+    beta = law[LAW_BETA]
+    if beta > 0.0 and sigma > 0.0:
+        room = (z * law[LAW_FT]) ** 2 - sigma * sigma
+        ellipse = beta * math.sqrt(room) if room > 0.0 else 0.0
+        if ellipse < cap:
+            cap = ellipse
+    return cap
 
 
 @njit(cache=True, inline="always")
@@ -334,7 +361,11 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
     # An extrinsic face's spring starts at its elastic limit (dsp / 2 of an intrinsic one).
     ds_start = 0.5 * dsp if extrinsic else dsp
-    d_n = (dn_c - dnp) / (dnc - dnp) if dn_c > dnp else 0.0
+    # The opening that damages the normal branch: the centroid's normal opening, or with the
+    # effective mixed mode and the face open, sqrt(dn^2 + beta^2 ds^2) (its slip shares the work).
+    beta = law[LAW_BETA]
+    dn_damage = math.sqrt(dn_c * dn_c + beta * beta * ds_c * ds_c) if beta > 0.0 and dn_c > 0.0 else dn_c
+    d_n = (dn_damage - dnp) / (dnc - dnp) if dn_damage > dnp else 0.0
     d_s = (ds_c - ds_start) / (dsc - dsp) if ds_c > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
     if d_new > 1.0:
@@ -357,8 +388,21 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     lost = 0.0
     for p, dn, sx, sy, sz in ((0, dn0, s0x, s0y, s0z), (1, dn1, s1x, s1y, s1z), (2, dn2, s2x, s2y, s2z)):
         sigma = normal_stress(dn, pn, z, law)
-        fs = shear_strength(sigma, law)
-        tx, ty, tz, released = _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, z * fs, z_old * fs)
+        if beta > 0.0:
+            # The ellipse moves with the normal stress (its cap falls ~5x where a face opens from
+            # compression, under Mohr-Coulomb's c, into tension): the cap before the step is the
+            # one at the point's opening then, dn less the step's normal approach (v: the
+            # velocities over the half step that led here).
+            cap = shear_cap(sigma, z, law)
+            a = na[i, p]
+            b = nb[i, p]
+            dn_before = dn - dt * ((v[b, 0] - v[a, 0]) * nx + (v[b, 1] - v[a, 1]) * ny + (v[b, 2] - v[a, 2]) * nz)
+            cap_before = shear_cap(normal_stress(dn_before, pn, z_old, law), z_old, law)
+        else:
+            fs = shear_strength(sigma, law)
+            cap = z * fs
+            cap_before = z_old * fs
+        tx, ty, tz, released = _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, cap, cap_before)
         lost += released
         force[i, p, 0] = -(sigma * nx + tx) * a3
         force[i, p, 1] = -(sigma * ny + ty) * a3

@@ -13,7 +13,7 @@ import numpy as np
 # INSERTION_STRESSES, fdem.extrinsic.try_insert).
 LAW_KIND, LAW_FT, LAW_MU, LAW_EXTRINSIC, LAW_SAMPLING = 0, 1, 2, 3, 4
 OWN = 5
-LAW_COLUMNS = 13
+LAW_COLUMNS = 14
 
 INSERTIONS = ("intrinsic", "extrinsic")
 # "either": the traction of each of the face's two tets, the more critical one; "mean": the
