@@ -12,6 +12,9 @@ BENDING = ["three-point-bending", "--set", "run.end_time=7.5e-4", "--set", "run.
 IMPACT = ["sphere-impact-fast", "--set", "run.end_time=4e-5"]
 # Extrinsic interfaces: insertions, the serial regrouping of clusters, the node pass over points.
 EXTRINSIC = ["three-point-bending", "--set", "run.end_time=1e-3", "--set", "material.interface.insertion=extrinsic"]
+# Glued grips pulling a bar apart, faces inserted by either tet's traction, the effective mixed mode.
+TENSION = ["direct-tension", "--set", "material.interface.insertion=extrinsic", "--set",
+           "material.interface.mixed_mode=effective"]
 # Bonded-particle DEM: bonds breaking, contact lists rebuilt, platens.
 DEM = ["dem-ucs", "--set", "run.end_time=3.5e-4"]
 
@@ -67,3 +70,13 @@ def test_identical_for_1_and_2_threads_with_dem_bonds_breaking(tmp_path):
     e1 = (one / "events.csv").read_text()
     assert e1 == (two / "events.csv").read_text()
     assert len(e1.strip().splitlines()) > 100, "the compared run must break bonds"
+
+
+def test_identical_for_1_and_2_threads_with_glued_grips(tmp_path):
+    """The quick direct tension bar (glued grips, extrinsic faces, the effective mixed mode) to
+    its break: byte-identical history and events with 1 and 2 threads, with failures."""
+    one, two = _run(tmp_path, 1, TENSION), _run(tmp_path, 2, TENSION)
+    assert (one / "history.csv").read_bytes() == (two / "history.csv").read_bytes()
+    e1 = (one / "events.csv").read_text()
+    assert e1 == (two / "events.csv").read_text()
+    assert len(e1.strip().splitlines()) > 1, "the compared run must include failures"
