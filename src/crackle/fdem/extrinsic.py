@@ -160,7 +160,9 @@ def tet_traction(t, tet_stress, nx, ny, nz, weight, other):
 
 @njit(cache=True, inline="always")
 def _utilisation(tn, ts, law):
-    """How far a traction is towards the law's insertion criterion (1 on it)."""
+    """How far a traction is towards the law's insertion criterion (1 on it): Guo-Munjiza,
+    Mohr-Coulomb with tension cut-off (the effective mixed mode: the ellipse in tension);
+    bilinear, the maximum nominal stress."""
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:
         beta = law[LAW_BETA]
@@ -196,15 +198,10 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
     e_inserted[i]. True when inserted."""
     tn, sx, sy, sz = face_traction(i, na, nb, tet_stress, nx, ny, nz, law)
     ts = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if _utilisation(tn, ts, law) < 1.0:
+        return False
     ft = law[LAW_FT]
-    if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza: Mohr-Coulomb with tension cut-off
-        cap = shear_strength(tn, law)
-        beta = law[LAW_BETA]
-        if beta > 0.0 and tn > 0.0:  # the effective mixed mode: the ellipse in tension
-            if tn * tn + (ts / beta) ** 2 < ft * ft and ts < cap:
-                return False
-        elif tn < ft and ts < cap:
-            return False
+    if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza
         tn_c = min(tn, ft)
         # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
         shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
@@ -212,10 +209,8 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
         # normal stress there is zero. A preload above it would be returned onto it in the first
         # step as if it had slid, booking less than the spring loses.
         cap = shear_cap(max(tn_c, 0.0), 1.0, law)
-    else:  # bilinear: maximum nominal stress
+    else:  # bilinear
         cap = law[LAW_TS]
-        if max(tn, 0.0) < ft and ts < cap:
-            return False
         shift = min(tn, ft) / pn if tn > 0.0 else 0.0
     scale = 1.0 if ts <= cap else cap / ts
     for p in range(3):
