@@ -159,14 +159,32 @@ def tet_traction(t, tet_stress, nx, ny, nz, weight, other):
 
 
 @njit(cache=True, inline="always")
+def _reaches(tn, ts2, law):
+    """Whether a traction (normal tn, tension positive; squared shear ts2) meets the law's
+    insertion criterion: Guo-Munjiza, Mohr-Coulomb with tension cut-off (the effective mixed
+    mode: the ellipse in tension); bilinear, the maximum nominal stress. No square root or
+    division: every tied face makes this check every step."""
+    ft = law[LAW_FT]
+    if law[LAW_KIND] != KIND_BILINEAR:
+        fs = shear_strength(tn, law)
+        if ts2 >= fs * fs:
+            return True
+        beta = law[LAW_BETA]
+        if beta > 0.0 and tn > 0.0:
+            return tn * tn + ts2 / (beta * beta) >= ft * ft
+        return tn >= ft
+    ts0 = law[LAW_TS]
+    return tn >= ft or ts2 >= ts0 * ts0
+
+
+@njit(cache=True, inline="always")
 def _utilisation(tn, ts, law):
-    """How far a traction is towards the law's insertion criterion (1 on it): Guo-Munjiza,
-    Mohr-Coulomb with tension cut-off (the effective mixed mode: the ellipse in tension);
-    bilinear, the maximum nominal stress."""
+    """How far a traction is along the insertion criterion (1 on it): which of two tractions that
+    both meet it is the more critical."""
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:
         beta = law[LAW_BETA]
-        if beta > 0.0 and tn > 0.0:  # the effective mixed mode: the ellipse in tension
+        if beta > 0.0 and tn > 0.0:
             return max(math.sqrt(tn * tn + (ts / beta) ** 2) / ft, ts / shear_strength(tn, law))
         return max(tn / ft, ts / shear_strength(tn, law))
     return max(max(tn, 0.0) / ft, ts / law[LAW_TS])
@@ -175,31 +193,36 @@ def _utilisation(tn, ts, law):
 @njit(cache=True, inline="always")
 def face_traction(i, na, nb, tet_stress, nx, ny, nz, law):
     """Normal traction (tension positive) and shear traction vector on interface i, on the normal
-    n (from side A to side B), that its insertion is checked with: the more critical of its two
-    tets' (law[LAW_SAMPLING] = SAMPLE_EITHER) or their mean stress's (SAMPLE_MEAN)."""
+    n (from side A to side B), that its insertion is checked with, and whether it meets the
+    criterion: the more critical of its two tets' (law[LAW_SAMPLING] = SAMPLE_EITHER) or their
+    mean stress's (SAMPLE_MEAN)."""
     ta = na[i, 0] // 4
     tb = nb[i, 0] // 4
     if law[LAW_SAMPLING] == SAMPLE_MEAN:
-        return tet_traction(ta, tet_stress, nx, ny, nz, 0.5, tb)
+        tn, sx, sy, sz = tet_traction(ta, tet_stress, nx, ny, nz, 0.5, tb)
+        return tn, sx, sy, sz, _reaches(tn, sx * sx + sy * sy + sz * sz, law)
     tn, sx, sy, sz = tet_traction(ta, tet_stress, nx, ny, nz, 1.0, ta)
     tn_b, sx_b, sy_b, sz_b = tet_traction(tb, tet_stress, nx, ny, nz, 1.0, tb)
-    if _utilisation(tn_b, math.sqrt(sx_b * sx_b + sy_b * sy_b + sz_b * sz_b), law) > _utilisation(
-            tn, math.sqrt(sx * sx + sy * sy + sz * sz), law):
-        return tn_b, sx_b, sy_b, sz_b
-    return tn, sx, sy, sz
+    ts2 = sx * sx + sy * sy + sz * sz
+    ts2_b = sx_b * sx_b + sy_b * sy_b + sz_b * sz_b
+    reached = _reaches(tn, ts2, law)
+    reached_b = _reaches(tn_b, ts2_b, law)
+    if reached_b and (not reached or _utilisation(tn_b, math.sqrt(ts2_b), law) > _utilisation(tn, math.sqrt(ts2), law)):
+        return tn_b, sx_b, sy_b, sz_b, True
+    return tn, sx, sy, sz, reached
 
 
 @njit(cache=True, inline="always")
 def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_inserted, tied, tet_stress, law,
                pn, ps, nx, ny, nz):
-    """Insert tied interface i if the traction of its tets reaches the law's strength: its law
+    """Insert tied interface i if the traction of its tets reaches the law's strength (face_traction): its law
     state then carries that traction (clamped on the strength envelope; no normal compression) at
     zero gap, and the energy that state holds is booked against e_damage[i] and kept in
     e_inserted[i]. True when inserted."""
-    tn, sx, sy, sz = face_traction(i, na, nb, tet_stress, nx, ny, nz, law)
-    ts = math.sqrt(sx * sx + sy * sy + sz * sz)
-    if _utilisation(tn, ts, law) < 1.0:
+    tn, sx, sy, sz, reached = face_traction(i, na, nb, tet_stress, nx, ny, nz, law)
+    if not reached:
         return False
+    ts = math.sqrt(sx * sx + sy * sy + sz * sz)
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza
         tn_c = min(tn, ft)

@@ -31,6 +31,9 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     if law[LAW_KIND] == KIND_BILINEAR:
         return bilinear.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
                                     slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
+    if law[guo_munjiza.LAW_BETA] > 0.0:
+        return guo_munjiza.intact_step_effective(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode,
+                                                 force, slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
     return guo_munjiza.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
                                    slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
 

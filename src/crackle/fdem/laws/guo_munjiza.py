@@ -330,6 +330,22 @@ def _cohesive_shear(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps, cap, cap_bef
 @njit(cache=True, inline="always")
 def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
                 law, pn, ps, nx, ny, nz, dn_shift):
+    """One step of intact interface i with paper 001's Mohr-Coulomb mixed mode (_step)."""
+    return _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+                 law, pn, ps, nx, ny, nz, dn_shift, False)
+
+
+@njit(cache=True, inline="always")
+def intact_step_effective(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic,
+                          e_damage, law, pn, ps, nx, ny, nz, dn_shift):
+    """One step of intact interface i with the effective mixed mode (_step)."""
+    return _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+                 law, pn, ps, nx, ny, nz, dn_shift, True)
+
+
+@njit(cache=True, inline="always")
+def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
+          law, pn, ps, nx, ny, nz, dn_shift, effective):
     """One step of intact interface i: damage from the centroid opening and slip (eq. 8,
     irreversible), the point tractions into force[i] (B side; A gets their negatives), the energy
     the step dissipates into e_damage[i]. Always True: a face that fails this step still carries
@@ -363,8 +379,11 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     ds_start = 0.5 * dsp if extrinsic else dsp
     # The opening that damages the normal branch: the centroid's normal opening, or with the
     # effective mixed mode and the face open, sqrt(dn^2 + beta^2 ds^2) (its slip shares the work).
-    beta = law[LAW_BETA]
-    dn_damage = math.sqrt(dn_c * dn_c + beta * beta * ds_c * ds_c) if beta > 0.0 and dn_c > 0.0 else dn_c
+    # `effective` is a constant of each caller: the compiler drops the other mode's branches.
+    dn_damage = dn_c
+    if effective and dn_c > 0.0:
+        beta = law[LAW_BETA]
+        dn_damage = math.sqrt(dn_c * dn_c + beta * beta * ds_c * ds_c)
     d_n = (dn_damage - dnp) / (dnc - dnp) if dn_damage > dnp else 0.0
     d_s = (ds_c - ds_start) / (dsc - dsp) if ds_c > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
@@ -388,7 +407,7 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
     lost = 0.0
     for p, dn, sx, sy, sz in ((0, dn0, s0x, s0y, s0z), (1, dn1, s1x, s1y, s1z), (2, dn2, s2x, s2y, s2z)):
         sigma = normal_stress(dn, pn, z, law)
-        if beta > 0.0:
+        if effective:
             # The ellipse moves with the normal stress (its cap falls ~5x where a face opens from
             # compression, under Mohr-Coulomb's c, into tension): the cap before the step is the
             # one at the point's opening then, dn less the step's normal approach (v: the
