@@ -93,11 +93,9 @@ def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
     c = np.asarray(tool.center, dtype=float)
     along = points @ d
     if tool.glued and float(c @ d) > float(np.mean(along)):
-        half = _half_extent(tool, d)
-        shift = float(np.max(along)) - (float(c @ d) - half)
-        return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
-    lead = float(c @ d) + _half_extent(tool, d)
-    shift = float(np.min(along)) - lead
+        shift = float(np.max(along)) - (float(c @ d) - _half_extent(tool, d))
+    else:
+        shift = float(np.min(along)) - (float(c @ d) + _half_extent(tool, d))
     return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
 
 
