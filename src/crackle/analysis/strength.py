@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..loading.build import ahead_of
 from .brazilian import brazilian_strength, splitting_angle
 
 
@@ -52,10 +53,8 @@ class BrazilianTest:
 def pulling_grip(tools, points: np.ndarray) -> int | None:
     """The first glued, moving tool that lies ahead of the specimen along its direction (it pulls
     the specimen's far end), or None."""
-    centroid = points.mean(axis=0)
     for j, tool in enumerate(tools):
-        d = np.asarray(tool.direction, float)
-        if tool.glued and any(v != 0.0 for v in tool.speed.values) and (np.asarray(tool.center) - centroid) @ d > 0.0:
+        if tool.glued and any(v != 0.0 for v in tool.speed.values) and ahead_of(tool, points):
             return j
     return None
 

@@ -92,11 +92,18 @@ def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
     d /= np.linalg.norm(d)
     c = np.asarray(tool.center, dtype=float)
     along = points @ d
-    if tool.glued and float(c @ d) > float(np.mean(along)):
+    if tool.glued and ahead_of(tool, points):
         shift = float(np.max(along)) - (float(c @ d) - _half_extent(tool, d))
     else:
         shift = float(np.min(along)) - (float(c @ d) + _half_extent(tool, d))
     return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
+
+
+def ahead_of(tool: Tool, points: np.ndarray) -> bool:
+    """Whether the tool's centre lies beyond the specimen's centroid along the tool's direction:
+    moving, it leaves the specimen (a grip that pulls) rather than pressing on it."""
+    d = np.asarray(tool.direction, dtype=float)
+    return float((np.asarray(tool.center, dtype=float) - points.mean(axis=0)) @ d) > 0.0
 
 
 def _half_extent(tool: Tool, d: np.ndarray) -> float:
