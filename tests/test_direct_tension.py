@@ -4,9 +4,10 @@ contact it uses).
 Closed forms: an elastic bar pulled by glued grips carries F = E A (elongation) / L; a bar far
 shorter than the characteristic length E Gf / ft^2 (40 mm against 144 mm) breaks at a nominal
 stress equal to the tensile strength ft where faces normal to the pull exist (a structured mesh).
-On an unstructured mesh every separating surface is a zigzag of faces inclined to the pull, and
-the Guo-Munjiza law opens a face on its normal traction alone: measured here, it is the
-face-restricted crack's strength bias (docs/validation.md, "Strength objectivity").
+On an unstructured mesh every separating surface is a zigzag of faces inclined to the pull:
+paper 001's Mohr-Coulomb law opens a face on its normal traction alone, which makes the bar
+stronger than ft (the face-restricted crack's strength bias); the example's effective mixed mode
+opens it on its traction's magnitude (docs/validation.md, "Strength objectivity").
 """
 
 from __future__ import annotations
@@ -50,22 +51,33 @@ def test_structured_bar_breaks_at_the_tensile_strength(tmp_path):
     assert s["tensile_strength_ratio"] == pytest.approx(1.0, abs=0.03)
 
 
-@pytest.mark.parametrize("insertion, measured", [("intrinsic", 1.024), ("extrinsic", 1.092)])
-def test_effective_mixed_mode_breaks_the_bar_at_ft(tmp_path, insertion, measured):
-    """The face-restricted bias and its remedy. With paper 001's Mohr-Coulomb law the quick
-    unstructured bar (420 tets) peaks at 1.30 ft intrinsic and 1.35 ft extrinsic (1.3-1.5 ft at
-    every size and orientation measured: docs/validation.md, "Strength objectivity"): a face
-    inclined at theta to the crack plane opens only when sigma cos^2 theta reaches ft. With
-    mixed_mode = "effective" (Camacho-Ortiz: in tension the traction magnitude meets ft, and the
-    slip shares the damage) the inclined faces open with the crack: tensile_strength_ratio within
-    10 % of 1 in both insertion modes (measured 1.024 intrinsic, 1.092 extrinsic: its peak is the
-    grip's ring as the bar separates; the plateau before it is 0.99 ft), and the energy audit
-    closes within 1 % (measured 0.13 % / -0.08 %)."""
+@pytest.mark.parametrize("insertion, measured", [("intrinsic", 1.041), ("extrinsic", 1.090)])
+def test_quick_bar_breaks_at_ft_in_both_insertion_modes(tmp_path, insertion, measured):
+    """The shipped quick bar (420 unstructured tets, mixed_mode = "effective"): a face inclined
+    to the crack plane opens when the magnitude of its traction reaches ft (Camacho-Ortiz), so
+    tensile_strength_ratio is within 10 % of 1 in both insertion modes (measured 1.041 intrinsic,
+    1.090 extrinsic: the best-aligned faces of this coarse mesh sit ~20 deg off the section, and
+    an extrinsic face is checked on its tets' traction, sigma cos(theta)); past the peak the bar
+    softens (the grip force ends under half its peak: 0.44 ms intrinsic, where the run stops, and
+    0.20 at 0.6 ms extrinsic) and the energy audit closes within 1 % (measured -0.20 % /
+    -0.04 %)."""
     result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
-        f"material.interface.insertion={insertion}", "material.interface.mixed_mode=effective",
-        "run.field_frames=0"])
+        f"material.interface.insertion={insertion}", "run.field_frames=0"])
     s = result.summary
     print(f"{insertion}: tensile_strength_ratio {s['tensile_strength_ratio']:.3f} (measured {measured})")
     assert s["tensile_strength_ratio"] == pytest.approx(1.0, abs=0.10)
-    assert s["broken"] > 0
+    h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
+    assert h["toolrightfx"][-1] < 0.5 * s["peak_forces"]["right"]
     assert abs(s["energy_error"]) < 0.01
+
+
+def test_paper_law_carries_the_face_orientation_bias(tmp_path):
+    """The bias the effective mixed mode removes. With paper 001's Mohr-Coulomb law a face opens
+    only when its own normal traction reaches ft, sigma cos^2(theta) on a face at theta to the
+    section: the same quick bar peaks at 1.296 ft intrinsic (1.3-1.6 ft at every size and
+    orientation measured: docs/validation.md, "Strength objectivity"). Checked: above 1.2 ft."""
+    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
+        "material.interface.mixed_mode=mohr-coulomb", "run.field_frames=0"])
+    ratio = result.summary["tensile_strength_ratio"]
+    print(f"paper 001's law: tensile_strength_ratio {ratio:.3f} (measured 1.296)")
+    assert ratio > 1.2

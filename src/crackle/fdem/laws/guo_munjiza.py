@@ -110,9 +110,10 @@ class GuoMunjizaLaw:
     """how tension and shear combine on an opening face: "mohr-coulomb" (paper 001: the normal curve and the
     Mohr-Coulomb shear cap act apart, so a face inclined to the pull opens only when its own normal traction
     reaches ft) or "effective" (Camacho-Ortiz: in tension the tractions stay within the ellipse
-    (tn / ft)^2 + (ts / (shear_ratio ft))^2 <= z(D)^2 and the damage follows the effective opening
-    sqrt(dn^2 + shear_ratio^2 ds^2): faces inclined to the crack plane share its opening; docs/validation.md,
-    "Strength objectivity")"""
+    (tn / ft)^2 + (ts / (shear_ratio ft))^2 <= z(D)^2, the damage follows the effective opening
+    sqrt(dn^2 + shear_ratio^2 ds^2) alone, and the shear penalty is shear_ratio^2 p_n, so both describe one
+    point: a face opens when the magnitude of its traction reaches ft, whatever its orientation;
+    docs/validation.md, "Strength objectivity")"""
     shear_ratio: Positive = 1.0
     """mixed_mode = "effective": beta, the shear strength of an opening face over ft (1: the face opens when
     the magnitude of its traction reaches ft)"""
@@ -149,8 +150,14 @@ class GuoMunjizaLaw:
         return row
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
-        """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude."""
-        return self.penalty * youngs_modulus / altitude, self.penalty * shear_modulus / altitude
+        """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude: p_s from G, or
+        with the effective mixed mode beta^2 p_n (Camacho and Ortiz's, which makes the traction
+        ellipse and the effective opening agree: a face's elastic tractions reach the ellipse as its
+        effective opening reaches the peak's)."""
+        pn = self.penalty * youngs_modulus / altitude
+        if self.mixed_mode == "effective":
+            return pn, self.shear_ratio**2 * pn
+        return pn, self.penalty * shear_modulus / altitude
 
 
 def softening_z(damage: float, a: float, b: float, c: float) -> float:
@@ -378,14 +385,18 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
     # An extrinsic face's spring starts at its elastic limit (dsp / 2 of an intrinsic one).
     ds_start = 0.5 * dsp if extrinsic else dsp
     # The opening that damages the normal branch: the centroid's normal opening, or with the
-    # effective mixed mode and the face open, sqrt(dn^2 + beta^2 ds^2) (its slip shares the work).
+    # effective mixed mode and the face open, sqrt(dn^2 + beta^2 ds^2), which then also stands
+    # for the slip: the Mohr-Coulomb branch's own slip damage would count it twice (a face opened
+    # at 45 deg failed at 0.2 Gf).
     # `effective` is a constant of each caller: the compiler drops the other mode's branches.
     dn_damage = dn_c
+    ds_damage = ds_c
     if effective and dn_c > 0.0:
         beta = law[LAW_BETA]
         dn_damage = math.sqrt(dn_c * dn_c + beta * beta * ds_c * ds_c)
+        ds_damage = 0.0
     d_n = (dn_damage - dnp) / (dnc - dnp) if dn_damage > dnp else 0.0
-    d_s = (ds_c - ds_start) / (dsc - dsp) if ds_c > ds_start else 0.0
+    d_s = (ds_damage - ds_start) / (dsc - dsp) if ds_damage > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
     if d_new > 1.0:
         d_new = 1.0
