@@ -54,7 +54,7 @@ def pulling_grip(tools, points: np.ndarray) -> int | None:
     """The first glued, moving tool that lies ahead of the specimen along its direction (it pulls
     the specimen's far end), or None."""
     for j, tool in enumerate(tools):
-        if tool.glued and any(v != 0.0 for v in tool.speed.values) and ahead_of(tool, points):
+        if tool.glued and tool.moves and ahead_of(tool, points):
             return j
     return None
 

@@ -203,7 +203,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     tools = [touch_specimen(t, centers - radii[:, None] * _unit(t.direction)) if spec.touch else t
              for t, spec in zip(tools, scenario.all_tools())]
     domain = domain_of(scenario.specimen)
-    moving = [i for i, t in enumerate(tools) if any(v != 0.0 for v in t.speed.values)]
+    moving = [i for i, t in enumerate(tools) if t.moves]
     loaded_area = platen = None
     if moving:
         # The mean cross-section normal to the first moving tool: platen stress = force / it.

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
 from ..io import plot_stress_strain
 from ..io.fields import STRESS_COMPONENTS
@@ -290,7 +291,7 @@ class DemSimulation:
             if self.brazilian:
                 diameter, thickness = self.brazilian
                 # The elastic Brazilian relation: the tensile stress across the loaded diameter.
-                out["brazilian_strength"] = 2.0 * float(np.max(peaks, initial=0.0)) / (math.pi * diameter * thickness)
+                out["brazilian_strength"] = brazilian_strength(float(np.max(peaks, initial=0.0)), diameter, thickness)
         return out
 
     def extra_plots(self, out_dir) -> None:

@@ -172,7 +172,7 @@ def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, mesh) -> None
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
         sim.strength_test = TensionTest(grip, section, scenario.material.interface.tensile_strength)
     elif spec.shape == "disc":
-        moving = [t for t in tools if any(v != 0.0 for v in t.speed.values)]
+        moving = [t for t in tools if t.moves]
         if moving:
             # The loading axis: the first moving platen's direction (rotated with [loading]).
             axis = np.asarray(spec.axis, float) / np.linalg.norm(spec.axis)

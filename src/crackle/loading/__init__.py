@@ -144,6 +144,11 @@ class Tool:
             raise ValueError(f"unknown tool shape {self.shape!r}; choose one of {TOOL_SHAPES}")
         return row
 
+    @property
+    def moves(self) -> bool:
+        """Whether its speed history is ever non-zero (a loading tool, not a support)."""
+        return any(v != 0.0 for v in self.speed.values)
+
     def velocity(self, t: float) -> np.ndarray:
         return float(self.speed(t)) * _unit(self.direction)
 
