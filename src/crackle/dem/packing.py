@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 # Packing fraction of the start (the radii scaled down to it): loose enough that the first
 # sweeps only separate the random centres, dense enough that little growth is left to do.
@@ -578,6 +579,49 @@ class Packing:
             return cls(centers=z["centers"], radii=z["radii"], domain=json.loads(str(z["domain"])),
                        seed=int(z["seed"]), porosity=float(z["porosity"]), max_overlap=float(z["max_overlap"]),
                        mean_overlap=float(z["mean_overlap"]), sweeps=int(z["sweeps"]))
+
+
+def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
+    """A packing made by another code, from a plain text sphere list: one sphere per line,
+    `x y z r` (m) separated by blanks or commas, further columns ignored (Yade's
+    `export.text` / `textExt`, LIGGGHTS or PFC dumps cut to these columns), `#` starting a
+    comment, blank lines skipped. `domain` is the specimen the spheres fill (the scenario's):
+    every centre must lie inside it. ValueError naming the line for anything else. The
+    spheres keep the file's order; overlaps are measured, not removed (bonds rest where the
+    spheres lie)."""
+    rows = []
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for number, line in enumerate(f, start=1):
+            text = line.split("#", 1)[0].replace(",", " ").split()
+            if not text:
+                continue
+            try:
+                values = [float(v) for v in text[:4]]
+            except ValueError:
+                raise ValueError(f"line {number}: {line.strip()!r} is not 'x y z r' (four numbers)") from None
+            if len(values) < 4:
+                raise ValueError(f"line {number}: {line.strip()!r} has {len(values)} columns, not 'x y z r'")
+            if not all(math.isfinite(v) for v in values) or values[3] <= 0.0:
+                raise ValueError(f"line {number}: {line.strip()!r}: the radius must be > 0 and every value finite")
+            rows.append(values)
+    if len(rows) < 2:
+        raise ValueError("fewer than two spheres: a sphere list has one 'x y z r' line per sphere")
+    table = np.array(rows)
+    centers, radii = np.ascontiguousarray(table[:, :3]), np.ascontiguousarray(table[:, 3])
+    outside = np.flatnonzero(domain.signed_distance(centers) > 0.0)
+    if len(outside):
+        lo, hi = domain.bounds
+        raise ValueError(
+            f"{len(outside)} of {len(radii)} sphere centres lie outside the specimen (the first is sphere "
+            f"{outside[0] + 1}, at {centers[outside[0]].tolist()} m; the specimen spans {lo.tolist()} to "
+            f"{hi.tolist()} m): give the specimen the packing's place and size, and the file in metres")
+    pairs = cKDTree(centers).query_pairs(2.0 * radii.max(), output_type="ndarray")
+    overlap = radii[pairs[:, 0]] + radii[pairs[:, 1]] - np.linalg.norm(centers[pairs[:, 1]] - centers[pairs[:, 0]], axis=1)
+    overlap = overlap[overlap > 0.0]
+    solid = float(np.sum(4.0 / 3.0 * math.pi * radii**3))
+    return Packing(centers=centers, radii=radii, domain=domain.description(), seed=0,
+                   porosity=1.0 - solid / domain.volume, max_overlap=float(overlap.max(initial=0.0)),
+                   mean_overlap=float(overlap.mean()) if len(overlap) else 0.0, sweeps=0)
 
 
 def radius_range(mean_radius: float, radius_ratio: float) -> tuple[float, float]:

@@ -20,7 +20,7 @@ from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw, Joint
-from .packing import Box, Cylinder, Packing, Sphere, pack_spheres
+from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
 from .simulation import DemSimulation, Platen
 
 
@@ -55,8 +55,11 @@ class PackingSpec(Strict):
     seed: Annotated[int, Field(ge=0)] = 0
     """of the random packing: the same seed, the same packing"""
     file: str | None = None
-    """a packing saved before (.npz, crackle.dem.packing.Packing.save) instead of a new one, relative to the
-    scenario file's folder; it takes the place of the keys above (a warning says so when they are set too)"""
+    """a packing instead of a new one, relative to the scenario file's folder: saved by crackle (.npz,
+    crackle.dem.packing.Packing.save) or made by another code, a text sphere list (any other suffix: one
+    'x y z r' line per sphere in m, further columns ignored, # comments; the specimen section gives the
+    domain, which must hold every centre); it takes the place of the keys above (a warning says so when
+    they are set too)"""
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -180,7 +183,12 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
         path = resolve_path(spec.file, base)
         if not path.is_file():
             raise ScenarioError(f"packing.file: {path} does not exist")
-        return Packing.load(path)
+        if path.suffix.lower() == ".npz":
+            return Packing.load(path)
+        try:
+            return read_sphere_list(path, domain_of(scenario.specimen))
+        except (ValueError, UnicodeDecodeError) as err:
+            raise ScenarioError(f"packing.file: {path}: {err}") from None
     try:
         return pack_spheres(domain_of(scenario.specimen), porosity=spec.porosity, radius_ratio=spec.radius_ratio,
                             mean_radius=spec.mean_radius, seed=spec.seed)
