@@ -57,6 +57,13 @@ JAM_SWEEPS, JAM_PROGRESS = 400, 0.02
 RETREAT, RETREAT_SWEEPS = 0.002, 50
 # Porosity refused outright: random packings are not that dense for any radius range up to ~10.
 MIN_POROSITY = 0.25
+# Compaction past contact (particle_density): the spheres are first packed without overlap at
+# COMPACTION_START porosity (reachable from a few hundred spheres on), then grow together by
+# GROWTH a sweep while FIRE relaxes them, frictionless, and settle until no sphere's net overlap
+# force exceeds SETTLED times the mean of the spheres' largest overlaps (a jammed packing in
+# equilibrium).
+COMPACTION_START = 0.45
+SETTLED = 0.05
 # What this generator reaches with Rmax / Rmin = 1.86 in a cube (measured; the walls loosen the
 # layer of spheres along them, so fewer spheres reach less), for the messages.
 REACHABLE = "~0.41 with 1000 spheres, ~0.40 with 2000, ~0.37 with 100,000"
@@ -633,7 +640,7 @@ def radius_range(mean_radius: float, radius_ratio: float) -> tuple[float, float]
 
 def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, mean_radius: float | None = None,
                  count: int | None = None, seed: int = 0, overlap_tolerance: float = 0.01,
-                 max_sweeps: int = 20000) -> Packing:
+                 max_sweeps: int = 20000, particle_density: float | None = None) -> Packing:
     """A random dense packing of spheres inside `domain` (algorithm: the module's docstring).
 
     porosity: target void fraction of the domain, in (0, 1). With Rmax / Rmin = 1.86 in a cube the
@@ -648,6 +655,13 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
     overlap_tolerance: largest overlap r_a + r_b - distance accepted, as a fraction of the mean
         radius.
     max_sweeps: relaxation sweeps allowed.
+    particle_density: instead of a porosity, the number of spheres per cubed mean diameter,
+        n (2 mean_radius)^3 / V (paper 003: 1.47; a packing without overlap holds ~1.05 at
+        porosity 0.40). The spheres are packed without overlap at porosity COMPACTION_START, then
+        grown together to their radii, frictionless, and settled: the overlaps a DEM code's
+        isotropic compaction by radius growth leaves (Yade, PFC), which the bonds start from
+        unloaded. `porosity` is then not used; the Packing's is 1 - the spheres' volume / V
+        (negative past 1: overlaps counted twice).
 
     Every sphere ends inside: domain.signed_distance(centre) <= -radius, to rounding (for a
     ClosedSurface, of its interpolated distance). ValueError naming the field on bad input, and
@@ -673,6 +687,24 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         raise ValueError(f"packing.max_sweeps must be a positive number of sweeps, got {max_sweeps!r}")
     seed = int(seed)
     volume = float(domain.volume)
+    growth = 1.0  # the final radii over those packed without overlap
+    if particle_density is not None:
+        particle_density = float(particle_density)
+        if not (math.isfinite(particle_density) and particle_density > 0.0):
+            raise ValueError(f"packing.particle_density must be a positive number of spheres per cubed mean "
+                             f"diameter, got {particle_density!r}")
+        if mean_radius is None:
+            raise ValueError("packing.particle_density needs packing.mean_radius (the count follows from both)")
+        mean_radius = float(mean_radius)
+        if not (math.isfinite(mean_radius) and mean_radius > 0.0):
+            raise ValueError(f"packing.mean_radius must be a positive length (m), got {mean_radius!r}")
+        n = int(round(particle_density * volume / (2.0 * mean_radius) ** 3))
+        if n < 1:
+            raise ValueError(f"packing.particle_density = {particle_density:g}: fewer than one sphere in the domain")
+        solid = 4.0 / 3.0 * math.pi * float(np.sum((mean_radius * np.linspace(*radius_range(1.0, radius_ratio), n)
+                                                    if n > 1 else np.full(1, mean_radius)) ** 3))
+        growth = max(1.0, (solid / ((1.0 - COMPACTION_START) * volume)) ** (1.0 / 3.0))
+        porosity, mean_radius, count = 1.0 - solid / growth**3 / volume, None, n
     solid_volume = (1.0 - porosity) * volume
 
     def unit_radii(n):
@@ -711,6 +743,10 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
     centers = _random_inside(domain, n, rng)
     centers, radii, sweeps = _relax(domain, centers, radii, porosity, mean_radius, overlap_tolerance * mean_radius,
                                     int(max_sweeps))
+    if growth > 1.0:
+        centers, radii, more = _relax(domain, centers, radii * growth, porosity, mean_radius * growth,
+                                      overlap_tolerance * mean_radius, int(max_sweeps), compact_from=1.0 / growth)
+        sweeps += more
     # Final numbering: cell by cell on a grid fixed by the domain and the largest radius.
     lo, hi = domain.bounds
     cell = 2.0 * float(radii.max())
@@ -763,22 +799,48 @@ def _stop_at_walls(velocity, spheres, pushes) -> None:
     velocity[spheres] = v - against[:, None] * inward
 
 
-def _relax(domain, centers, radii, porosity, mean_radius, tolerance, max_sweeps):
+class _Fire:
+    """FIRE (Bitzek et al. 2006): damped dynamics whose velocity is steered along the force while
+    it goes downhill, and stopped, with a shorter step, when it turns uphill."""
+
+    def __init__(self):
+        self.dt, self.alpha, self.uphill_free = DT_START, ALPHA_START, 0
+
+    def move(self, centers, velocity, force) -> None:
+        power, force_sq, velocity_sq = _fire_sums(force, velocity)
+        if power >= 0.0:
+            mix = self.alpha * math.sqrt(velocity_sq / force_sq) if force_sq > 0.0 else 0.0
+            keep = 1.0 - self.alpha
+            self.uphill_free += 1
+            if self.uphill_free > FIRE_DELAY:
+                self.dt, self.alpha = min(self.dt * FIRE_DT_GROW, DT_MAX), self.alpha * FIRE_ALPHA_SHRINK
+        else:
+            keep, mix = 0.0, 0.0
+            self.dt, self.alpha, self.uphill_free = self.dt * FIRE_DT_SHRINK, ALPHA_START, 0
+        _fire_move(centers, velocity, force, keep, mix, self.dt)
+
+
+def _relax(domain, centers, radii, porosity, mean_radius, tolerance, max_sweeps, compact_from=None):
     """Grow the radii from the START_FRACTION packing to their targets while minimising the
     overlap energy sum(overlap^2) / 2 with FIRE (Bitzek et al. 2006: damped dynamics whose
     velocity is steered along the force and reset when it turns uphill), the walls a hard
     constraint (a sphere pushed back in loses its velocity into the wall). Returns (centres,
-    radii, sweeps), the spheres renumbered cell by cell."""
+    radii, sweeps), the spheres renumbered cell by cell.
+
+    compact_from: instead, compaction past contact (particle_density): the spheres, packed
+    without overlap at `compact_from` times their radii, grow by GROWTH a sweep whatever their
+    overlaps and settle (_settled: every net force off the walls within SETTLED times the mean
+    of the spheres' largest overlaps); ValueError when they do not within max_sweeps."""
     n = len(radii)
     target_fraction = 1.0 - porosity
-    scale = min(1.0, (START_FRACTION / target_fraction) ** (1.0 / 3.0))
+    scale = min(1.0, (START_FRACTION / target_fraction) ** (1.0 / 3.0)) if compact_from is None else compact_from
     lo, hi = domain.bounds
     r_max = float(radii.max())
     skin = SKIN * mean_radius
     velocity = np.zeros_like(centers)
     force = np.empty_like(centers)
     worst = np.empty(n)
-    dt, alpha, uphill_free = DT_START, ALPHA_START, 0
+    fire = _Fire()
     best, stalled = np.inf, 0
     jammed = None  # (sweep, largest overlap in mean radii, radius scale) once the spheres jam
     _push_inside(domain, centers, scale * radii, np.arange(n))
@@ -796,46 +858,54 @@ def _relax(domain, centers, radii, porosity, mean_radius, tolerance, max_sweeps)
             reference, scale_at_build, rebuild = centers.copy(), scale, False
         _pair_forces(centers, radii, scale, counts, neighbours, force, worst)
         largest = float(worst.max())
-        if largest <= tolerance and (scale == 1.0 or jammed is not None):
-            if jammed is None:
+        if compact_from is not None:
+            if scale == 1.0 and _settled(domain, centers, radii, force, near_wall, SETTLED * float(worst.mean())):
                 return centers, radii, sweep
-            _raise_jammed(porosity, jammed, 1.0 - scale**3 * target_fraction)
-        if largest < best * (1.0 - JAM_PROGRESS):
-            best, stalled = largest, 0
-        else:
-            stalled += 1
-        if jammed is not None:
-            if stalled > RETREAT_SWEEPS:
-                # Shrink until the jammed spheres relax: the porosity they do reach.
-                scale, best, stalled = scale * (1.0 - RETREAT), np.inf, 0
-        elif scale < 1.0 and largest <= GROWTH_GATE * mean_radius * scale:
             scale = min(1.0, scale * (1.0 + GROWTH))
-            best, stalled = np.inf, 0
-        elif stalled > JAM_SWEEPS:
-            jammed = (sweep, largest / mean_radius, scale)
-            best, stalled = np.inf, 0
-        # FIRE: steer the velocity towards the force while it goes downhill, else stop and slow down.
-        power, force_sq, velocity_sq = _fire_sums(force, velocity)
-        if power >= 0.0:
-            mix = alpha * math.sqrt(velocity_sq / force_sq) if force_sq > 0.0 else 0.0
-            keep = 1.0 - alpha
-            uphill_free += 1
-            if uphill_free > FIRE_DELAY:
-                dt, alpha = min(dt * FIRE_DT_GROW, DT_MAX), alpha * FIRE_ALPHA_SHRINK
         else:
-            keep, mix = 0.0, 0.0
-            dt, alpha, uphill_free = dt * FIRE_DT_SHRINK, ALPHA_START, 0
-        _fire_move(centers, velocity, force, keep, mix, dt)
+            if largest <= tolerance and (scale == 1.0 or jammed is not None):
+                if jammed is None:
+                    return centers, radii, sweep
+                _raise_jammed(porosity, jammed, 1.0 - scale**3 * target_fraction)
+            if largest < best * (1.0 - JAM_PROGRESS):
+                best, stalled = largest, 0
+            else:
+                stalled += 1
+            if jammed is not None:
+                if stalled > RETREAT_SWEEPS:
+                    # Shrink until the jammed spheres relax: the porosity they do reach.
+                    scale, best, stalled = scale * (1.0 - RETREAT), np.inf, 0
+            elif scale < 1.0 and largest <= GROWTH_GATE * mean_radius * scale:
+                scale = min(1.0, scale * (1.0 + GROWTH))
+                best, stalled = np.inf, 0
+            elif stalled > JAM_SWEEPS:
+                jammed = (sweep, largest / mean_radius, scale)
+                best, stalled = np.inf, 0
+        fire.move(centers, velocity, force)
         before = centers[near_wall]
         _push_inside(domain, centers, scale * radii, near_wall)
         _stop_at_walls(velocity, near_wall, centers[near_wall] - before)
         shift = math.sqrt(_largest_shift_sq(centers, reference))
         rebuild = 2.0 * shift + 2.0 * r_max * (scale - scale_at_build) > skin
+    if compact_from is not None:
+        raise ValueError(f"packing.particle_density: the compacted spheres did not settle within packing.max_sweeps = "
+                         f"{max_sweeps} sweeps; allow more sweeps or aim looser")
     if jammed is None:
         raise ValueError(f"packing.max_sweeps = {max_sweeps} sweeps were not enough to reach packing.porosity = "
                          f"{porosity:g} (largest overlap {largest / mean_radius:.3g} mean radii at "
                          f"{100.0 * scale:.1f} % of the target radii); allow more sweeps or aim looser")
     _raise_jammed(porosity, jammed, None)
+
+
+def _settled(domain, centers, radii, force, near_wall, tolerance):
+    """Whether the net overlap force of every sphere off the walls is within `tolerance` (m). A
+    sphere resting on a wall (or in a corner, on two or three) is balanced by the walls' reactions,
+    which the overlap force leaves out."""
+    on_wall = near_wall[domain.signed_distance(centers[near_wall]) + radii[near_wall] > -PUSH_SLACK * radii[near_wall]]
+    free = np.ones(len(radii), dtype=bool)
+    free[on_wall] = False
+    net = np.sum(force[free] ** 2, axis=1)
+    return len(net) == 0 or math.sqrt(float(net.max())) <= tolerance
 
 
 def _raise_jammed(porosity, jammed, reachable):

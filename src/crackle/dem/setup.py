@@ -52,6 +52,10 @@ class PackingSpec(Strict):
     porosity: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.4
     """void fraction of the specimen the packing aims at: about 0.37 and above for 100k spheres, 0.40 for 2,000,
     0.44 for 300 (the walls loosen the layer beside them); an unreachable one is refused with the porosity reached"""
+    particle_density: Positive | None = None
+    """spheres per cubed mean diameter, n (2 mean_radius)^3 / V, instead of a porosity (paper 003: 1.47; a packing
+    without overlap holds ~1.05): packed without overlap, then grown together and settled, frictionless, as DEM
+    codes compact a rock sample by radius growth; the bonds start unloaded at the overlaps that leaves"""
     seed: Annotated[int, Field(ge=0)] = 0
     """of the random packing: the same seed, the same packing"""
     file: str | None = None
@@ -191,7 +195,7 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
             raise ScenarioError(f"packing.file: {path}: {err}") from None
     try:
         return pack_spheres(domain_of(scenario.specimen), porosity=spec.porosity, radius_ratio=spec.radius_ratio,
-                            mean_radius=spec.mean_radius, seed=spec.seed)
+                            mean_radius=spec.mean_radius, seed=spec.seed, particle_density=spec.particle_density)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
 
@@ -234,7 +238,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     sim.packing = packing
     if scenario.packing.file is not None and scenario.packing.mean_radius is not None:
         sim.warnings.append(f"packing.file {scenario.packing.file} is used: packing.mean_radius, porosity, "
-                            "radius_ratio and seed do not apply")
+                            "radius_ratio, particle_density and seed do not apply")
+    elif scenario.packing.particle_density is not None and "porosity" in scenario.packing.model_fields_set:
+        sim.warnings.append(f"packing.particle_density = {scenario.packing.particle_density:g} sets the packing: "
+                            "packing.porosity does not apply")
     sim.sample_volume = domain.volume
     sim.flaw = flaw
     sim.platen = platen
