@@ -661,7 +661,7 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         grown together to their radii, frictionless, and settled: the overlaps a DEM code's
         isotropic compaction by radius growth leaves (Yade, PFC), which the bonds start from
         unloaded. `porosity` is then not used; the Packing's is 1 - the spheres' volume / V
-        (negative past 1: overlaps counted twice).
+        (overlaps counted twice: 0.16 at 1.47).
 
     Every sphere ends inside: domain.signed_distance(centre) <= -radius, to rounding (for a
     ClosedSurface, of its interpolated distance). ValueError naming the field on bad input, and
@@ -687,6 +687,12 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         raise ValueError(f"packing.max_sweeps must be a positive number of sweeps, got {max_sweeps!r}")
     seed = int(seed)
     volume = float(domain.volume)
+
+    def unit_radii(n):
+        # Radii for a mean radius of 1, evenly spread from Rmin to Rmax: both ends, their ratio and
+        # the uniform distribution hold exactly whatever the count.
+        return np.linspace(*radius_range(1.0, radius_ratio), n) if n > 1 else np.ones(1)
+
     growth = 1.0  # the final radii over those packed without overlap
     if particle_density is not None:
         particle_density = float(particle_density)
@@ -701,16 +707,10 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         n = int(round(particle_density * volume / (2.0 * mean_radius) ** 3))
         if n < 1:
             raise ValueError(f"packing.particle_density = {particle_density:g}: fewer than one sphere in the domain")
-        solid = 4.0 / 3.0 * math.pi * float(np.sum((mean_radius * np.linspace(*radius_range(1.0, radius_ratio), n)
-                                                    if n > 1 else np.full(1, mean_radius)) ** 3))
+        solid = 4.0 / 3.0 * math.pi * float(np.sum((mean_radius * unit_radii(n)) ** 3))
         growth = max(1.0, (solid / ((1.0 - COMPACTION_START) * volume)) ** (1.0 / 3.0))
         porosity, mean_radius, count = 1.0 - solid / growth**3 / volume, None, n
     solid_volume = (1.0 - porosity) * volume
-
-    def unit_radii(n):
-        # Radii for a mean radius of 1, evenly spread from Rmin to Rmax: both ends, their ratio and
-        # the uniform distribution hold exactly whatever the count.
-        return np.linspace(*radius_range(1.0, radius_ratio), n) if n > 1 else np.ones(1)
 
     if mean_radius is not None:
         field_name = "packing.mean_radius"
