@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 # Packing fraction of the start (the radii scaled down to it): loose enough that the first
 # sweeps only separate the random centres, dense enough that little growth is left to do.
@@ -622,13 +621,15 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
             f"{len(outside)} of {len(radii)} sphere centres lie outside the specimen (the first is sphere "
             f"{outside[0] + 1}, at {centers[outside[0]].tolist()} m; the specimen spans {lo.tolist()} to "
             f"{hi.tolist()} m): give the specimen the packing's place and size, and the file in metres")
-    pairs = cKDTree(centers).query_pairs(2.0 * radii.max(), output_type="ndarray")
-    overlap = radii[pairs[:, 0]] + radii[pairs[:, 1]] - np.linalg.norm(centers[pairs[:, 1]] - centers[pairs[:, 0]], axis=1)
-    overlap = overlap[overlap > 0.0]
+    # The overlap statistics of a generated packing, on a copy numbered by cell as they need.
+    lo, hi = domain.bounds
+    cell = 2.0 * float(radii.max())
+    dims = np.maximum(np.floor((hi - lo) / cell).astype(np.int64), 1)
+    _, order = _bin(centers, lo, cell, dims)
+    max_overlap, mean_overlap = _overlap_stats(centers[order], radii[order], lo, dims, cell)
     solid = float(np.sum(4.0 / 3.0 * math.pi * radii**3))
     return Packing(centers=centers, radii=radii, domain=domain.description(), seed=0,
-                   porosity=1.0 - solid / domain.volume, max_overlap=float(overlap.max(initial=0.0)),
-                   mean_overlap=float(overlap.mean()) if len(overlap) else 0.0, sweeps=0)
+                   porosity=1.0 - solid / domain.volume, max_overlap=max_overlap, mean_overlap=mean_overlap, sweeps=0)
 
 
 def radius_range(mean_radius: float, radius_ratio: float) -> tuple[float, float]:
