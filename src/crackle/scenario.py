@@ -322,7 +322,10 @@ class Where(Strict):
 
 
 class SupportSpec(Strict):
-    """[[supports]]: nodes held fixed, clamped, or on rollers (blocked along `normal`)."""
+    """[[supports]]: nodes held fixed, clamped, or on rollers (blocked along `normal`); with a
+    speed, the blocked directions move at a prescribed velocity instead (a velocity boundary
+    condition: nodes that can be pulled), and the support's reaction is reported like a tool's
+    force."""
 
     kind: Literal["fixed", "roller", "clamped"]
     """fixed: no motion; roller: no motion along normal; clamped: no motion, and on a shell the boundary edges between selected nodes keep their slope (a solid's fixed nodes are already clamped: the same as fixed there; DEM: not available)"""
@@ -330,6 +333,32 @@ class SupportSpec(Strict):
     """which nodes"""
     normal: Vec3 = (0.0, 0.0, 1.0)
     """roller: the blocked direction"""
+    speed: float = 0.0
+    """m/s along direction: the blocked directions of the selected nodes move with velocity speed x direction (a roller: its component along normal); 0: they hold still"""
+    direction: Vec3 | None = None
+    """of the motion (normalised); default: a roller's normal; a fixed or clamped support with a speed needs one"""
+    ramp_time: NonNegative = 0.0
+    """s, linear ramp from 0 to speed"""
+    speed_table: VelocityTable | None = None
+    """instead of speed and ramp_time: m/s against s"""
+    name: str | None = None
+    """a moving support's name in history.csv and summary.json, as a tool's: tool.NAME.fx/fy/fz its reaction on the specimen (N, through the load cell), tool.NAME.ux/uy/uz its displacement; default support1, support2 ... by its place in [[supports]]"""
+
+    @property
+    def moves(self) -> bool:
+        return self.speed != 0.0 or self.speed_table is not None
+
+    @model_validator(mode="after")
+    def _motion(self):
+        if not self.moves:
+            motion_only = sorted({"direction", "ramp_time", "name"} & self.model_fields_set)
+            if motion_only:
+                raise ValueError(f"{', '.join(motion_only)}: only for a moving support; give speed (or speed_table)")
+        elif self.kind != "roller" and self.direction is None:
+            raise ValueError(f"a {self.kind} support with a speed needs direction = [x, y, z] (of its motion)")
+        if self.direction is not None and all(c == 0 for c in self.direction):
+            raise ValueError("direction must be a non-zero vector")
+        return self
 
 
 class PrecrackSpec(Strict):
@@ -515,9 +544,9 @@ class ScenarioBase(Strict):
 
     @model_validator(mode="after")
     def _tool_names(self):
-        names = [t.name for t in self.all_tools()]
+        names = [t.name for t in self.all_tools()] + [name for _, name in self.support_grips()]
         if len(set(names)) != len(names):
-            raise ValueError("tool names must be unique")
+            raise ValueError("tool names must be unique (a moving support's name included)")
         if self.run.stop.tool is not None and self.run.stop.tool not in names:
             raise ValueError(f"run.stop.tool '{self.run.stop.tool}' is not a tool name ({', '.join(names) or 'no tools'})")
         return self
@@ -525,6 +554,11 @@ class ScenarioBase(Strict):
     def all_tools(self) -> list[ToolSpec]:
         """[[tools]] followed by the [plates] as tools."""
         return list(self.tools) + (self.plates.tool_specs() if self.plates is not None else [])
+
+    def support_grips(self) -> list[tuple[int, str]]:
+        """The moving supports: (index in [[supports]], name), in order; each also becomes a tool of
+        shape "support" after all_tools() (loading.build.build_loading)."""
+        return [(i, s.name or f"support{i + 1}") for i, s in enumerate(self.supports) if s.moves]
 
 
 # ---------------------------------------------------------------------------------------------

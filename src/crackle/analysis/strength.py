@@ -1,6 +1,7 @@
 """Nominal strengths of the standard strength tests, from the load cell's peak and the specimen.
 
-Direct tension: a specimen pulled by a glued grip; its nominal strength is the grip's peak force
+Direct tension: a specimen pulled by a glued grip or a moving support; its nominal strength is
+the grip's peak force
 over the mean cross-section normal to the pull (volume / extent along it), and
 tensile_strength_ratio compares it with the tensile strength the material was given: 1 for a
 bar small against the characteristic length E Gf / ft^2, whatever the mesh and the insertion.
@@ -21,7 +22,8 @@ from .brazilian import brazilian_strength, splitting_angle
 
 @dataclass(frozen=True)
 class TensionTest:
-    """A glued grip pulling the specimen: tool index, section (m^2), the material's ft (Pa)."""
+    """A grip pulling the specimen (a glued tool, or a moving support's tool): tool index, section
+    (m^2), the material's ft (Pa)."""
 
     tool: int
     section: float
@@ -50,12 +52,21 @@ class BrazilianTest:
                 "splitting_angle": angle if math.isfinite(angle) else None}
 
 
-def pulling_grip(tools, points: np.ndarray) -> int | None:
+def pulling_grip(tools, points: np.ndarray, supports=(), scale: float = 1.0) -> int | None:
     """The first glued, moving tool that lies ahead of the specimen along its direction (it pulls
-    the specimen's far end), or None."""
+    the specimen's far end), else the first moving support whose points lie ahead of the
+    specimen's centroid along its motion (`scale`: the specimen size, for its selection's
+    tolerance), as its tool's index; or None."""
     for j, tool in enumerate(tools):
         if tool.glued and tool.moves and ahead_of(tool, points):
             return j
+    centroid = points.mean(axis=0)
+    for support in supports:
+        if support.tool < 0 or not tools[support.tool].moves:
+            continue
+        held = points[support.where.mask(points, scale)]
+        if len(held) and float((held.mean(axis=0) - centroid) @ np.asarray(tools[support.tool].direction)) > 0.0:
+            return support.tool
     return None
 
 

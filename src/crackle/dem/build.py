@@ -34,8 +34,8 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
             raise ValueError("give gamma or bonds_per_particle")
         gamma = bond_gamma(centers, radii, bonds_per_particle)
     scale = float(np.max(np.ptp(centers, axis=0) + 2.0 * radii.max()))
-    constraint, projection = support_constraints(supports, centers, scale)
-    particles = make_particles(centers, radii, density, constraint, projection, velocity)
+    constraint, projection, support_tool = support_constraints(supports, centers, scale)
+    particles = make_particles(centers, radii, density, constraint, projection, support_tool, velocity)
     inter = bonds(particles, law, gamma)
     if joint is not None:
         inter = with_joints(particles, inter, joint)

@@ -43,7 +43,7 @@ BONDED, BROKEN, CONTACT, GONE, JOINT = 0, 1, 2, 3, 4
 
 Particles = namedtuple(
     "Particles",
-    "x v spin mass inertia radius area constraint projection tool tool_offset friction d_friction w_external "
+    "x v spin mass inertia radius area constraint projection support_tool tool tool_offset friction d_friction w_external "
     "w_damping",
 )
 Interactions = namedtuple(
@@ -268,7 +268,7 @@ def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool
         )
         update_velocity_local_damping(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz,
                                       tool_work, m, alpha, dt, particles.constraint, particles.projection,
-                                      particles.w_external, w_damping)
+                                      particles.support_tool, tool_v_next, force_slots, slot, particles.w_external, w_damping)
         move(g, x, v, dt)
         # Spin: the same central difference and local damping on the torque (no supports on it).
         j = inertia[g]

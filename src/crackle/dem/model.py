@@ -62,7 +62,7 @@ def _range_ratio(centers, radii, pairs) -> np.ndarray:
     return dist / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
 
 
-def make_particles(centers, radii, density, constraint, projection, velocity=None) -> Particles:
+def make_particles(centers, radii, density, constraint, projection, support_tool, velocity=None) -> Particles:
     n = len(radii)
     mass = density * 4.0 / 3.0 * math.pi * radii**3
     return Particles(
@@ -75,6 +75,7 @@ def make_particles(centers, radii, density, constraint, projection, velocity=Non
         area=math.pi * radii**2,
         constraint=constraint,
         projection=projection,
+        support_tool=support_tool,
         tool=np.full(n, -1, dtype=np.int8),
         tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)),

@@ -15,7 +15,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..loading.build import build_loading, touch_specimen
+from ..analysis.strength import TensionTest, pulling_grip
+from ..loading.build import build_loading, touch_tools
 from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
@@ -212,18 +213,21 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         if flaw.kind == "open":
             centers, radii = _open_flaw(flaw, centers, radii)
     # A touching platen is placed on the particle furthest along its direction (on its surface).
-    tools = [touch_specimen(t, centers - radii[:, None] * _unit(t.direction)) if spec.touch else t
-             for t, spec in zip(tools, scenario.all_tools())]
+    tools = touch_tools(tools, scenario.all_tools(), lambda tool: centers - radii[:, None] * _unit(tool.direction))
     domain = domain_of(scenario.specimen)
     moving = [i for i, t in enumerate(tools) if t.moves]
+    # A moving support (or a glued tool) that pulls the far end: direct tension.
+    grip = pulling_grip(tools, centers, supports, float(np.max(np.ptp(centers, axis=0) + 2.0 * radii.max())))
     loaded_area = platen = None
     if moving:
-        # The mean cross-section normal to the first moving tool: platen stress = force / it.
-        direction = _unit(tools[moving[0]].direction)
+        # The mean cross-section normal to the pulling grip or else the first moving tool (the
+        # platen): platen stress = force / it.
+        lead = tools[grip if grip is not None else moving[0]]
+        direction = _unit(lead.direction)
         along = centers @ direction
         extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
-        platen = Platen(tools[moving[0]].name, direction, extent)
+        platen = Platen(lead.name, direction, extent)
     mat = scenario.material
     try:
         sim = build_dem_simulation(
@@ -245,6 +249,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     sim.sample_volume = domain.volume
     sim.flaw = flaw
     sim.platen = platen
+    if grip is not None:
+        sim.strength_test = TensionTest(grip, loaded_area, mat.tensile_strength)
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
+from ..analysis.strength import TensionTest
 from ..io import plot_stress_strain
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
@@ -51,6 +52,7 @@ class DemSimulation:
         self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
         self.flaw = None  # the scenario's [flaw] (setup.FlawSpec), if any
         self.platen: Platen | None = None  # the tool whose stress and strain the history gives
+        self.strength_test: TensionTest | None = None  # direct tension: nominal strengths in the summary
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.time = 0.0
@@ -292,6 +294,8 @@ class DemSimulation:
                 diameter, thickness = self.brazilian
                 # The elastic Brazilian relation: the tensile stress across the loaded diameter.
                 out["brazilian_strength"] = brazilian_strength(float(np.max(peaks, initial=0.0)), diameter, thickness)
+        if self.strength_test is not None:
+            out.update(self.strength_test.summary(self.load_cell.peaks()[0]))
         return out
 
     def extra_plots(self, out_dir) -> None:

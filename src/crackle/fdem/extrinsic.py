@@ -266,12 +266,13 @@ def regroup_released(ties, na, released_blocks, block):
 
 
 @block_kernel
-def cluster_block(lo, hi, dt, nodes, ties, ctrl):
+def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
     """Mesh points lo..hi-1: each cluster of copies gets the summed mass and forces of its
     members, one central-difference update on its leader, and the members take its velocity and
-    move with it."""
+    move with it. A moving support's reaction goes to the tools' force `slot` of this block."""
     x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
-    constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
+    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
+    force_slots = tools.force_slots
     w_external, w_damping = nodes.w_external, nodes.w_damping
     ptr, members, leader = ties.vertex_ptr, ties.vertex_nodes, ties.leader
     ext, tool_force, tool_work = ties.ext, ties.tool_force, ties.tool_work
@@ -298,7 +299,7 @@ def cluster_block(lo, hi, dt, nodes, ties, ctrl):
                 m += mass[g]
                 k += 1
             update_velocity(lead, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, work, m, alpha, dt, constraint,
-                            constraint_projection, w_external, w_damping)
+                            projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
             move(lead, x, v, dt)
             for r in range(j, k):
                 g = members[r]

@@ -214,7 +214,7 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
     tool_of, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
     w_external, w_damping = nodes.w_external, nodes.w_damping
-    constraint, constraint_projection = nodes.constraint, nodes.constraint_projection
+    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
     force_slots = tools.force_slots
@@ -296,7 +296,8 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                 tool_work[g] = work
                 continue
             update_velocity(g, v, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, work, m, alpha, dt,
-                            constraint, constraint_projection, w_external, w_damping)
+                            constraint, projection, support_tool, tool_v_next, force_slots, slot, w_external,
+                            w_damping)
         if clustered:
             continue
         # Positions last: the pressure on a face above used the corners' positions at time t.
@@ -344,7 +345,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
             n_vertex = ties.vertex_ptr.shape[0] - 1
             for blk in prange(n_vertex_blocks):
                 lo = blk * VERTEX_BLOCK
-                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), dt, nodes, ties, ctrl)
+                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), blk, dt, nodes, ties, ctrl, tools, tool_v_next)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

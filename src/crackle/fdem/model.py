@@ -19,7 +19,7 @@ from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, tool_ar
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
-from .extrinsic import TIED, Ties, build_ties
+from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
 from .kernels import TET_BLOCK
 from .laws import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT
 from .topology import FACE_CORNERS, INTACT, PRECRACK
@@ -31,7 +31,7 @@ from .topology import FACE_CORNERS, INTACT, PRECRACK
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass contact_area force constraint constraint_projection friction tool tool_offset w_external w_damping d_friction",
+    "x v mass contact_area force constraint projection support_tool friction tool tool_offset w_external w_damping d_friction",
 )
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
@@ -141,8 +141,9 @@ def build_fdem_model(
     default_penalty = TOOL_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
     # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
     # contact (penetrations stay ~1e-4 of it); each block of the tet pass writes its own slot of
-    # the tool forces.
-    tool_table = tool_arrays(tools, default_penalty, median_altitude, -(-m // TET_BLOCK))
+    # the tool forces, and each block of the extrinsic node pass its own moving supports' reaction.
+    slots = max(-(-m // TET_BLOCK), -(-len(mesh.points) // VERTEX_BLOCK))
+    tool_table = tool_arrays(tools, default_penalty, median_altitude, slots)
 
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
@@ -385,7 +386,7 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
     if len(pairs.state):
         free_face |= pairs.state[np.maximum(face_iface, 0)] == PRECRACK
     contact_area, on_free_face = _contact_area(bulk.face_area, free_face)
-    constraint, projections = support_constraints(supports, bulk.x0, scale)
+    constraint, projection, support_tool = support_constraints(supports, bulk.x0, scale)
     return Nodes(
         x=bulk.x0.copy(),
         v=v,
@@ -393,7 +394,8 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
         contact_area=contact_area,
         force=np.zeros((n, 3)),
         constraint=constraint,
-        constraint_projection=projections,
+        projection=projection,
+        support_tool=support_tool,
         friction=np.zeros((n, 3)),
         tool=np.where(on_free_face, NO_TOOL, HIDDEN).astype(np.int8),
         tool_offset=np.zeros(n),

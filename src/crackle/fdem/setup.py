@@ -13,7 +13,7 @@ from ..analysis import CrackSettings, FracturePlane
 from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pulling_grip
 from ..geometry import MeshError
 from ..geometry.specimens import specimen_mesh
-from ..loading.build import build_loading, build_precracks, touch_specimen
+from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from .laws import LAWS
@@ -113,7 +113,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
         mesh, region = specimen_mesh(scenario.specimen, base)
     except MeshError as err:
         raise ScenarioError(f"specimen: {err}") from None
-    tools = [touch_specimen(t, mesh.points) if spec.touch else t for t, spec in zip(tools, scenario.all_tools())]
+    tools = touch_tools(tools, scenario.all_tools(), lambda tool: mesh.points)
     material = build_material(scenario.material)
     tet_material = None
     if region is not None and scenario.suture is not None:
@@ -147,7 +147,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     if sizing:
         model.warnings.insert(0, sizing)
     sim = FdemSimulation(model)
-    _strength_test(sim, scenario, tools, mesh)
+    _strength_test(sim, scenario, tools, supports, mesh)
     plane = scenario.analysis.fracture_plane
     if plane is not None:
         size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
@@ -163,11 +163,12 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     return sim
 
 
-def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, mesh) -> None:
+def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mesh) -> None:
     """The strength test the set-up is, if any, for the summary's nominal strengths: a glued grip
-    pulling the specimen (direct tension) or a disc between platens (Brazilian)."""
+    or a moving support pulling the specimen (direct tension) or a disc between platens
+    (Brazilian)."""
     spec = scenario.specimen
-    grip = pulling_grip(tools, mesh.points)
+    grip = pulling_grip(tools, mesh.points, supports, float(np.max(mesh.bounds()[1] - mesh.bounds()[0])))
     if grip is not None:
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
         sim.strength_test = TensionTest(grip, section, scenario.material.interface.tensile_strength)

@@ -17,7 +17,7 @@ from ..solver.integrator import block_kernel, move, update_velocity
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass area constraint projection tool tool_offset friction d_friction w_external w_damping",
+    "x v mass area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping",
 )
 Springs = namedtuple("Springs", "a b rest k intact fail_time fail_mode e_damage force node_start node_spring node_sign")
 
@@ -69,7 +69,8 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
 def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
     x, v, mass, area = nodes.x, nodes.v, nodes.mass, nodes.area
     node_tool, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
-    constraint, projection, w_external, w_damping = nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping
+    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
+    w_external, w_damping = nodes.w_external, nodes.w_damping
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     start, node_spring, node_sign, force = springs.node_start, springs.node_spring, springs.node_sign, springs.force
@@ -89,7 +90,8 @@ def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_nex
             tool_v_prev, tool_v_next, node_tool, tool_offset, friction, d_friction,
         )
         update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
-                        m, alpha, dt, constraint, projection, w_external, w_damping)
+                        m, alpha, dt, constraint, projection, support_tool, tool_v_next, force_slots, slot, w_external,
+                        w_damping)
         move(g, x, v, dt)
 
 

@@ -84,7 +84,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     k = np.full(n_spring, 0.4 * scenario.material.youngs_modulus * spec.spacing)
     scale = float(max(spec.size))
     try:
-        constraint, projection = support_constraints(supports, x, scale)
+        constraint, projection, support_tool = support_constraints(supports, x, scale)
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
     # Node -> (spring, sign) CSR in spring order: the spring force acts on b, its negative on a.
@@ -104,7 +104,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     tool_table = tool_arrays(tools, penalty, spec.spacing, -(-n // BLOCK))
     nodes = Nodes(
         x=x, v=np.zeros((n, 3)), mass=mass, area=area, constraint=constraint,
-        projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
+        projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
     )
     # Stable step (Gershgorin per node): 2 sqrt(m / sum of its spring and tool stiffnesses).

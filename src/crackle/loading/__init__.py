@@ -79,6 +79,8 @@ class Tool:
       box:      `center`, `size` (full edge lengths), `axes` (two orthonormal in-plane axes)
       cylinder: `center` on the axis, `axis`, `radius`, `length` (inf for an endless roller)
       sphere:   `center`, `radius`
+      support:  no surface: the grip of a support with a speed (loading.build.build_loading), which
+                drives the nodes the support holds (solver.integrator) and reads their reaction
       surface:  `vertices` (n, 3) and `triangles` (k, 3), or `surface`, a file meshio reads (STL,
                 .obj, .ply, .vtu, .msh ...; see `load_surface` for scale and offset). The
                 triangles' normals (right-hand rule on the winding) must point out of the tool,
@@ -138,8 +140,8 @@ class Tool:
             row[3:6] = 0.5 * np.asarray(self.size, dtype=float)
             row[6:9] = a1
             row[9:12] = a2
-        elif self.shape == "surface":
-            pass  # the contact grid's origin, cell and depth: filled in by the model
+        elif self.shape in ("surface", "support"):
+            pass  # surface: the contact grid's origin, cell and depth, filled in by the model
         else:
             raise ValueError(f"unknown tool shape {self.shape!r}; choose one of {TOOL_SHAPES}")
         return row
@@ -183,11 +185,14 @@ class Selection:
 @dataclass(frozen=True)
 class Support:
     """fixed: no motion; clamped: no motion (a shell also holds its slope there); roller: no motion
-    along `normal` (slides in the plane)."""
+    along `normal` (slides in the plane). With a grip (`tool` >= 0, the index of a Tool of shape
+    "support" in the method's tools) the blocked directions move with that tool instead of
+    holding still, and the tool's load cell reads the support's reaction."""
 
     kind: str
     where: Selection
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    tool: int = -1
 
 
 @dataclass(frozen=True)

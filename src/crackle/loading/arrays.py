@@ -7,7 +7,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SURFACE
+from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
 Tools = namedtuple(
     "Tools",
@@ -45,6 +45,7 @@ SHAPE_CODES = {
     "cylinder": TOOL_CYLINDER,
     "sphere": TOOL_SPHERE,
     "surface": TOOL_SURFACE,
+    "support": TOOL_SUPPORT,
 }
 
 
@@ -60,7 +61,9 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
     direction = np.array([np.asarray(t.direction, float) / np.linalg.norm(t.direction) for t in tools]).reshape(-1, 3)
     times, speeds, counts = history_tables([t.speed for t in tools])
     mu = np.array([t.friction for t in tools], dtype=float)
-    penalty = np.array([t.penalty if t.penalty is not None else default_penalty for t in tools], dtype=float)
+    # A support's grip touches nothing: no penalty (none for the stable step to heed).
+    penalty = np.array([0.0 if t.shape == "support" else t.penalty if t.penalty is not None else default_penalty
+                        for t in tools], dtype=float)
     surf = _surface_tool_grids(tools, geom, contact_depth)
     mass = np.array([t.mass or 0.0 for t in tools], dtype=float)
     # A glued tool attaches the points within this distance (default: a millionth of the contact

@@ -14,6 +14,7 @@ from . import History, Precrack, Pressure, Selection, Support, Tool, load_surfac
 
 
 def _history_of(spec) -> History:
+    """A tool's or a moving support's speed history: its table, or a ramp to its speed."""
     if spec.speed_table is not None:
         return History(tuple(spec.speed_table.time), tuple(spec.speed_table.speed))
     return History.ramp(spec.speed, spec.ramp_time)
@@ -137,15 +138,37 @@ def build_pressures(specs, end_time: float) -> list[Pressure]:
     return out
 
 
-def build_supports(specs) -> list[Support]:
-    return [Support(s.kind, selection(s.where), s.normal) for s in specs]
+def build_supports(specs, grips: dict[int, int] | None = None) -> list[Support]:
+    """[[supports]] as loading.Support; `grips` maps a moving support's index to its tool's."""
+    grips = grips or {}
+    return [Support(s.kind, selection(s.where), s.normal, grips.get(i, -1)) for i, s in enumerate(specs)]
+
+
+def support_grip(spec, name: str) -> Tool:
+    """The tool of shape "support" that drives a moving support and reads its reaction: its
+    direction (a roller's normal by default) and speed history; it touches nothing."""
+    direction = spec.direction if spec.direction is not None else spec.normal
+    return Tool(name=name, shape="support", direction=tuple(float(c) for c in direction), speed=_history_of(spec))
 
 
 def build_loading(scenario, base: Path | None):
     """The tools (before meshing: a bad surface file fails fast), supports and pressures of a
-    scenario."""
+    scenario. The tools are [[tools]] and [plates] (scenario.all_tools()), then the grips of the
+    moving supports (scenario.support_grips())."""
     tools = build_tools(scenario.all_tools(), base, scenario.loading)
-    return tools, build_supports(scenario.supports), build_pressures(scenario.pressures, scenario.run.end_time)
+    grips = {}
+    for i, name in scenario.support_grips():
+        grips[i] = len(tools)
+        tools.append(support_grip(scenario.supports[i], name))
+    return (tools, build_supports(scenario.supports, grips),
+            build_pressures(scenario.pressures, scenario.run.end_time))
+
+
+def touch_tools(tools: list[Tool], specs, points_for) -> list[Tool]:
+    """The tools with those whose spec asks `touch` placed on the specimen by touch_specimen on
+    `points_for(tool)` (the specimen's points as that tool meets them); the support grips after
+    the specs are kept as they are."""
+    return [touch_specimen(t, points_for(t)) if j < len(specs) and specs[j].touch else t for j, t in enumerate(tools)]
 
 
 def build_precracks(specs) -> list[Precrack]:

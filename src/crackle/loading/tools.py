@@ -21,8 +21,9 @@ from numba import njit, prange
 
 from .friction import coulomb_update
 
-# Tool shapes (Tools.kind).
-TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE, TOOL_SURFACE = 0, 1, 2, 3, 4
+# Tool shapes (Tools.kind); TOOL_SUPPORT: a moving support's grip, which touches nothing (the
+# integrator drives the support's nodes and puts their reaction in its force slots).
+TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE, TOOL_SURFACE, TOOL_SUPPORT = 0, 1, 2, 3, 4, 5
 # Columns of a surface tool's triangle rows (Tools.surf_tri), in the tool's own frame: corner 0,
 # edges e1 = p1 - p0 and e2 = p2 - p0, unit outward normal, and the barycentric Gram terms
 # e1.e1, e1.e2, e2.e2 and 1 / (e1.e1 e2.e2 - (e1.e2)^2).
@@ -153,6 +154,8 @@ def tool_gap(j, px, py, pz, radius, tools):
     kind = tools.kind[j]
     if kind == TOOL_SURFACE:
         return _surface_gap(j, px, py, pz, radius, tools)
+    if kind == TOOL_SUPPORT:
+        return math.inf, 0.0, 0.0, 0.0
     g = tools.geom[j]
     cx = g[0] + tools.disp[j, 0]
     cy = g[1] + tools.disp[j, 1]

@@ -58,7 +58,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     table = law.table()
     links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value))
     scale = float(np.max(np.ptp(X, axis=0)))
-    constraint, projection = support_constraints(supports, X, scale)
+    constraint, projection, support_tool = support_constraints(supports, X, scale)
     loads = pressure_arrays(plate, pressures, scale)
     mass = density * plate.volume
     v = np.zeros((n, 3))
@@ -66,7 +66,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         v[:] = np.asarray(velocity, dtype=float)
     particles = Particles(
         x=X.copy(), v=v, X=X, mass=mass, volume=plate.volume.copy(), area=plate.area.copy(), constraint=constraint,
-        projection=projection, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
+        projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
         plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
         deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_k=stab_k,

@@ -46,7 +46,7 @@ from .shape import quartic_spline_array
 
 Particles = namedtuple(
     "Particles",
-    "x v X mass volume area constraint projection tool tool_offset friction d_friction w_external w_damping "
+    "x v X mass volume area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
     "plastic eq_plastic w_plastic stress deformation internal stab_k stab_force thermal",
 )
 # thermal: per particle the temperature (K) and the stored energy per reference volume the
@@ -193,7 +193,8 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, tool_v_
             force_slots, tool_v_prev, tool_v_next, p.tool, p.tool_offset, p.friction, p.d_friction,
         )
         update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work,
-                        m, alpha, dt, p.constraint, p.projection, p.w_external, p.w_damping)
+                        m, alpha, dt, p.constraint, p.projection, p.support_tool, tool_v_next, force_slots, slot,
+                        p.w_external, p.w_damping)
         move(g, x, v, dt)
 
 

@@ -223,7 +223,7 @@ def _continued(shell: Shell, mesh, source: np.ndarray) -> Shell:
         counter[:n_old] = getattr(old, name)
         carried[name] = counter
     carried["load"][n_old:] = 0.0
-    new.nodes = new.nodes._replace(projection=old.projection, **carried)
+    new.nodes = new.nodes._replace(projection=old.projection, support_tool=old.support_tool, **carried)
     for name in ("pressure", "pressure_sign", "pressure_delay"):
         getattr(new.faces, name)[:] = getattr(shell.faces, name)
     _carry_edge_state(shell, new, source)

@@ -40,7 +40,7 @@ BLOCK = 256  # faces, edges or nodes per parallel task
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass area radius constraint projection tool tool_offset friction d_friction w_external w_damping "
+    "x v mass area radius constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
     "load face_start face_slot edge_start edge_slot",
 )
 # load: (n, 3) N, the nodal external force at load factor 1 (edge tractions, lumped);
@@ -320,7 +320,9 @@ def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, to
         )
         update_velocity(g, v, fx, fy, fz, m * gravity[0] + scale * load[g, 0] + px,
                         m * gravity[1] + scale * load[g, 1] + py, m * gravity[2] + scale * load[g, 2] + pz, cx, cy, cz,
-                        tool_work, m, alpha, dt, nodes.constraint, nodes.projection, nodes.w_external, nodes.w_damping)
+                        tool_work, m, alpha, dt, nodes.constraint, nodes.projection, nodes.support_tool,
+                        tool_v_next, force_slots, slot,
+                        nodes.w_external, nodes.w_damping)
         move(g, x, v, dt)
 
 

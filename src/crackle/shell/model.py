@@ -236,7 +236,8 @@ def build_shell(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray | 
                                                                                                       clamped)
     n = len(mesh.X)
     nodes = Nodes(x=mesh.X.copy(), v=np.zeros((n, 3)), mass=mass, area=area, radius=radius,
-                  constraint=np.full(n, FREE, dtype=np.int16), projection=np.zeros((1, 3, 3)),
+                  constraint=np.full(n, FREE, dtype=np.int16),
+                  projection=np.zeros((1, 3, 3)), support_tool=np.full(1, -1, dtype=np.int64),
                   tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n), friction=np.zeros((n, 3)),
                   d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n), load=np.zeros((n, 3)),
                   face_start=face_start, face_slot=face_slot, edge_start=edge_start, edge_slot=edge_slot)

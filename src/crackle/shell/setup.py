@@ -199,13 +199,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     factor = LoadFactor(np.array([0.0, ramp]) if ramp > 0 else np.array([0.0]),
                         np.array([0.0, 1.0]) if ramp > 0 else np.array([1.0]), 2 if ramp > 0 else 1)
     try:
-        constraint, projection = support_constraints(supports, mesh.X, scale)
+        constraint, projection, support_tool = support_constraints(supports, mesh.X, scale)
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
     h = mesh.element_size()
     penalty = TOOL_PENALTY_FACTOR * mat.youngs_modulus / h
     tool_table = tool_arrays(tools, penalty, h, -(-len(mesh.X) // BLOCK))
-    shell.nodes = shell.nodes._replace(load=load, constraint=constraint, projection=projection)
+    shell.nodes = shell.nodes._replace(load=load, constraint=constraint, projection=projection,
+                                       support_tool=support_tool)
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
     stable_dt = shell.stable_dt(tool_k)
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))

@@ -21,7 +21,7 @@ from .. import __version__
 
 CHECKPOINT_FILE = "checkpoint.pkl"
 # Bumped when what a checkpoint holds changes; an older one is refused with a message.
-CHECKPOINT_FORMAT = 4
+CHECKPOINT_FORMAT = 5
 
 
 @functools.cache

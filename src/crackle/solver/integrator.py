@@ -22,28 +22,34 @@ from numba import njit
 # arrays (numba refuses to compile one that tries); allocate in the caller.
 block_kernel = njit(cache=True, _nrt=False)
 
-# constraint[node]: FREE, or the row of the node's velocity projector in the projection table
-# (row FIXED = 0 is the zero matrix: no motion).
+# constraint[node]: FREE, or the node's row of the support table (row FIXED = 0: no motion).
+# Per row: projection[row], the velocity projector P (3, 3) of the supports that hold the node
+# (they block the directions I - P), and support_tool[row], the index in the Tools arrays of the
+# grip that drives the blocked directions (a support with a speed: loading.build.build_loading
+# makes it a tool of shape "support", so that the load cell reads its reaction like a tool's
+# force), or -1 where they hold still.
 FREE, FIXED = -1, 0
 
 
 @njit(cache=True, inline="always")
 def update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint, projection,
-                    w_external, w_damping):
+                    support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
     """New half-step velocity of node g into v[g] and the node's work accounting.
 
     f: the method's internal forces (elements, bonds, cohesive and self-contact); e: external
     forces that work on the node's own motion (pressure, gravity); c: tool contact forces, whose
     work `tool_work` the tool contact counted itself (at the tool's velocity); alpha: the
     mass-proportional damping coefficient (force -alpha m v on the previous half-step velocity).
-    The supports project the new velocity (constraint[g], see support_constraints). Work of e and
-    of the tools goes to w_external[g], the damping's loss to w_damping[g]; the accumulators are
-    only touched where a force works (each touch is a read-write of memory)."""
+    The supports project the new velocity (constraint[g], see support_constraints); a support
+    with a speed sets the blocked components to its grip's velocity tool_v_next[j] and adds its
+    reaction to force_slots[j, slot] (the grip's load cell, see contact_with_tools). Work of e, of
+    the tools and of a moving support goes to w_external[g], the damping's loss to w_damping[g];
+    the accumulators are only touched where a force works (each touch is a read-write of memory)."""
     dx = -alpha * m * v[g, 0]
     dy = -alpha * m * v[g, 1]
     dz = -alpha * m * v[g, 2]
     _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
-                   projection, w_external, w_damping)
+                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
 
 
 @njit(cache=True, inline="always")
@@ -56,39 +62,58 @@ def local_damping_force(f, v, m, alpha, dt):
 
 @njit(cache=True, inline="always")
 def update_velocity_local_damping(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint,
-                                  projection, w_external, w_damping):
+                                  projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
     """update_velocity with local non-viscous damping instead of the mass-proportional one:
     `alpha` (0 to 1) scales the unbalanced force of each component (local_damping_force)."""
     dx = local_damping_force(fx + ex + cx, v[g, 0], m, alpha, dt)
     dy = local_damping_force(fy + ey + cy, v[g, 1], m, alpha, dt)
     dz = local_damping_force(fz + ez + cz, v[g, 2], m, alpha, dt)
     _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
-                   projection, w_external, w_damping)
+                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
 
 
 @njit(cache=True, inline="always")
 def _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, damped, tool_work, m, dt, constraint,
-                   projection, w_external, w_damping):
-    """v[g] += dt (f + e + c + d) / m, projected by the supports, with the work of e and the tools
-    into w_external[g] and that of the damping force d into w_damping[g] (at the mean of the two
-    half-step velocities)."""
+                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
+    """v[g] += dt (f + e + c + d) / m, projected by the supports (the blocked part set to a moving
+    support's velocity), with the work of e, the tools and a moving support into w_external[g] and
+    that of the damping force d into w_damping[g] (at the mean of the two half-step velocities)."""
     vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
     inv_m = dt / m
     vx = vx0 + (fx + ex + cx + dx) * inv_m
     vy = vy0 + (fy + ey + cy + dy) * inv_m
     vz = vz0 + (fz + ez + cz + dz) * inv_m
     con = constraint[g]
+    rx = 0.0
+    ry = 0.0
+    rz = 0.0
+    driven = False
     if con >= 0:
         pr = projection[con]
         px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
         py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
         pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
+        j = support_tool[con]
+        if j >= 0:
+            # The blocked part follows the grip: v = P v* + (I - P) u; the support's reaction
+            # m (v - v*) / dt is the grip's force on the specimen.
+            driven = True
+            ux, uy, uz = tool_v_next[j, 0], tool_v_next[j, 1], tool_v_next[j, 2]
+            px += ux - (pr[0, 0] * ux + pr[0, 1] * uy + pr[0, 2] * uz)
+            py += uy - (pr[1, 0] * ux + pr[1, 1] * uy + pr[1, 2] * uz)
+            pz += uz - (pr[2, 0] * ux + pr[2, 1] * uy + pr[2, 2] * uz)
+            rx = (px - vx) * m / dt
+            ry = (py - vy) * m / dt
+            rz = (pz - vz) * m / dt
+            force_slots[j, slot, 0] += rx
+            force_slots[j, slot, 1] += ry
+            force_slots[j, slot, 2] += rz
         vx, vy, vz = px, py, pz
     mx = 0.5 * (vx0 + vx) * dt
     my = 0.5 * (vy0 + vy) * dt
     mz = 0.5 * (vz0 + vz) * dt
-    if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0:
-        w_external[g] += ex * mx + ey * my + ez * mz + tool_work
+    if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0 or driven:
+        w_external[g] += ex * mx + ey * my + ez * mz + tool_work + rx * mx + ry * my + rz * mz
     if damped:
         w_damping[g] -= dx * mx + dy * my + dz * mz
     v[g, 0] = vx
@@ -104,11 +129,14 @@ def move(g, x, v, dt):
     x[g, 2] += v[g, 2] * dt
 
 
-def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per point, the velocity projection of all the supports that hold it: (constraint (n,)
-    int16, projections (k, 3, 3)), what update_velocity applies. `scale` (the
-    specimen size) sets the default selection tolerance."""
+def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per point, the velocity projection of all the supports that hold it and the grip that
+    drives it, if one does: (constraint (n,) int16, projection (k, 3, 3), support_tool (k,)
+    int64), what update_velocity applies.
+    `scale` (the specimen size) sets the default selection tolerance. A point held by two moving
+    supports is an error (which one would it follow?)."""
     normals_of = {}
+    grip_of = {}
     for sup in supports:
         sel = sup.where.mask(points, scale)
         if not sel.any():
@@ -121,17 +149,23 @@ def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.
             raise ValueError(f"support kind must be 'fixed', 'clamped' or 'roller', not {sup.kind!r}")
         for node in np.flatnonzero(sel):
             normals_of.setdefault(int(node), []).append(blocked)
+            if sup.tool >= 0:
+                if grip_of.setdefault(int(node), sup.tool) != sup.tool:
+                    raise ValueError(f"two moving supports select the node at {points[node].tolist()}: "
+                                     "make their selections apart")
     constraint = np.full(len(points), FREE, dtype=np.int16)
     projections = [np.zeros((3, 3))]  # FIXED
-    known = {projections[0].round(12).tobytes(): FIXED}
+    tools = [-1]
+    known = {(projections[0].round(12).tobytes(), -1): FIXED}
     for node, blocks in normals_of.items():
         proj = _velocity_projection(np.concatenate(blocks))
-        key = proj.round(12).tobytes()
+        key = (proj.round(12).tobytes(), grip_of.get(node, -1))
         if key not in known:
             known[key] = len(projections)
             projections.append(proj)
+            tools.append(key[1])
         constraint[node] = known[key]
-    return constraint, np.array(projections)
+    return constraint, np.array(projections), np.array(tools, dtype=np.int64)
 
 
 def _velocity_projection(blocked: np.ndarray) -> np.ndarray:
