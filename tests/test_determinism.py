@@ -15,8 +15,9 @@ EXTRINSIC = ["three-point-bending", "--set", "run.end_time=1e-3", "--set", "mate
 # Glued grips pulling a bar apart, faces inserted by either tet's traction, the effective mixed mode
 # (the example's); the bar separates at ~0.96 ms.
 TENSION = ["direct-tension", "--set", "material.interface.insertion=extrinsic", "--set", "run.end_time=1e-3"]
-# Bonded-particle DEM: bonds breaking, contact lists rebuilt, platens.
-DEM = ["dem-ucs", "--set", "run.end_time=3.5e-4"]
+# Bonded-particle DEM: bonds breaking, contact lists rebuilt, the sample pulled by a moving
+# support (its reaction summed from every block's slot) against a still one.
+DEM = ["dem-tension", "--set", "run.end_time=3.5e-4"]
 
 
 def _run(tmp_path, threads, case=BENDING):
@@ -63,8 +64,9 @@ def test_identical_for_1_and_2_threads_with_extrinsic_interfaces(tmp_path):
 
 
 def test_identical_for_1_and_2_threads_with_dem_bonds_breaking(tmp_path):
-    """The quick DEM compression to 0.35 ms (hundreds of bonds broken, the contact list rebuilt):
-    byte-identical history and events with 1 and 2 threads."""
+    """The quick DEM direct tension to 0.35 ms (hundreds of bonds broken, the contact list
+    rebuilt, the moving support's reaction): byte-identical history and events with 1 and 2
+    threads."""
     one, two = _run(tmp_path, 1, DEM), _run(tmp_path, 2, DEM)
     assert (one / "history.csv").read_bytes() == (two / "history.csv").read_bytes()
     e1 = (one / "events.csv").read_text()
