@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -254,3 +255,75 @@ def test_a_killed_sweep_finishes_only_its_missing_runs(tmp_path, capsys):
     assert {f: (out / f / "history.csv").stat().st_mtime_ns for f in done} == kept
     with open(out / "sweep.csv", newline="") as fh:
         assert [r["status"] for r in csv.DictReader(fh)] == ["completed"] * 6
+
+
+LATTICE = Path(__file__).parent / "data" / "lattice-platen.toml"
+
+
+def _lattice_elastic(tmp_path) -> Path:
+    """The lattice platen test stopped before any spring breaks: its force follows E alone."""
+    path = tmp_path / "lattice-elastic.toml"
+    path.write_text(LATTICE.read_text().replace("end_time = 4e-5", "end_time = 1e-5"))
+    return path
+
+
+def test_two_value_targets_of_two_scenarios(tmp_path):
+    """A candidate's distance over two value targets, each of another scenario's run: the crushed
+    lattice's peak_force and the same lattice's elastic force (a second scenario file), both made
+    with E = 26 GPa. A candidate with those values is at distance 0 exactly (the runs are
+    deterministic); one with E = 30 GPa at sqrt(mean d^2) of its two runs' relative misfits."""
+    from crackle.sweep.calibrate import evaluate, parse_target, target_folder
+
+    elastic = _lattice_elastic(tmp_path)
+    made = {}
+    for source in (LATTICE, elastic):
+        out = tmp_path / f"made-{source.stem}"
+        assert main(["run", str(source), "--set", "run.field_frames=0", "--out", str(out)]) == 0
+        made[source] = json.loads((out / "summary.json").read_text())["peak_force"]
+    targets = [parse_target(f"peak_force={made[LATTICE]!r}"), parse_target(f"{elastic}:peak_force={made[elastic]!r}")]
+    assert targets[0].scenario is None and targets[1].scenario == str(elastic.resolve())
+    at = evaluate(str(LATTICE), str(tmp_path / "c0"), {}, False, 1, None, targets)
+    assert at["status"] == "completed" and at["distance"] == 0.0
+    off = evaluate(str(LATTICE), str(tmp_path / "c1"), {"material.youngs_modulus": 30e9}, False, 1, None, targets)
+    runs = [json.loads((Path(target_folder(str(tmp_path / "c1"), s, str(LATTICE))) / "summary.json").read_text())
+            for s in (str(LATTICE), str(elastic.resolve()))]
+    misfits = [(r["peak_force"] - made[s]) / made[s] for r, s in zip(runs, (LATTICE, elastic))]
+    print(f"relative misfits at E = 30 GPa: {misfits}")
+    assert off["distance"] == pytest.approx(np.sqrt(np.mean(np.square(misfits))), rel=1e-12)
+    assert off["distance"] > 0.02
+    assert off["values"] == {targets[0].text: runs[0]["peak_force"], targets[1].text: runs[1]["peak_force"]}
+
+
+def test_calibration_to_two_values_recovers_the_modulus(tmp_path):
+    """`crackle calibrate` to two value targets of two scenarios (the lattice's crushing peak and
+    its elastic force, made with E = 26 GPa) from E = 20 GPa within [18, 34] GPa: E within 3 % of
+    26 GPa; calibration.json names the targets and the fitted run's values, calibration.csv has a
+    column per value target."""
+    elastic = _lattice_elastic(tmp_path)
+    made = []
+    for source in (LATTICE, elastic):
+        out = tmp_path / f"made-{source.stem}"
+        assert main(["run", str(source), "--set", "run.field_frames=0", "--out", str(out)]) == 0
+        made.append(json.loads((out / "summary.json").read_text())["peak_force"])
+    out = tmp_path / "cal"
+    targets = [f"peak_force={made[0]!r}", f"{elastic}:peak_force={made[1]!r}"]
+    assert main(["calibrate", str(LATTICE), "--target", targets[0], "--target", targets[1],
+                 "--fit", "material.youngs_modulus=18e9:34e9", "--start", "material.youngs_modulus=20e9",
+                 "--population", "4", "--generations", "3", "--workers", "2", "--set", "run.field_frames=0",
+                 "--out", str(out)]) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    print(record["fitted"], record["distance"], record["runs"])
+    assert record["targets"] == targets
+    assert record["fitted"]["material.youngs_modulus"] == pytest.approx(26e9, rel=0.03)
+    assert set(record["fitted_values"]) == set(targets)
+    with open(out / "calibration.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert all(float(rows[-1][t]) > 0 for t in targets) and len(rows) == record["runs"]
+
+
+@pytest.mark.parametrize("target", ["peak_stress", "peak_stress=high", "peak_stress=0"])
+def test_bad_value_target_exits_2(tmp_path, capsys, target):
+    """A target that is neither a CSV nor KEY=VALUE with a non-zero number: exit 2, saying what to give."""
+    assert main(["calibrate", "dem-brazilian", "--quick", "--target", target, "--fit",
+                 "material.tensile_strength=1e6:6e6", "--out", str(tmp_path / "c")]) == 2
+    assert "KEY=VALUE" in capsys.readouterr().err

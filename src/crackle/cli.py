@@ -92,7 +92,8 @@ def _cmd_calibrate(args) -> int:
         return 2
     values = ", ".join(f"{key} = {value:.6g}" for key, value in result.fitted.items())
     print(f"calibrate: {values}; distance {result.distance:.4g} after {result.runs} runs")
-    print(f"  calibration.json, calibration.csv, calibration.png in {result.out_dir}; fitted run in {result.fitted_folder}")
+    plot = ", calibration.png" if (result.out_dir / "calibration.png").is_file() else ""
+    print(f"  calibration.json, calibration.csv{plot} in {result.out_dir}; fitted run in {result.fitted_folder}")
     return 0
 
 
@@ -169,13 +170,19 @@ def main(argv=None) -> int:
     p.add_argument("--plot", action="append", default=[], metavar="SCALAR",
                    help="a summary scalar to plot against each varied key, beside peak_force, broken, energy_error")
     p.set_defaults(func=_cmd_sweep)
-    p = sub.add_parser("calibrate", help="fit scenario values to a measured load-displacement curve (runs on Dask)",
-                       description="Fit the --fit keys within their bounds so that a tool's load-displacement "
-                       "curve matches --target (scipy's differential evolution, each generation's runs in "
-                       "parallel on Dask). Distance: RMS force difference at the target's displacements over "
-                       "its largest force.")
+    p = sub.add_parser("calibrate", help="fit scenario values to measured curves and values (runs on Dask)",
+                       description="Fit the --fit keys within their bounds so that the runs meet every --target: "
+                       "a tool's load-displacement curve, a summary value of the run, or one of another scenario "
+                       "run with the same values (scipy's differential evolution, each generation's runs in "
+                       "parallel on Dask). Distance: sqrt(mean d^2) over the targets; a curve's d is the RMS "
+                       "force difference at its displacements over its largest force, a value's the relative "
+                       "difference.")
     p.add_argument("scenario", help="a .toml scenario or the name of a shipped example")
-    p.add_argument("--target", required=True, help="CSV with columns displacement (m) and force (N)")
+    p.add_argument("--target", action="append", required=True,
+                   help="a CSV with columns displacement (m) and force (N) (the --tool curve); KEY=VALUE, a "
+                   "summary.json value of the run (e.g. peak_stress=70e6); or SCENARIO:KEY=VALUE, one of another "
+                   "scenario run with the same values, --set and --quick (e.g. dem-brazilian:brazilian_strength=6e6); "
+                   "repeat for several")
     p.add_argument("--fit", action="append", default=[], metavar="KEY=LO:HI", required=True,
                    help="a key to fit and its bounds, e.g. --fit material.interface.tensile_strength=1e6:6e6")
     p.add_argument("--start", action="append", default=[], metavar="KEY=VALUE",

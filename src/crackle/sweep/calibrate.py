@@ -1,13 +1,17 @@
-"""`crackle calibrate`: fit scenario values so that a tool's simulated load-displacement curve
-matches a measured one.
+"""`crackle calibrate`: fit scenario values so that simulated results match measured ones: a
+tool's load-displacement curve, summary values (a UCS, a Brazilian strength), or both, of the
+calibrated scenario and of others run with the same values (the usual DEM calibration: bond
+strengths fitted to a UCS and a tensile strength at once).
 
-The curve distance: the target's points (u_i, F_i); the run's curve of the same tool (force
-magnitude against displacement magnitude, io.plots.tool_curves) read at each u_i by linear
-interpolation (beyond the run's last displacement, its last force);
+A curve target's distance: the target's points (u_i, F_i); the run's curve of the same tool
+(force magnitude against displacement magnitude, io.plots.tool_curves) read at each u_i by
+linear interpolation (beyond the run's last displacement, its last force);
 
-    distance = sqrt(mean_i (F_run(u_i) - F_i)^2) / max_i |F_i|
+    d = sqrt(mean_i (F_run(u_i) - F_i)^2) / max_i |F_i|
 
-(0 for the same curve; a run that failed counts FAILED_DISTANCE). The search is scipy's
+A value target's (a summary.json key, dotted into dicts, and its measured value v): d = (s - v) / |v|.
+A candidate's distance is sqrt(mean over the targets of d^2) (0 when every target is met; a run
+that failed or lacks the key counts FAILED_DISTANCE). The search is scipy's
 differential evolution within the given bounds, the start values in its first population, each
 generation's candidates run in parallel on Dask (updating="deferred"): no gradient, so a
 curve that jumps as elements fail does not mislead it. Deterministic for a given seed.
@@ -34,6 +38,51 @@ from .plan import absolute_source
 from .runner import COMPLETED, dask_client, outcome_of, run_one
 
 FAILED_DISTANCE = 10.0  # a run that did not finish: far from any curve (a curve's own scale is 1)
+
+
+@dataclass(frozen=True)
+class Target:
+    """One thing a candidate's runs should give: a tool's curve (`curve`: displacement and force
+    arrays) or a summary value (`key`, `value`), of the calibrated scenario (`scenario` None) or of
+    another one run with the same values, overrides and --quick."""
+
+    text: str  # as given on the command line
+    scenario: str | None = None
+    key: str | None = None
+    value: float = 0.0
+    curve: tuple | None = None
+
+
+def parse_target(text: str) -> Target:
+    """A CSV file of a curve; KEY=VALUE, a summary value of the calibrated scenario's run;
+    SCENARIO:KEY=VALUE, one of another scenario's (a shipped example or a .toml)."""
+    path = Path(text)
+    if path.suffix.lower() == ".csv" or path.is_file():
+        return Target(text, curve=read_target(path))
+    where, sep, raw = text.rpartition("=")
+    scenario, _, key = where.rpartition(":")
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not sep or not key.strip() or not math.isfinite(value) or value == 0.0:
+        raise ScenarioError(f"--target {text!r}: give a CSV of displacement and force, KEY=VALUE (a summary value "
+                            "of the run, non-zero, e.g. peak_stress=70e6) or SCENARIO:KEY=VALUE (another scenario's, "
+                            "e.g. dem-brazilian:brazilian_strength=6e6)")
+    return Target(text, absolute_source(scenario) if scenario else None, key.strip(), value)
+
+
+def summary_value(summary: dict, key: str) -> float | None:
+    """summary.json's value at a dotted key (into dicts and lists), or None when there is no number."""
+    value = summary
+    for part in key.split("."):
+        if isinstance(value, dict) and part in value:
+            value = value[part]
+        elif isinstance(value, list) and part.isdigit() and int(part) < len(value):
+            value = value[int(part)]
+        else:
+            return None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 @dataclass
@@ -145,18 +194,44 @@ def run_curve(folder: str | Path, tool: str | None) -> tuple[np.ndarray, np.ndar
 
 
 def evaluate(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, tool: str | None,
-             target_u, target_f) -> dict:
-    """One candidate on a worker: the run, then its distance to the target curve."""
-    outcome = run_one(scenario, folder, overrides, quick, threads, plots=False)
-    if outcome["status"] not in COMPLETED:
-        return {**outcome, "distance": FAILED_DISTANCE}
-    curve = run_curve(folder, tool)
-    if isinstance(curve, str):
-        return {"status": "invalid", "message": curve, "distance": FAILED_DISTANCE}
-    return {**outcome, "distance": curve_distance(target_u, target_f, *curve)}
+             targets: list[Target]) -> dict:
+    """One candidate on a worker: a run of each scenario the targets name (the calibrated one in
+    `folder`, another in `folder`-NAME, see target_folder), then the distance: sqrt(mean d^2) over
+    the targets, and each value target's value (`values`)."""
+    runs, outcomes = {}, []
+    for source in dict.fromkeys(t.scenario or scenario for t in targets):
+        run_folder = target_folder(folder, source, scenario)
+        outcomes.append(run_one(source, run_folder, overrides, quick, threads, plots=False))
+        if outcomes[-1]["status"] not in COMPLETED:
+            return {**outcomes[-1], "distance": FAILED_DISTANCE}
+        runs[source] = run_folder
+    misfits, values = [], {}
+    for target in targets:
+        run_folder = runs[target.scenario or scenario]
+        if target.curve is not None:
+            curve = run_curve(run_folder, tool)
+            if isinstance(curve, str):
+                return {"status": "invalid", "message": curve, "distance": FAILED_DISTANCE}
+            misfits.append(curve_distance(*target.curve, *curve))
+            continue
+        summary = json.loads((Path(run_folder) / "summary.json").read_text())
+        value = summary_value(summary, target.key)
+        if value is None:
+            return {"status": "invalid", "message": f"--target {target.text}: the run's summary.json has no number "
+                    f"{target.key}", "distance": FAILED_DISTANCE}
+        values[target.text] = value
+        misfits.append((value - target.value) / abs(target.value))
+    distance = float(np.sqrt(np.mean(np.square(misfits))))
+    return {**outcomes[0], "distance": min(distance, FAILED_DISTANCE), "values": values}
 
 
-def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str] = (), fixed: list[str] = (),
+def target_folder(folder: str, source: str, scenario: str) -> str:
+    """Where a candidate runs `source`: its folder for the calibrated scenario, folder-NAME for
+    another one (NAME: the example's name or the file's stem)."""
+    return folder if source == scenario else f"{folder}-{Path(source).stem}"
+
+
+def calibrate(scenario: str, target: str | Path | list, fit: list[str], start: list[str] = (), fixed: list[str] = (),
               quick: bool = False, tool: str | None = None, out_dir: str | Path = "crackle-out/calibration",
               population: int = 8, generations: int = 20, tol: float = 0.01, seed: int = 0,
               scheduler: str | None = None, workers: int | None = None, threads_per_run: int | None = None,
@@ -165,7 +240,9 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
 
     from ..scenario import load_scenario
 
-    target_u, target_f = read_target(target)
+    targets = [parse_target(str(text)) for text in ([target] if isinstance(target, (str, Path)) else target)]
+    if not targets:
+        raise ScenarioError("nothing to fit to: give --target (a curve CSV, KEY=VALUE or SCENARIO:KEY=VALUE)")
     bounds = parse_fit(fit)
     keys = list(bounds)
     fixed_overrides = dict(split_override(text) for text in fixed)
@@ -183,8 +260,9 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
             raise ScenarioError(f"{key}: both fitted and set; drop the --set")
     scenario = absolute_source(scenario)
     # The bounds' ends must make valid scenarios (a refused value would stall the search).
-    for corner in (dict(zip(keys, (b[0] for b in bounds.values()))), dict(zip(keys, (b[1] for b in bounds.values())))):
-        load_scenario(scenario, {**fixed_overrides, **corner}, quick)
+    for source in dict.fromkeys(t.scenario or scenario for t in targets):
+        for corner in (dict(zip(keys, (b[0] for b in bounds.values()))), dict(zip(keys, (b[1] for b in bounds.values())))):
+            load_scenario(source, {**fixed_overrides, **corner}, quick)
 
     out = Path(out_dir)
     (out / "candidates").mkdir(parents=True, exist_ok=True)
@@ -201,11 +279,11 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
                 folder = str((out / "candidates" / f"{first + k:04d}").resolve())
                 candidates.append({"candidate": first + k, **values, "folder": folder})
                 futures.append(client.submit(evaluate, scenario, folder, {**fixed_overrides, **values}, quick, threads,
-                                             tool, target_u, target_f, pure=False))
+                                             tool, targets, pure=False))
             results = [{"distance": FAILED_DISTANCE, **outcome_of(future)} for future in futures]
             for k, result in enumerate(results):
                 candidates[first + k].update(distance=result["distance"], status=result["status"],
-                                             message=result.get("message", ""))
+                                             message=result.get("message", ""), **result.get("values", {}))
             best = min(c["distance"] for c in candidates)
             report(f"  {len(candidates)} runs, best distance so far {best:.4g}")
             return [r["distance"] for r in results]
@@ -221,15 +299,14 @@ def calibrate(scenario: str, target: str | Path, fit: list[str], start: list[str
             run_generation(None, [surface])
     best = min(candidates, key=lambda c: (c["distance"], c["candidate"]))
     fitted = candidates[-1] if surface is not None else best
-    _write_outputs(out, keys, candidates, fitted, best, surface is not None, x0, target_u, target_f, tool, bounds,
-                   fit_result)
+    _write_outputs(out, keys, candidates, fitted, best, surface is not None, x0, targets, tool, bounds, fit_result)
     return CalibrationResult(out, {key: fitted[key] for key in keys}, fitted["distance"], len(candidates),
                              Path(fitted["folder"]))
 
 
-def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, target_u, target_f, tool, bounds,
-                   fit_result) -> None:
-    columns = ["candidate", *keys, "distance", "status", "message", "folder"]
+def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, targets, tool, bounds, fit_result) -> None:
+    value_targets = [t.text for t in targets if t.curve is None]
+    columns = ["candidate", *keys, "distance", *value_targets, "status", "message", "folder"]
     with open(out / "calibration.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, columns, extrasaction="ignore")
         writer.writeheader()
@@ -247,10 +324,15 @@ def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, target_u
         "generations": int(fit_result.nit),
         "converged": bool(fit_result.success),
         "optimizer_message": str(fit_result.message),
-        "distance_definition": "sqrt(mean((F_run(u_i) - F_i)^2)) / max|F_i| at the target's displacements u_i",
+        "targets": [t.text for t in targets],
+        "fitted_values": {text: fitted.get(text) for text in value_targets},
+        "distance_definition": "sqrt(mean over the targets of d^2); a curve's d = sqrt(mean((F_run(u_i) - F_i)^2)) / "
+                               "max|F_i| at the target's displacements u_i, a value's d = (run's - target's) / |target's|",
     }
     (out / "calibration.json").write_text(json.dumps(record, indent=2) + "\n")
-    _plot_overlay(out / "calibration.png", target_u, target_f, candidates[0], fitted, tool, keys)
+    curve = next((t.curve for t in targets if t.curve is not None), None)
+    if curve is not None:
+        _plot_overlay(out / "calibration.png", *curve, candidates[0], fitted, tool, keys)
 
 
 def _plot_overlay(path, target_u, target_f, start, fitted, tool, keys) -> None:
