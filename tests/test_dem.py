@@ -243,6 +243,54 @@ def test_elastic_modulus_is_reproducible_across_packings(tmp_path):
     assert np.max(np.abs(np.array(moduli) / mean - 1.0)) < 0.02, moduli
 
 
+def test_platen_strain_is_the_platens_approach_when_both_move(tmp_path):
+    """Issue 43: both platens moving towards each other at v = 0.1 m/s (ramped over 0.1 ms), bonds
+    unbreakable: platen.strain is the sum of both platens' travels over the sample's extent H at
+    every row (1e-12; H = 54 mm to 1e-3), 2 v (t - 0.05 ms) / H after the ramp (1e-6: the step's
+    integral of the ramp), and the modulus in the summary (the stress-strain slope over 20-50 % of
+    the peak) is the slope of the history's own columns over that window (1e-9) and the one of
+    the same approach made by the top platen alone at 2 v, within 2 % (measured 57.9 and 57.4 GPa;
+    the strain of the top platen alone read it 2 x)."""
+    unbreakable = ["material.tensile_strength=4.5e8", "material.cohesion=4.5e9", "run.end_time=2.2e-4"]
+    h2, both = _ucs_quick(tmp_path, *unbreakable, "tools.0.speed=0.1", "tools.1.speed=0.1", "tools.1.ramp_time=1e-4")
+    h1, alone = _ucs_quick(tmp_path, *unbreakable, "tools.0.speed=0.2")
+    travels = h2["tooltopuz"] * -1.0 + h2["toolbottomuz"]
+    height = travels[-1] / h2["platenstrain"][-1]
+    assert height == pytest.approx(0.054, rel=1e-3)
+    assert np.allclose(h2["platenstrain"], travels / height, rtol=1e-12, atol=0.0)
+    after = h2["time"] > 1e-4
+    assert np.allclose(h2["platenstrain"][after], 2.0 * 0.1 * (h2["time"][after] - 0.5e-4) / height, rtol=1e-6, atol=0.0)
+    stress, strain = h2["platenstress"], h2["platenstrain"]
+    window = (stress >= 0.2 * stress.max()) & (stress <= 0.5 * stress.max())
+    assert both["platen_modulus"] == pytest.approx(np.polyfit(strain[window], stress[window], 1)[0], rel=1e-9)
+    print(f"modulus: both platens {both['platen_modulus'] * 1e-9:.1f} GPa, top alone {alone['platen_modulus'] * 1e-9:.1f}")
+    assert both["platen_modulus"] == pytest.approx(alone["platen_modulus"], rel=0.02)
+    assert both["platen_modulus"] == pytest.approx(55e9, rel=0.15)
+
+
+def test_a_user_step_is_accepted_up_to_the_proven_stable_step(tmp_path):
+    """Issue 43: the DEM proves a bound on its stable step at set-up (Gershgorin, over each
+    particle's bonds, contacts and tools, translation and spin), so a given run.dt is accepted up
+    to it, not only up to the default's 0.7 x the stable step with room for 6 later contacts per
+    particle: the DEM codes' rule 0.5 Rmin / sqrt(Y / rho) (0.5 x 0.70 mm / 4,472 m/s = 78.2 ns
+    on the quick sample) is above that stable step (72.3 ns) and below the bound (81.0 ns), and is
+    accepted with a warning; 1.001 x the bound is refused before the run, naming run.dt, the bound
+    and how it is proven."""
+    from crackle.api import build_simulation
+
+    scenario, base = load_scenario("dem-ucs", quick=True)
+    sim, _ = build_simulation(scenario, base)
+    rule = 0.5 * float(sim.particles.radius.min()) / math.sqrt(50e9 / 2500.0)
+    assert sim.stable_dt < rule < sim.proven_dt
+    for dt in (rule, sim.proven_dt):
+        scenario, base = load_scenario("dem-ucs", quick=True, overrides=[f"run.dt={dt!r}"])
+        sim, control = build_simulation(scenario, base)
+        assert control.dt == dt and any("new contacts can make the run unstable" in w for w in sim.warnings)
+    scenario, base = load_scenario("dem-ucs", quick=True, overrides=[f"run.dt={1.001 * sim.proven_dt!r}"])
+    with pytest.raises(ScenarioError, match=r"run.dt = .* larger than the step crackle can prove stable.*Gershgorin"):
+        build_simulation(scenario, base)
+
+
 def test_dem_ucs_quick_breaks_the_sample(tmp_path):
     """`crackle run dem-ucs --quick` (3,215 particles at paper 003's packing density, 1.47 per
     cubed mean diameter): bonds break (most of them in tension), the run stops after the peak,

@@ -42,7 +42,7 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     sim = get_method(scenario.method).build_simulation(scenario, base)
     control = run_control(scenario.run)
     try:
-        load_cell_steps(control, choose_time_step(sim.stable_dt, control), sim.wave_transit)
+        load_cell_steps(control, choose_time_step(sim, control), sim.wave_transit)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
     return sim, control

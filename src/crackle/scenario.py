@@ -189,6 +189,10 @@ class ToolSpec(Strict):
     """box and sphere: shift the tool along `direction` (either way) at set-up until it just reaches the
     specimen (no initial gap); a glued tool placed ahead of the specimen along `direction` (a grip that pulls)
     is put on the specimen's far end"""
+    seat: bool = False
+    """points of the specimen inside the tool at set-up start unloaded where they are: no force until the tool
+    pushes them deeper (a platen on a packing from another code whose spheres overlap the box faces, as that
+    code's walls seat them); the contacts of points outside it are unchanged"""
     glued: bool = False
     """the points that come within glue_depth of the tool stick to it for good: it pulls as well as pushes and
     they never slip (a glued platen, a gripped end: direct tension); friction is then unused"""
@@ -219,6 +223,9 @@ class ToolSpec(Strict):
             raise ValueError("direction must be a non-zero vector")
         if self.glue_depth is not None and not self.glued:
             raise ValueError("glue_depth is for a glued tool: add glued = true, or remove glue_depth")
+        if self.seat and self.glued:
+            raise ValueError("seat = true is for a tool that pushes; a glued one holds the points it reaches: "
+                             "remove one of them")
         if self.touch and self.shape not in ("box", "sphere"):
             raise ValueError("touch = true is for box and sphere tools")
         driven = sorted({"ramp_time", "speed_table"} & self.model_fields_set)
@@ -454,7 +461,8 @@ class RunSpec(Strict):
     end_time: Positive
     """s, simulated time"""
     dt: Positive | None = None
-    """s, the step; default safety x the stable step (a larger one is refused)"""
+    """s, the step; default safety x the stable step. A larger one is refused, except where the method proves a
+    bound at set-up (DEM, lattice: Gershgorin): a given step is then accepted up to that bound"""
     safety: Annotated[float, Field(gt=0, le=1)] = 0.7
     """fraction of the stable step"""
     target_dt: Positive | None = None

@@ -7,6 +7,8 @@ tensile_strength_ratio compares it with the tensile strength the material was gi
 bar small against the characteristic length E Gf / ft^2, whatever the mesh and the insertion.
 Brazilian disc: the elastic relation 2 F / (pi D t) and the splitting fracture's angle to the
 loading axis (analysis.brazilian).
+Compression between platens: the modulus read from the platen stress-strain curve
+(`platen_modulus`).
 """
 
 from __future__ import annotations
@@ -75,3 +77,23 @@ def mean_section(volume: float, points: np.ndarray, direction) -> float:
     d = np.asarray(direction, float)
     along = points @ (d / np.linalg.norm(d))
     return volume / float(along.max() - along.min())
+
+
+# The stress window of platen_modulus, as fractions of the peak stress: above a seating toe, below
+# the bond or crack damage that bends a rock's curve before its peak (ISRM's "average modulus of
+# the linear portion").
+MODULUS_WINDOW = (0.2, 0.5)
+
+
+def platen_modulus(strain: np.ndarray, stress: np.ndarray) -> float | None:
+    """Pa: the least-squares slope of stress against strain over the rows before the peak stress
+    whose stress lies within MODULUS_WINDOW of the peak; None with fewer than three such rows."""
+    strain, stress = np.asarray(strain, float), np.asarray(stress, float)
+    if len(stress) < 3:
+        return None
+    peak = int(np.argmax(stress))
+    lo, hi = MODULUS_WINDOW[0] * stress[peak], MODULUS_WINDOW[1] * stress[peak]
+    rows = np.flatnonzero((stress[:peak] >= lo) & (stress[:peak] <= hi))
+    if len(rows) < 3 or np.ptp(strain[rows]) <= 0.0:
+        return None
+    return float(np.polyfit(strain[rows], stress[rows], 1)[0])

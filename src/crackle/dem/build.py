@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..loading.arrays import tool_arrays
+from ..loading.arrays import seat_on_tools, tool_arrays
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK
 from .model import BondLaw, Joint, bond_gamma, bonds, make_particles, normal_stiffness, stable_dt, with_joints
@@ -49,7 +49,12 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     # so new ones replace broken bonds or close gaps): room for 6 more per particle.
     contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
     dt = stable_dt(particles, inter, tool_k + contact_k)
+    seating = seat_on_tools(tools, tool_table, particles.x, particles.radius, particles.tool, particles.tool_offset,
+                            "particles")
     sim = DemSimulation(particles, inter, len(inter.a), law, tool_table, [t.name for t in tools], dt, gravity,
                         damping, SKIN * mean_radius, loaded_area)
+    # The bound at set-up, without room for later contacts: what a user's run.dt may reach.
+    sim.proven_dt = stable_dt(particles, inter, tool_k)
+    sim.warnings.extend(seating)
     sim.gamma = gamma
     return sim

@@ -228,7 +228,8 @@ def stable_dt(particles: Particles, inter: Interactions, tool_stiffness: np.ndar
     """Largest stable step (no safety factor): per particle, Gershgorin bounds of its
     translation (2 (kn + kt) per interaction, both particles moving) plus the tools, and of its
     spin (2 kt l^2 / I with the lever l = its radius); the stiffest particle sets the step.
-    Contacts that form later add little: a bonded particle already counts ~12 neighbours."""
+    `tool_stiffness` (per particle) adds whatever else may press on it: the tools, and in the
+    default step room for contacts that form later (dem.build)."""
     n = len(particles.radius)
     k_sum = np.zeros(n)
     kt_sum = np.zeros(n)

@@ -227,7 +227,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         along = centers @ direction
         extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
-        platen = Platen(lead.name, direction, extent)
+        platen = Platen(lead.name, direction, extent, _opposite(tools, lead, direction))
     mat = scenario.material
     try:
         sim = build_dem_simulation(
@@ -254,6 +254,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     if scenario.specimen.shape == "disc":
         sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
     return sim
+
+
+def _opposite(tools, lead, direction) -> str | None:
+    """The tool facing `lead` across the sample (travelling against it, moving or not): the
+    platen whose travel makes the platens' approach with lead's."""
+    facing = [t for t in tools if t is not lead and t.shape != "support" and float(_unit(t.direction) @ direction) < -0.9]
+    return facing[0].name if facing else None
 
 
 def _unit(v) -> np.ndarray:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
-from ..analysis.strength import TensionTest
+from ..analysis.strength import TensionTest, platen_modulus
 from ..io import plot_stress_strain
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
@@ -21,12 +21,22 @@ from .model import with_contacts
 @dataclass(frozen=True)
 class Platen:
     """The first moving tool: its force on the sample along its travel over the loaded area is
-    the history's `platen.stress`, its travel over the sample's extent along it `platen.strain`
-    (both positive in compression, as a UCS curve is read)."""
+    the history's `platen.stress`; the platens' approach (its travel towards the opposite platen
+    less the opposite one's travel towards it, whether that one moves or not) over the sample's
+    extent along it is `platen.strain` (both positive in compression, as a UCS curve is read)."""
 
     name: str
     direction: np.ndarray  # unit, the tool's travel
     length: float  # m, the sample's extent along it
+    opposite: str | None = None  # the tool facing it across the sample, if any
+
+    def stress_strain(self, row: dict, loaded_area: float) -> tuple[float, float]:
+        """(stress, strain) of a history row with the tools' force and travel columns."""
+        force = np.array([row[f"tool.{self.name}.f{c}"] for c in "xyz"])  # on the sample
+        approach = np.array([row[f"tool.{self.name}.u{c}"] for c in "xyz"])
+        if self.opposite is not None:
+            approach = approach - np.array([row[f"tool.{self.opposite}.u{c}"] for c in "xyz"])
+        return float(force @ self.direction) / loaded_area, float(approach @ self.direction) / self.length
 
 
 # Steps between two checks of whether the contact list must be rebuilt: a fixed grid of steps, so
@@ -42,6 +52,9 @@ class DemSimulation:
         self.particles, self.inter, self.n_bonds, self.law, self.tools = particles, inter, n_bonds, law, tools
         self._tool_names = list(tool_names)
         self.stable_dt = stable_dt
+        self.proven_dt = stable_dt  # the bound at set-up; build_dem_simulation sets it
+        self.proven_dt_how = ("a Gershgorin bound over each particle's bonds, contacts and tools, translation and "
+                              "spin: docs/user-guide-dem.md")
         radius = particles.radius
         self.wave_transit = float(2.0 * np.mean(radius) / math.sqrt(law.bond_modulus / np.mean(particles.mass / (
             4.0 / 3.0 * math.pi * radius**3))))
@@ -52,6 +65,7 @@ class DemSimulation:
         self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
         self.flaw = None  # the scenario's [flaw] (setup.FlawSpec), if any
         self.platen: Platen | None = None  # the tool whose stress and strain the history gives
+        self._curve: dict[float, tuple[float, float]] = {}  # time -> the platen's (strain, stress)
         self.strength_test: TensionTest | None = None  # direct tension: nominal strengths in the summary
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
@@ -168,11 +182,9 @@ class DemSimulation:
     def sample(self, dt: float) -> dict[str, float]:
         row = self._springs.columns(self.load_cell, self._tool_springs)
         if self.platen is not None and self.loaded_area:
-            name, along = self.platen.name, self.platen.direction
-            force = np.array([row[f"tool.{name}.f{c}"] for c in "xyz"])  # on the sample
-            travel = np.array([row[f"tool.{name}.u{c}"] for c in "xyz"])
-            row["platen.stress"] = float(force @ along) / self.loaded_area
-            row["platen.strain"] = float(travel @ along) / self.platen.length
+            stress, strain = self.platen.stress_strain(row, self.loaded_area)
+            row["platen.stress"], row["platen.strain"] = stress, strain
+            self._curve[self.time] = (strain, stress)
         return {**row, **self.energies(dt), "broken": self.broken}
 
     def new_events(self):
@@ -290,6 +302,10 @@ class DemSimulation:
             peaks = self.load_cell.peaks()[0]
             out["loaded_area"] = self.loaded_area
             out["peak_stress"] = float(np.max(peaks, initial=0.0)) / self.loaded_area
+            if self.platen is not None:
+                # JSON has no NaN: None until the curve has rows between 20 and 50 % of its peak.
+                curve = np.array([self._curve[t] for t in sorted(self._curve)]).reshape(-1, 2)
+                out["platen_modulus"] = platen_modulus(curve[:, 0], curve[:, 1])
             if self.brazilian:
                 diameter, thickness = self.brazilian
                 # The elastic Brazilian relation: the tensile stress across the loaded diameter.

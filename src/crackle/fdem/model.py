@@ -15,7 +15,7 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, seat_on_tools, tool_arrays
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
@@ -146,6 +146,7 @@ def build_fdem_model(
     tool_table = tool_arrays(tools, default_penalty, median_altitude, slots)
 
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
+    seating = seat_on_tools(tools, tool_table, nodes.x, 0.0, nodes.tool, nodes.tool_offset, "nodes")
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
     n_if = len(pairs.area)
     ifs = Interfaces(
@@ -187,7 +188,7 @@ def build_fdem_model(
     reachable = end_time is None or _fracture_reachable(
         materials, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
     )
-    model_warnings = (_resolution_warnings(materials, element_size) if reachable else []) + step_advice
+    model_warnings = (_resolution_warnings(materials, element_size) if reachable else []) + step_advice + seating
     for msg in model_warnings:
         warnings.warn(msg, stacklevel=2)
 

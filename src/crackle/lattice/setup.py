@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..loading.arrays import TOOL_PENALTY_FACTOR, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
@@ -113,12 +113,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
     stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
     radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
+    seating = seat_on_tools(tools, tool_table, x, radius, nodes.tool, nodes.tool_offset, "nodes")
     # P-wave speed of the lattice: C11 = 3k/a = 1.2 E.
     wave_transit = spec.spacing / math.sqrt(1.2 * scenario.material.youngs_modulus / scenario.material.density)
     sim = LatticeSimulation(
         nodes, springs, tool_table, [t.name for t in tools], radius, spec.break_strain, stable_dt,
         wave_transit, np.asarray(scenario.run.gravity, float), scenario.run.damping,
     )
+    sim.warnings.extend(seating)
     nu = scenario.material.poissons_ratio
     if nu != 0.25:
         sim.warnings.append(f"material.poissons_ratio = {nu:g} is not used: this lattice's Poisson's ratio is 1/4")

@@ -19,6 +19,8 @@ class LatticeSimulation:
         self.radius = float(radius)
         self.break_strain = float(break_strain)
         self.stable_dt = stable_dt
+        self.proven_dt = stable_dt
+        self.proven_dt_how = "a Gershgorin bound over each node's springs and tools"
         self.wave_transit = wave_transit
         self.gravity = gravity
         self.damping = float(damping)

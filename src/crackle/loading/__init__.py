@@ -103,6 +103,7 @@ class Tool:
     penalty: float | None = None  # N/m^3 per unit contact area; default from the specimen
     mass: float | None = None  # kg: a free tool, launched at speed(0) and then moved by its contact forces
     glued: bool = False  # points that come within glue_depth stick to it for good (it pulls, never slips)
+    seat: bool = False  # points inside it at set-up start unloaded at that depth (loading.tools.seat_points)
     glue_depth: float | None = None  # m; default a millionth of the method's contact depth
     surface: str | None = None  # surface: the file its triangles came from
     vertices: np.ndarray | None = field(default=None, compare=False, repr=False)  # surface: (n, 3), m

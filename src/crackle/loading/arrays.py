@@ -7,7 +7,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .tools import BARY_TOL, SURF_TRI_COLUMNS, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
+from .tools import BARY_TOL, SURF_TRI_COLUMNS, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
 Tools = namedtuple(
     "Tools",
@@ -76,6 +76,34 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
         cell_state=np.zeros((len(tools), 5)), cell_count=np.array([0, 1], dtype=np.int64), **surf,
         mass=mass, velocity=launch.reshape(-1, 3), step_force=np.zeros((len(tools), 3)), glue=glue,
     )
+
+
+def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndarray, node_offset: np.ndarray,
+                  what: str = "points") -> list[str]:
+    """Seat the points (positions x, contact radius per point or one for all) inside the tools
+    that ask `seat` (loading.tools.seat_points); returns the set-up notes: how many were seated,
+    and for a tool that does not ask it, how many points it pushes from step 0."""
+    x = np.ascontiguousarray(x, dtype=float)
+    radius = np.atleast_1d(np.asarray(radius, dtype=float))
+    notes = []
+    # Overlaps within round-off of the positions (a touching tool) are not worth a note.
+    tolerance = 1e-9 * float(np.max(np.ptp(x, axis=0))) if len(x) else 0.0
+    for j, tool in enumerate(tools):
+        if tool.shape == "support":
+            continue
+        trial_tool, trial_offset = node_tool.copy(), node_offset.copy()
+        seat_points(table, np.array([j], dtype=np.int64), x, radius, trial_tool, trial_offset)
+        inside = int(np.count_nonzero((trial_tool != node_tool) & (trial_offset < -tolerance)))
+        if not inside:
+            continue
+        if tool.seat:
+            seat_points(table, np.array([j], dtype=np.int64), x, radius, node_tool, node_offset)
+            notes.append(f"tool {tool.name}: {inside} {what} inside it at set-up start unloaded there (seat = true)")
+        else:
+            deepest = float(-np.min(trial_offset[trial_tool != node_tool]))
+            notes.append(f"tool {tool.name}: {inside} {what} start inside it (up to {deepest:.3g} m deep) and are "
+                         "pushed out from the first step; set seat = true on it to start them unloaded")
+    return notes
 
 
 def free_tool_work(tools: Tools) -> float:

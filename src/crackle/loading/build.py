@@ -77,6 +77,7 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
                 mass=t.mass,
                 glued=t.glued,
                 glue_depth=t.glue_depth,
+                seat=t.seat,
                 **surface,
             )
         )

@@ -261,6 +261,25 @@ def _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, t
     return tx, ty, tz, work
 
 
+@njit(cache=True)
+def seat_points(tools, seated, x, radius, node_tool, node_offset):
+    """Seat the points that lie inside a seated tool (index in `seated`) at set-up: each starts in
+    that tool's contact state woken at its present depth (node_offset = its gap < 0), so that it
+    carries no force until the tool pushes it deeper (contact_with_tools), as a platen seated on
+    a packing that overlaps it. `radius`: per point, or one value for all. Points already in a
+    tool's contact, or HIDDEN inside a body, are left as they are."""
+    for g in range(x.shape[0]):
+        if node_tool[g] != NO_TOOL:
+            continue
+        r = radius[g] if radius.shape[0] > 1 else radius[0]
+        for j in seated:
+            gap, _, _, _ = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], r, tools)
+            if gap < 0.0:
+                node_tool[g] = j
+                node_offset[g] = gap
+                break
+
+
 @njit(cache=True, inline="always")
 def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, force_slots, tool_v_prev,
                        tool_v_next, node_tool, node_offset, friction, d_friction):

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..solver import stability
 from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
@@ -77,6 +77,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
+                            "particles")
     dt, step_ratio = stable_step(particles, links, row, table, tool_k, h)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
@@ -86,6 +88,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
                                 plate.wall_frame, tool_k, step_ratio, failure_plastic_strain)
     sim = MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
                              gravity, damping, plate, breaking, loads)
+    sim.warnings.extend(seating)
     if precracks:
         try:
             breaking.cut(sim, precracks, scale)

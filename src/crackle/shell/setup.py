@@ -21,7 +21,7 @@ from pydantic import Field, model_validator
 
 from ..geometry.meshes import MeshError
 from ..loading import History
-from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, tool_arrays
+from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
@@ -209,6 +209,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                                        support_tool=support_tool)
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
     stable_dt = shell.stable_dt(tool_k)
+    seating = seat_on_tools(tools, tool_table, shell.nodes.x, shell.nodes.radius, shell.nodes.tool,
+                            shell.nodes.tool_offset, "nodes")
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
     fracture = scenario.fracture
     rings = fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
@@ -218,6 +220,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                            fracture.criterion)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
+    sim.warnings.extend(seating)
     pressed = bool(pressures or tools)
     if growth is not None and fracture.criterion == "j" and _can_bend(mesh.X, scenario.edge_loads, pressed, scale):
         sim.warnings.append('fracture.criterion = "j": growth compares the domain J with Gc, and J holds no share of '

@@ -106,16 +106,37 @@ def steps_to(end_time: float, dt: float) -> int:
     return max(1, int(math.ceil(end_time / dt - 1e-9)))
 
 
-def choose_time_step(stable_dt: float, control: RunControl) -> float:
-    """The step to use; refuses one larger than safety x stable."""
+def choose_time_step(sim, control: RunControl) -> float:
+    """The step to use: by default safety x the simulation's stable step. A given run.dt is
+    refused above safety x stable, or, where the method proves a bound at set-up (`sim.proven_dt`,
+    s, and `sim.proven_dt_how`, a few words), above that bound: the margin below it is the
+    user's choice, as in the DEM codes. A step above the stable one but within the bound gets a
+    warning (the stable step leaves room for stiffness that comes later, e.g. new contacts)."""
+    stable_dt = sim.stable_dt
     limit = control.safety * stable_dt
     if control.dt is None:
         return limit
-    if control.dt > limit:
+    proven = getattr(sim, "proven_dt", None)
+    if proven is None:
+        if control.dt > limit:
+            raise ValueError(
+                f"run.dt = {control.dt:.3e} s is larger than the stable step {limit:.3e} s "
+                f"(safety {control.safety} x {stable_dt:.3e} s, an estimate of the method's stable step); "
+                f"remove run.dt or set it at most {limit:.3e}"
+            )
+        return control.dt
+    if control.dt > proven:
         raise ValueError(
-            f"run.dt = {control.dt:.3e} s is larger than the stable step {limit:.3e} s "
-            f"(safety {control.safety} x {stable_dt:.3e} s); remove run.dt or set it at most {limit:.3e}"
+            f"run.dt = {control.dt:.3e} s is larger than the step crackle can prove stable, {proven:.3e} s "
+            f"({sim.proven_dt_how}); set run.dt at most {proven:.3e} s, or remove it for the default "
+            f"{limit:.3e} s (safety {control.safety} x {stable_dt:.3e} s, which leaves room for stiffness that comes later)"
         )
+    if control.dt > stable_dt:
+        note = (f"run.dt = {control.dt:.3e} s is within the step proven stable at set-up ({proven:.3e} s) but above "
+                f"the stable step with room for what comes later ({stable_dt:.3e} s): new contacts can make the run "
+                "unstable, which then stops with a message and keeps its outputs")
+        if note not in sim.warnings:
+            sim.warnings.append(note)
     return control.dt
 
 
@@ -139,7 +160,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     out.mkdir(parents=True, exist_ok=True)
     if resume is None:
         clear_outputs(out)
-        dt = choose_time_step(sim.stable_dt, control)
+        dt = choose_time_step(sim, control)
         sim.load_cell.set_window(load_cell_steps(control, dt, sim.wave_transit))
     else:
         dt = resume.dt  # the window of the load cell comes with it

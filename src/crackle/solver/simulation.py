@@ -21,6 +21,9 @@ class Simulation(Protocol):
 
     method: str  # the registered name (crackle.methods)
     stable_dt: float  # largest stable step (s), without safety factor
+    # Optional, `proven_dt` (s) and `proven_dt_how` (a few words): where the method proves a bound
+    # on the stable step at set-up (every smaller step is stable), a user's run.dt is accepted up
+    # to it (solver.choose_time_step).
     wave_transit: float  # s: a P-wave's time across one element (particle, spacing), the period
     # scale of contact chatter; the default load-cell window is a few of it
     time: float  # simulated time reached (s)
