@@ -97,7 +97,7 @@ def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndar
         if not inside:
             continue
         if tool.seat:
-            seat_points(table, np.array([j], dtype=np.int64), x, radius, node_tool, node_offset)
+            node_tool[:], node_offset[:] = trial_tool, trial_offset
             notes.append(f"tool {tool.name}: {inside} {what} inside it at set-up start unloaded there (seat = true)")
         else:
             deepest = float(-np.min(trial_offset[trial_tool != node_tool]))
