@@ -127,9 +127,11 @@ class DemSimulation:
         modes = self.inter.fail_mode[: self.n_bonds][self._failed()]
         return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
 
-    def _tool_springs(self) -> ToolSprings:
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
         p = self.particles
-        return self._springs.measure(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction)
+        mid = {} if dt is None else {"v": p.v, "time": self.time, "dt": dt}
+        return self._springs.measure(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction, **mid)
 
     def interaction_energy(self, dt: float) -> float:
         """Elastic energy of the live interactions at the mid-step positions x - v dt/2 (which
@@ -172,7 +174,7 @@ class DemSimulation:
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": self.interaction_energy(dt),
-            "energy.contact": float(np.sum(self._tool_springs().energy)),
+            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
             "energy.damage": float(np.sum(self.inter.e_damage)),
             "energy.friction": float(np.sum(self.inter.e_friction) + self._dropped_friction + np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),

@@ -147,9 +147,11 @@ class FdemSimulation:
     def tool_names(self) -> list[str]:
         return [t.name for t in self.model.tool_specs]
 
-    def _tool_springs(self) -> ToolSprings:
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
         n = self.model.nodes
-        return self._springs.measure(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction)
+        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
+        return self._springs.measure(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction, **mid)
 
     def tool_forces(self) -> np.ndarray:
         """Force of each tool on the specimen (N), through the load cell."""
@@ -163,7 +165,7 @@ class FdemSimulation:
         x_mid = nodes.x - 0.5 * dt * nodes.v
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
-        tool_energy = self._tool_springs().energy
+        tool_energy = self._tool_springs(dt).energy
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(self._tet_energy)),

@@ -46,9 +46,11 @@ class LatticeSimulation:
     def broken(self) -> int:
         return int(np.count_nonzero(~self.springs.intact))
 
-    def _tool_springs(self) -> ToolSprings:
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
         n = self.nodes
-        return self._springs.measure(n.x, self._radius, n.area, n.tool, n.tool_offset, n.friction)
+        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
+        return self._springs.measure(n.x, self._radius, n.area, n.tool, n.tool_offset, n.friction, **mid)
 
     def _spring_energy(self, x) -> float:
         s = self.springs
@@ -62,7 +64,7 @@ class LatticeSimulation:
         return {
             "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))),
             "energy.elastic": self._spring_energy(x_mid),
-            "energy.contact": float(np.sum(self._tool_springs().energy)),
+            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
             "energy.damage": float(np.sum(self.springs.e_damage)),
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping)),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .arrays import LOAD_CELL_RING, free_tool_work
-from .tools import tool_contact_totals
+from .tools import interp_history, tool_contact_totals
 
 
 class LoadCell:
@@ -74,10 +74,36 @@ class ToolSprings:
         self.force = np.zeros((len(self.names), 3))  # N, per tool, after `measure`
         self.energy = np.zeros(len(self.names))  # J, per tool, after `measure`
 
-    def measure(self, x, radius, area, node_tool, node_offset, friction) -> "ToolSprings":
-        """The springs at the points' state (radius: one per point, or one for all)."""
-        tool_contact_totals(x, radius, area, node_tool, node_offset, friction, self.tools, self.force, self.energy)
+    def measure(self, x, radius, area, node_tool, node_offset, friction, v=None, time=0.0, dt=0.0) -> "ToolSprings":
+        """The springs at the points' state (radius: one per point, or one for all). With the
+        points' half-step velocities `v` (and the time and step): at the mid-step positions,
+        points at x - v dt/2 and tools half a step back, where the rest of the energy audit pairs
+        potentials with the half-step velocities and where the tools' work booked so far ends
+        (measured at x instead, a tool's first steps of contact would hold a step more energy than
+        its work: -100 % at the first contact)."""
+        if v is None:
+            tool_contact_totals(x, radius, area, node_tool, node_offset, friction, self.tools, self.force, self.energy)
+            return self
+        tools = self.tools
+        disp = tools.disp.copy()
+        tools.disp[:] -= 0.5 * dt * self._velocity_before(time, dt)
+        try:
+            tool_contact_totals(x - 0.5 * dt * v, radius, area, node_tool, node_offset, friction, tools, self.force,
+                                self.energy)
+        finally:
+            tools.disp[:] = disp
         return self
+
+    def _velocity_before(self, time: float, dt: float) -> np.ndarray:
+        """(n_tools, 3) each tool's velocity over the half step before `time` (as tool_velocities)."""
+        t = self.tools
+        v = np.empty((len(self.names), 3))
+        for j in range(len(self.names)):
+            if t.mass[j] > 0.0:
+                v[j] = t.velocity[j]
+            else:
+                v[j] = interp_history(time - 0.5 * dt, t.times[j], t.speeds[j], t.n[j]) * t.direction[j]
+        return v
 
     def columns(self, load_cell: LoadCell, measure) -> dict[str, float]:
         """tool.NAME.f*/u* of a history row: the load cell's forces (`measure()`, returning this

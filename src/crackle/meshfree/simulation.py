@@ -70,9 +70,11 @@ class MeshfreeSimulation:
         """Links removed by fracture (pairs {I, J} of distinct particles)."""
         return 0 if self.breaking is None else self.breaking.broken_links
 
-    def _tool_springs(self) -> ToolSprings:
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
         p = self.particles
-        return self._springs.measure(p.x, self._radius, p.area, p.tool, p.tool_offset, p.friction)
+        mid = {} if dt is None else {"v": p.v, "time": self.time, "dt": dt}
+        return self._springs.measure(p.x, self._radius, p.area, p.tool, p.tool_offset, p.friction, **mid)
 
     def _kinetic(self) -> float:
         p = self.particles
@@ -104,7 +106,7 @@ class MeshfreeSimulation:
             "energy.elastic": float(np.sum(elastic)),
             "energy.stabilisation": float(np.sum(stab)),
             "energy.plastic": float(np.sum(p.w_plastic)),
-            "energy.contact": float(np.sum(self._tool_springs().energy)),
+            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
             "energy.friction": float(np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
             "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,

@@ -164,9 +164,11 @@ class ShellSimulation:
         """Edges cut by crack growth."""
         return len(self.advances)
 
-    def _tool_springs(self) -> ToolSprings:
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
         n = self.nodes
-        return self._springs.measure(n.x, n.radius, n.area, n.tool, n.tool_offset, n.friction)
+        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
+        return self._springs.measure(n.x, n.radius, n.area, n.tool, n.tool_offset, n.friction, **mid)
 
     def energies(self, dt: float) -> dict[str, float]:
         n = self.nodes
@@ -178,7 +180,7 @@ class ShellSimulation:
                                     + 0.5 * np.sum(e.xi_inertia * e.xi_rate**2)),
             "energy.membrane": membrane,
             "energy.bending": bending,
-            "energy.contact": float(np.sum(self._tool_springs().energy)),
+            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
             "energy.friction": float(np.sum(n.d_friction)),
             "energy.damping": float(np.sum(n.w_damping) + np.sum(e.xi_damping)),
             "energy.fracture": self.fracture_energy,
