@@ -327,3 +327,78 @@ def test_bad_value_target_exits_2(tmp_path, capsys, target):
     assert main(["calibrate", "dem-brazilian", "--quick", "--target", target, "--fit",
                  "material.tensile_strength=1e6:6e6", "--out", str(tmp_path / "c")]) == 2
     assert "KEY=VALUE" in capsys.readouterr().err
+
+
+def test_a_calibration_to_a_missing_tool_exits_2_before_any_run(tmp_path, capsys):
+    target = tmp_path / "t.csv"
+    target.write_text("displacement,force\n0,0\n1e-4,100\n2e-4,150\n")
+    out = tmp_path / "c"
+    assert main(["calibrate", str(LATTICE), "--target", str(target), "--tool", "plattern",
+                 "--fit", "material.youngs_modulus=18e9:34e9", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--tool plattern: no such tool" in err and "Traceback" not in err
+    assert not (out / "candidates").exists()
+
+
+@pytest.mark.parametrize("target, message", [
+    ("peak_force=KN", "misses the targets by"),  # the lattice's peak force given in kN
+    ("no_such_value=1.0", "every one of the"),  # no run can give it: every candidate invalid
+])
+def test_a_calibration_that_failed_exits_1_and_says_why(tmp_path, capsys, target, message):
+    """A target in kN where the run gives N (misfit ~1000, read as FAILED_DISTANCE = 10; beyond
+    USEFUL_MISFIT = 0.5), or one no
+    run can meet: exit 1 with the reason; calibration.json is written and says `usable`: false with
+    the relative misfit."""
+    made = tmp_path / "made"
+    assert main(["run", str(LATTICE), "--set", "run.field_frames=0", "--out", str(made)]) == 0
+    peak = json.loads((made / "summary.json").read_text())["peak_force"]
+    target = target.replace("KN", repr(peak / 1000.0))
+    out = tmp_path / "c"
+    assert main(["calibrate", str(LATTICE), "--target", target, "--fit", "material.youngs_modulus=18e9:34e9",
+                 "--population", "2", "--generations", "1", "--workers", "1", "--set", "run.field_frames=0",
+                 "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["usable"] is False and record["converged"] in (True, False)
+    if message.startswith("misses"):
+        assert record["relative_misfit"] >= 10.0  # 999, capped at FAILED_DISTANCE
+
+
+def test_a_misspelt_plot_scalar_exits_2_after_the_table_is_written(tmp_path, capsys):
+    """--plot peak_forse: the runs and the table are kept, the exit is 2 naming the name and the
+    nearest scalar; the same command with the right name plots it without running again."""
+    out = tmp_path / "sweep"
+    args = ["sweep", *SHORT, "--vary", "tools.top.speed=0.5", "--workers", "1", "--out", str(out)]
+    assert main([*args, "--plot", "peak_forse"]) == 2
+    err = capsys.readouterr().err
+    assert "--plot peak_forse (did you mean peak_force?)" in err and "Traceback" not in err
+    assert (out / "sweep.csv").is_file()
+    assert main([*args, "--plot", "stable_dt"]) == 0
+    assert "0 to run" in capsys.readouterr().out
+
+
+def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
+    """SIGINT to the sweep's process group (as a terminal's Ctrl-C) while its runs go on: exit
+    130, one line of ours saying what is kept and how to finish, no worker tracebacks (the
+    workers ignore SIGINT; the sweep's process stops them)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "sweep"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "crackle.cli", "sweep", "three-point-bending", "--quick", "--vary",
+         "tools.top.speed=0.5,0.6,0.7,0.8", "--workers", "2", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    deadline = time.time() + 120
+    while time.time() < deadline and not list(out.glob("*/history.csv")):
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    assert f"sweep interrupted: the finished runs are kept in {out}" in err

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import tempfile
 from pathlib import Path
 
+from .io.lock import FolderBusy, OutputLock
 from .methods import get_method
 from .scenario import RunSpec, ScenarioBase, ScenarioError, load_scenario
 from .solver import (
@@ -42,9 +44,13 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     sim = get_method(scenario.method).build_simulation(scenario, base)
     control = run_control(scenario.run)
     try:
-        load_cell_steps(control, choose_time_step(sim, control), sim.wave_transit)
+        dt = choose_time_step(sim, control)
+        load_cell_steps(control, dt, sim.wave_transit)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
+    if control.end_time < dt:
+        raise ScenarioError(f"run.end_time = {control.end_time:.3g} s is shorter than one step ({dt:.3g} s): the run would "
+                            f"step past it; set run.end_time at least {dt:.3g} s")
     return sim, control
 
 
@@ -58,12 +64,29 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
     set-up lines, advice and cost estimate before the first step (nothing when None). `plots`:
     False leaves out plots/ (a calibration's candidates: seconds each)."""
     scenario, base = load_scenario(source, overrides, quick)
-    record = scenario.model_dump(mode="json")
     if resume is not None:
         out = Path(resume)
         if out_dir is not None and Path(out_dir).resolve() != out.resolve():
             raise ScenarioError(f"--out {out_dir} with --resume {resume}: a resumed run continues in its own folder; drop --out")
-        check_output_folder(out)
+        if not out.is_dir():
+            raise ScenarioError(f"--resume {resume}: no such folder; give the output folder of the run to continue")
+    else:
+        out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
+    check_output_folder(out)
+    try:
+        with OutputLock(out) as lock:
+            if lock.taken_over is not None and report is not None:
+                report(f"  note: took over the lock of a run that is gone (pid {lock.taken_over.get('pid')}, "
+                       f"started {lock.taken_over.get('started')})")
+            return _run_locked(scenario, base, out, resume, progress, report, plots)
+    except FolderBusy as err:
+        raise ScenarioError(f"--out: {err}") from None
+
+
+def _run_locked(scenario: ScenarioBase, base, out: Path, resume, progress, report, plots) -> RunResult:
+    """run_scenario's work once the output folder is this run's."""
+    record = scenario.model_dump(mode="json")
+    if resume is not None:
         try:
             checkpoint = load_checkpoint(out)
         except CheckpointError as err:
@@ -74,6 +97,7 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
                 f"--resume {resume}: the scenario differs from the run being resumed: {'; '.join(changes)}. Give the "
                 f"same file, --quick and --set as that run (only {', '.join(RESUMABLE_KEYS)} may change)"
             )
+        _check_resumable(out, checkpoint, record)
         sim, control = checkpoint.sim, run_control(scenario.run)
         if steps_to(scenario.run.end_time, checkpoint.dt) <= sim.steps:
             raise ScenarioError(
@@ -81,8 +105,6 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
                 f"set a later end, e.g. --set run.end_time={2 * sim.time:.3g}"
             )
     else:
-        out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
-        check_output_folder(out)
         sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress
@@ -90,6 +112,24 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
     if report is not None:
         control.report = report
     return run(sim, control, out, scenario_name=scenario.name, scenario=record, resume=checkpoint)
+
+
+def _check_resumable(out: Path, checkpoint, record: dict) -> None:
+    """Refuse a resume that would lose or rewrite what the folder holds: its history gone, or a
+    run that ended by its stop condition resumed with the same condition (it would stop again at
+    once and only rewrite the summary)."""
+    if not (out / "history.csv").is_file():
+        raise ScenarioError(f"--resume {out}: history.csv is missing there, so the resumed run's history would "
+                            "start at the checkpoint; rerun from the start (without --resume)")
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        return  # a run killed before its summary: resumable
+    if summary.get("status") == "stopped" and checkpoint.scenario.get("run", {}).get("stop") == record["run"]["stop"]:
+        raise ScenarioError(
+            f"--resume {out}: that run ended by its stop condition ({summary.get('message', '')}) and would stop "
+            "again at once; change run.stop to go on past it (e.g. --set run.stop.force_drop=0.1)"
+        )
 
 
 def check_output_folder(out: Path) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 def _cmd_run(args) -> int:
     from .api import run_scenario
     from .scenario import ScenarioError
-    from .solver import UnstableRunError
+    from .solver import DiskFullError, StoppedAtOnce, UnstableRunError
 
     try:
         result = run_scenario(args.scenario, args.out, args.set, args.quick, resume=args.resume,
@@ -22,6 +22,12 @@ def _cmd_run(args) -> int:
     except UnstableRunError as err:
         print(f"crackle: {err}", file=sys.stderr)
         return 3
+    except DiskFullError as err:
+        print(f"crackle: {err}", file=sys.stderr)
+        return 1
+    except StoppedAtOnce as err:
+        print(f"crackle: {err}", file=sys.stderr)
+        return 130
     except KeyboardInterrupt:
         # During the run the driver handles Ctrl-C itself (status "interrupted", outputs kept);
         # this is one during reading, meshing or set-up.
@@ -59,14 +65,18 @@ def _cmd_sweep(args) -> int:
 
     if not _counts_at_least_one(args, ("workers", "threads_per_run")):
         return 2
+    out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
     try:
         plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick)
-        out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
         result = run_sweep(plan, out, args.scheduler, args.workers, args.threads_per_run, args.plot,
                            report=lambda text: print(text, flush=True))
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"\ncrackle: sweep interrupted: the finished runs are kept in {out}; the same command finishes the "
+              "others", file=sys.stderr)
+        return 130
     statuses = [row["status"] for row in result.rows]
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
@@ -76,7 +86,7 @@ def _cmd_sweep(args) -> int:
 
 def _cmd_calibrate(args) -> int:
     from .scenario import ScenarioError
-    from .sweep.calibrate import calibrate
+    from .sweep.calibrate import CalibrationFailed, calibrate
 
     if not _counts_at_least_one(args, ("workers", "threads_per_run", "population", "generations")):
         return 2
@@ -90,6 +100,13 @@ def _cmd_calibrate(args) -> int:
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
+    except CalibrationFailed as err:
+        print(f"crackle: calibrate: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("\ncrackle: calibration interrupted: the candidates' runs so far are in their folders; it is not "
+              "resumed (run it again to start over)", file=sys.stderr)
+        return 130
     values = ", ".join(f"{key} = {value:.6g}" for key, value in result.fitted.items())
     print(f"calibrate: {values}; distance {result.distance:.4g} after {result.runs} runs")
     plot = ", calibration.png" if (result.out_dir / "calibration.png").is_file() else ""
@@ -123,8 +140,9 @@ def _cmd_fpz(args) -> int:
     from .materials import process_zone
 
     for name in ("E", "Gf", "ft"):
-        if getattr(args, name) <= 0:
-            print(f"crackle: error: --{name} must be positive", file=sys.stderr)
+        value = getattr(args, name)
+        if not (0 < value < float("inf")):  # also refuses nan
+            print(f"crackle: error: --{name} must be a positive finite number, not {value}", file=sys.stderr)
             return 2
     pz = process_zone(args.E, args.Gf, args.ft)
     if args.json:

@@ -30,10 +30,11 @@ def key_reference(method: str) -> str:
     (`tools[].speed` for a key of each [[tools]] entry)."""
     from .methods import get_method
 
-    schema = get_method(method).Scenario.model_json_schema(mode="validation")
+    scenario = get_method(method).Scenario
+    schema = scenario.model_json_schema(mode="validation")
     defs = schema.get("$defs", {})
     lines = [f"## method = \"{method}\"", "", HEADER]
-    lines += _rows(schema, defs, "")
+    lines += _rows(schema, defs, "", skip=set(scenario.unread_keys))
     return "\n".join(lines) + "\n"
 
 
@@ -47,25 +48,28 @@ def _resolve(prop: dict, defs: dict) -> dict:
     return prop
 
 
-def _rows(schema: dict, defs: dict, prefix: str) -> list[str]:
+def _rows(schema: dict, defs: dict, prefix: str, skip: set[str] = frozenset()) -> list[str]:
+    """The table rows of a schema's keys, less those in `skip` (the keys the method does not read)."""
     rows = []
     required = set(schema.get("required", []))
     for name, raw in schema.get("properties", {}).items():
         prop = _resolve(raw, defs)
         key = prefix + name
+        if key in skip:
+            continue
         meaning = " ".join((raw.get("description") or prop.get("description") or "").split())
         if "properties" in prop:  # a section
             rows.append(f"| **{key}** | section | | | {meaning} |")
-            rows += _rows(prop, defs, key + ".")
+            rows += _rows(prop, defs, key + ".", skip)
         elif prop.get("type") == "array" and "properties" in _resolve(prop.get("items", {}), defs):
             rows.append(f"| **{key}** | list of sections | | | {meaning} |")
-            rows += _rows(_resolve(prop["items"], defs), defs, key + "[].")
+            rows += _rows(_resolve(prop["items"], defs), defs, key + "[].", skip)
         elif "oneOf" in prop or ("anyOf" in prop and all("$ref" in p for p in prop["anyOf"] if p.get("type") != "null")):
             rows.append(f"| **{key}** | section, by its kind | | | {meaning} |")
             for option in prop.get("oneOf") or [p for p in prop["anyOf"] if p.get("type") != "null"]:
                 variant = _resolve(option, defs)
                 rows.append(f"| *{key}: {variant.get('title', '')}* | | | | {_first_line(variant.get('description', ''))} |")
-                rows += _rows(variant, defs, key + ".")
+                rows += _rows(variant, defs, key + ".", skip)
         else:
             default = "required" if name in required else _value(prop.get("default"))
             rows.append(f"| `{key}` | {_type(prop, defs)} | {default} | {_range(prop)} | {meaning} |")

@@ -11,7 +11,7 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
@@ -20,6 +20,30 @@ from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 
 class ScenarioError(ValueError):
     """A scenario that cannot run; the message names the field or file and the fix."""
+
+
+# The [specimen] keys each shape reads (FDEM's; the DEM's are fewer): a key set that the shape
+# does not read is refused, since the specimen would silently not be the one asked for.
+_BOX = {"size", "element_size", "origin", "mesh"}
+_ROUND = {"diameter", "thickness", "element_size", "center", "axis"}
+_WALLS = {"element_size", "center", "wall", "suture_wall", "suture_band", "layers"}
+SPECIMEN_KEYS = {
+    "box": _BOX, "beam": _BOX, "disc": _ROUND, "cylinder": _ROUND,
+    "sphere": {"diameter", "element_size", "center"},
+    "walnut": _WALLS | {"length", "width", "thickness"},
+    "shell": _WALLS | {"file", "scale", "suture_normal"},
+    "mesh": {"file", "scale"},
+}
+# Read by every shape: the shape and the initial motion.
+ANY_SHAPE_KEYS = {"shape", "initial_velocity", "angular_velocity"}
+
+
+def refuse_unused_keys(spec, keys: dict[str, set[str]]) -> None:
+    """ValueError naming the keys set in `spec` that its shape does not read (`keys[shape]`)."""
+    other = sorted(spec.model_fields_set - keys[spec.shape] - ANY_SHAPE_KEYS)
+    if other:
+        raise ValueError(f"{', '.join(other)}: not used by shape = \"{spec.shape}\" (its keys: "
+                         f"{', '.join(sorted(keys[spec.shape]))})")
 
 
 class Specimen(Strict):
@@ -55,7 +79,7 @@ class Specimen(Strict):
     layers: Annotated[int, Field(ge=1)] = 1
     """walnut and shell: tets through the wall"""
     scale: Positive = 1.0
-    """shell: factor on the surface file's points (1e-3 for a file in mm)"""
+    """shell and mesh: factor on the file's points (1e-3 for a file in mm)"""
     suture_normal: Vec3 = (1.0, 0.0, 0.0)
     """shell: normal of the suture plane, which passes through the surface's centroid"""
     axis: Vec3 = (0.0, 0.0, 1.0)
@@ -83,6 +107,7 @@ class Specimen(Strict):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        refuse_unused_keys(self, SPECIMEN_KEYS)
         extent = self.extent()
         h = self.element_size
         if h is not None and extent is not None:
@@ -481,6 +506,9 @@ class RunSpec(Strict):
     """ParaView snapshots over end_time (0: none)"""
     load_cell_window: Positive | None = None
     """s, the tool force's averaging window; default 4 element wave transits"""
+    max_memory: Positive | None = None
+    """bytes the set-up may plan for: a model estimated larger (from its sizes, before anything is allocated)
+    is refused with exit 2 naming the key that sets its size (default: the memory this machine has available)"""
     checkpoint: bool = True
     """leave checkpoint.pkl in the output folder, for crackle run --resume"""
     checkpoint_every: Positive = 600.0
@@ -512,6 +540,16 @@ class CracksSpec(Strict):
     """m, linking length; default: twice the element size"""
     top: Vec3 = (0.0, 0.0, 1.0)
     """the main crack is the first to reach the extreme along it"""
+
+
+# What a method without FDEM's extras says about them (its Scenario.unread_keys).
+FDEM_ONLY_KEYS = {
+    "run.target_dt": "mass scaling is FDEM's (remove it; set run.safety or run.dt for the step)",
+    "run.max_added_mass": "mass scaling is FDEM's (remove it)",
+    "run.contact": "contact between free surfaces is FDEM's (remove it)",
+    "analysis.fracture_plane": "the fracture-plane tip is FDEM's (remove it)",
+    "analysis.cracks": "crack counting is FDEM's (remove it)",
+}
 
 
 class AnalysisSpec(Strict):
@@ -549,6 +587,19 @@ class ScenarioBase(Strict):
     """time integration and outputs"""
     quick: dict[str, Any] = {}
     """dotted-key overrides applied by --quick"""
+
+    # Shared keys a method does not read, each with what to do instead: set in a scenario of that
+    # method they are refused (a key silently ignored is a result the user did not ask for), and
+    # `crackle keys METHOD` leaves them out. Each method's Scenario sets its own.
+    unread_keys: ClassVar[dict[str, str]] = {}
+
+    @model_validator(mode="after")
+    def _no_unread_keys(self):
+        for key, advice in self.unread_keys.items():
+            section, name = key.rsplit(".", 1)
+            if name in getattr(self, section).model_fields_set:
+                raise ValueError(f"{key}: method = \"{self.method}\" does not read it; {advice}")
+        return self
 
     @model_validator(mode="after")
     def _tool_names(self):
@@ -685,6 +736,8 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
     try:
         scenario = schema.model_validate(data)
     except ValidationError as err:
+        if "method" not in data:
+            _refuse_without_method(data, source)
         raise ScenarioError(_describe(err, source, schema)) from None
     for i, tool in enumerate(scenario.tools):
         if tool.shape == "surface":
@@ -737,6 +790,46 @@ def _field_names(model, seen=None) -> set[str]:
     return names
 
 
+def _refuse_without_method(data: dict, source) -> None:
+    """A scenario without `method` is read as FDEM's; when it does not validate so but does as
+    another method's, the error is the missing method, not FDEM's nearest key."""
+    from .methods import METHODS, get_method
+
+    for name in METHODS:
+        if name == "fdem":
+            continue
+        try:
+            get_method(name).Scenario.model_validate({**data, "method": name})
+        except ValidationError:
+            continue
+        raise ScenarioError(f"{source}: method: not given, so read as method = \"fdem\", which it is not; it is a "
+                            f"{name} scenario: add method = \"{name}\"")
+
+
+def _section_model(model, path):
+    """The schema of the section at `path` (field names, list indices skipped), or None where the
+    path leaves the schemas (a choice by kind, a dict)."""
+    import typing
+
+    for part in path:
+        if isinstance(part, int):
+            continue
+        field = getattr(model, "model_fields", {}).get(part)
+        if field is None:
+            return None
+        stack, models = [field.annotation], []
+        while stack:
+            t = stack.pop()
+            if hasattr(t, "model_fields"):
+                models.append(t)
+            else:
+                stack.extend(typing.get_args(t))
+        if len(models) != 1:  # a plain value, or a choice among sections
+            return None
+        model = models[0]
+    return model
+
+
 def _describe(err: ValidationError, source, schema=None) -> str:
     errors = err.errors()
     # A misspelt key also leaves the right one missing: name the unknown key first.
@@ -751,7 +844,9 @@ def _describe(err: ValidationError, source, schema=None) -> str:
         import difflib
 
         what = "section" if len(loc) == 1 else "key"
-        close = difflib.get_close_matches(str(loc[-1]), sorted(_field_names(schema)) if schema else [], n=1)
+        section = _section_model(schema, loc[:-1]) if schema else None
+        names = set(section.model_fields) if section is not None else (_field_names(schema) if schema else set())
+        close = difflib.get_close_matches(str(loc[-1]), sorted(names - {str(loc[-1])}), n=1)
         hint = f"unknown {what} {loc[-1]}; " + (f"did you mean {close[0]}?" if close else "remove it or check its spelling")
     elif kind == "missing":
         hint = "required: add it"
@@ -760,4 +855,6 @@ def _describe(err: ValidationError, source, schema=None) -> str:
         if first.get("input") is not None and kind != "value_error":
             hint += f" (got {first['input']!r})"
     more = f" (and {len(err.errors()) - 1} more problem(s))" if len(err.errors()) > 1 else ""
+    if not loc and kind == "value_error":  # a check across sections: its message names the keys
+        return f"{source}: {hint}{more}"
     return f"{source}: {where}: {hint}{more}"

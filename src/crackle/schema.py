@@ -12,11 +12,12 @@ Vec3 = tuple[float, float, float]
 # PositiveOrInf).
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-PositiveOrInf = Annotated[float, Field(gt=0)]
-# Scenario sections: unknown keys are errors, values are immutable.
-STRICT = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+PositiveOrInf = Annotated[float, Field(gt=0, allow_inf_nan=True)]
+# Scenario sections: unknown keys are errors, values are immutable, and every number is finite
+# (`tools.0.speed=inf` or a NaN from a spreadsheet is refused up front, not met as exit 3 later).
+STRICT = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True, allow_inf_nan=False)
 # The same for parameter dataclasses (which are frozen by their decorator).
-STRICT_DATACLASS = ConfigDict(extra="forbid", use_attribute_docstrings=True)
+STRICT_DATACLASS = ConfigDict(extra="forbid", use_attribute_docstrings=True, allow_inf_nan=False)
 
 
 class Strict(BaseModel):

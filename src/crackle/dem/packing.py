@@ -33,6 +33,8 @@ import numpy as np
 from numba import njit, prange
 from scipy import ndimage
 
+from ..budget import check_model_size
+
 # Packing fraction of the start (the radii scaled down to it): loose enough that the first
 # sweeps only separate the random centres, dense enough that little growth is left to do.
 START_FRACTION = 0.30
@@ -604,7 +606,9 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
             try:
                 values = [float(v) for v in text[:4]]
             except ValueError:
-                raise ValueError(f"line {number}: {line.strip()!r} is not 'x y z r' (four numbers)") from None
+                shown = line.strip()
+                shown = shown if len(shown) <= 60 else shown[:60] + "..."
+                raise ValueError(f"line {number}: {shown!r} is not 'x y z r' (four numbers; a header goes after #)") from None
             if len(values) < 4:
                 raise ValueError(f"line {number}: {line.strip()!r} has {len(values)} columns, not 'x y z r'")
             if not all(math.isfinite(v) for v in values) or values[3] <= 0.0:
@@ -641,7 +645,8 @@ def radius_range(mean_radius: float, radius_ratio: float) -> tuple[float, float]
 
 def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, mean_radius: float | None = None,
                  count: int | None = None, seed: int = 0, overlap_tolerance: float = 0.01,
-                 max_sweeps: int = 20000, particle_density: float | None = None) -> Packing:
+                 max_sweeps: int = 20000, particle_density: float | None = None,
+                 max_memory: float | None = None) -> Packing:
     """A random dense packing of spheres inside `domain` (algorithm: the module's docstring).
 
     porosity: target void fraction of the domain, in (0, 1). With Rmax / Rmin = 1.86 in a cube the
@@ -663,6 +668,8 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         isotropic compaction by radius growth leaves (Yade, PFC), which the bonds start from
         unloaded. `porosity` is then not used; the Packing's is 1 - the spheres' volume / V
         (overlaps counted twice: 0.16 at 1.47).
+    max_memory: bytes the packing may plan for (budget.check_model_size; None: what the machine
+        has available): the count is checked before anything is allocated.
 
     Every sphere ends inside: domain.signed_distance(centre) <= -radius, to rounding (for a
     ClosedSurface, of its interpolated distance). ValueError naming the field on bad input, and
@@ -708,6 +715,7 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         n = int(round(particle_density * volume / (2.0 * mean_radius) ** 3))
         if n < 1:
             raise ValueError(f"packing.particle_density = {particle_density:g}: fewer than one sphere in the domain")
+        check_model_size(n, "spheres", "packing.mean_radius", max_memory)
         solid = 4.0 / 3.0 * math.pi * float(np.sum((mean_radius * unit_radii(n)) ** 3))
         growth = max(1.0, (solid / ((1.0 - COMPACTION_START) * volume)) ** (1.0 / 3.0))
         porosity, mean_radius, count = 1.0 - solid / growth**3 / volume, None, n
@@ -723,6 +731,7 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         mean_volume = (math.pi / 3.0 * (r_max**4 - r_min**4) / (r_max - r_min) if r_max > r_min
                        else 4.0 / 3.0 * math.pi * r_min**3)
         n = int(round(solid_volume / mean_volume))
+        check_model_size(n, "spheres", field_name, max_memory)
         if n < 1:
             raise ValueError(f"{field_name} = {mean_radius:g} m: the domain ({volume:.4g} m^3) is smaller than one "
                              f"sphere at porosity {porosity:g}")
@@ -732,6 +741,7 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
         if not (isinstance(count, (int, np.integer)) and not isinstance(count, bool) and count >= 1):
             raise ValueError(f"packing.count must be a positive integer, got {count!r}")
         n = int(count)
+        check_model_size(n, "spheres", field_name, max_memory)
         unit = unit_radii(n)
         mean_radius = (solid_volume / (4.0 / 3.0 * math.pi * float(np.sum(unit**3)))) ** (1.0 / 3.0)
         radii = mean_radius * unit

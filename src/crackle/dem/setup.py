@@ -17,12 +17,18 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import TensionTest, pulling_grip
 from ..loading.build import build_loading, touch_tools
-from ..scenario import ScenarioBase, ScenarioError, Specimen, resolve_path
+from ..scenario import FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, refuse_unused_keys, resolve_path
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
 from .simulation import DemSimulation, Platen
+
+
+# The [specimen] keys each DEM shape reads (the packing domain's).
+DEM_SPECIMEN_KEYS = {"box": {"size", "origin"}, "beam": {"size", "origin"},
+                     "disc": {"diameter", "thickness", "center", "axis"},
+                     "cylinder": {"diameter", "thickness", "center", "axis"}, "sphere": {"diameter", "center"}}
 
 
 class DemSpecimen(Specimen):
@@ -40,6 +46,7 @@ class DemSpecimen(Specimen):
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
         if self.element_size is not None:
             raise ValueError("element_size is not used by the DEM: the particle size is packing.mean_radius")
+        refuse_unused_keys(self, DEM_SPECIMEN_KEYS)
         return self
 
 
@@ -154,6 +161,8 @@ class FlawSpec(Strict):
 class Scenario(ScenarioBase):
     method: Literal["dem"]
     """picks this method"""
+    unread_keys = {**FDEM_ONLY_KEYS,
+                   "run.damping": "the DEM's damping is material.local_damping (paper 003 eq. 5)"}
     specimen: DemSpecimen
     """the region the particles fill"""
     packing: PackingSpec
@@ -196,7 +205,8 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
             raise ScenarioError(f"packing.file: {path}: {err}") from None
     try:
         return pack_spheres(domain_of(scenario.specimen), porosity=spec.porosity, radius_ratio=spec.radius_ratio,
-                            mean_radius=spec.mean_radius, seed=spec.seed, particle_density=spec.particle_density)
+                            mean_radius=spec.mean_radius, seed=spec.seed, particle_density=spec.particle_density,
+                            max_memory=scenario.run.max_memory)
     except ValueError as err:
         raise ScenarioError(str(err)) from None
 

@@ -12,7 +12,8 @@ from pydantic import Discriminator, Tag, model_validator
 from ..analysis import CrackSettings, FracturePlane
 from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pulling_grip
 from ..geometry import MeshError
-from ..geometry.specimens import specimen_mesh
+from ..budget import ModelTooLarge, check_model_size
+from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
@@ -109,10 +110,21 @@ def _clamped_size_warning(spec: Specimen, mesh) -> str:
 def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
     """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
     tools, supports, pressures = build_loading(scenario, base)
+    planned = planned_tets(scenario.specimen)
+    if planned is not None:
+        try:
+            check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory)
+        except ModelTooLarge as err:
+            raise ScenarioError(str(err)) from None
     try:
         mesh, region = specimen_mesh(scenario.specimen, base)
     except MeshError as err:
         raise ScenarioError(f"specimen: {err}") from None
+    if scenario.specimen.shape in ("mesh", "shell"):
+        try:
+            check_file_units(mesh.points, tools, "scale" in scenario.specimen.model_fields_set, "specimen.file")
+        except ValueError as err:
+            raise ScenarioError(str(err)) from None
     tools = touch_tools(tools, scenario.all_tools(), lambda tool: mesh.points)
     material = build_material(scenario.material)
     tet_material = None

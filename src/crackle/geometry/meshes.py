@@ -497,7 +497,7 @@ def read_surface(path: str | os.PathLike, scale: float = 1.0, offset=(0.0, 0.0, 
     with warnings.catch_warnings():
         # meshio probes an ASCII STL as binary first, with an integer overflow warning.
         warnings.simplefilter("ignore", RuntimeWarning)
-        m = _meshio_read(path, hint=hint)
+        m = read_with_meshio(path, hint=hint)
     blocks = [np.asarray(c.data) for c in m.cells if c.type == "triangle"]
     if not blocks:
         found = ", ".join(sorted({c.type for c in m.cells})) or "none"
@@ -554,7 +554,7 @@ def _surface_to_stl(src: Path, dst: Path) -> None:
     """Write the triangles of any meshio-readable file as an STL."""
     import meshio
 
-    m = _meshio_read(src, hint="export the closed surface as STL")
+    m = read_with_meshio(src, hint="export the closed surface as STL")
     tris = [c.data for c in m.cells if c.type == "triangle"]
     if not tris:
         found = ", ".join(sorted({c.type for c in m.cells})) or "none"
@@ -571,7 +571,7 @@ def _surface_to_stl(src: Path, dst: Path) -> None:
 # --------------------------------------------------------------------------- #
 # Import and validation
 # --------------------------------------------------------------------------- #
-def _meshio_read(path: Path, hint: str):
+def read_with_meshio(path: Path, hint: str):
     """meshio.read with its failures turned into one MeshError.
 
     meshio prints the per-format reasons and then calls sys.exit(1) when no
@@ -603,7 +603,7 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
         raise MeshError(
             f"mesh file {path} does not exist; check the path (relative paths are taken from {Path.cwd()})"
         )
-    m = _meshio_read(path, hint="export it as .msh, .vtu, .vtk or Abaqus .inp")
+    m = read_with_meshio(path, hint="export it as .msh, .vtu, .vtk or Abaqus .inp")
 
     blocks = [c.data for c in m.cells if c.type == "tetra"]
     if not blocks:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +20,70 @@ def specimen_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
     from ..scenario import resolve_path
 
     if spec.shape == "mesh":
-        return read_mesh(resolve_path(spec.file, base)), None
+        mesh = read_mesh(resolve_path(spec.file, base))
+        return (mesh if spec.scale == 1.0 else dataclasses.replace(mesh, points=mesh.points * spec.scale)), None
     if spec.shape in ("box", "beam") and spec.mesh == "structured":
         return structured_box(spec.size, spec.element_size, origin=spec.origin), None
     mesh, region = _generated_mesh(spec, base)
     mesh, order = locality_order(mesh)
     return mesh, (None if region is None else region[order])
+
+
+# A specimen read from a file larger than this (m), or than FILE_TOOL_RATIO times its largest tool,
+# is taken for a file in other units (mm) unless the scenario states specimen.scale.
+FILE_EXTENT_LIMIT = 50.0
+FILE_TOOL_RATIO = 1000.0
+
+
+def check_file_units(points: np.ndarray, tools, scale_stated: bool, key: str) -> None:
+    """ValueError when the points of a specimen read from a file span more than FILE_EXTENT_LIMIT
+    metres or FILE_TOOL_RATIO times the largest finite tool (a mesh in mm read as metres), unless
+    the scenario stated the scale (then the size is meant); the message names `key`, the file's key."""
+    if scale_stated or not len(points):
+        return
+    extent = float(np.max(np.ptp(points, axis=0)))
+    sizes = [_tool_size(tool) for tool in tools]
+    largest = max((size for size in sizes if size is not None), default=None)
+    if extent > FILE_EXTENT_LIMIT or (largest is not None and extent > FILE_TOOL_RATIO * largest):
+        against = f"{FILE_EXTENT_LIMIT:g} m" if largest is None else f"its largest tool, {largest:.3g} m across"
+        raise ValueError(
+            f"{key}: the specimen spans {extent:.4g} m, implausibly large against {against}: a file in mm? "
+            f"set {key.rsplit('.', 1)[0]}.scale = 1e-3 (or 1 if it is in metres)"
+        )
+
+
+def _tool_size(tool) -> float | None:
+    """A tool's largest finite dimension (m); None for a plane or a support grip."""
+    if tool.shape in ("sphere", "cylinder"):
+        return 2.0 * tool.radius if not math.isfinite(tool.length) or tool.shape == "sphere" else max(2.0 * tool.radius, tool.length)
+    if tool.shape == "box":
+        return max(tool.size)
+    if tool.shape == "surface" and tool.vertices is not None and len(tool.vertices):
+        return float(np.max(np.ptp(tool.vertices, axis=0)))
+    return None
+
+
+def planned_tets(spec) -> float | None:
+    """About how many tets `spec` asks for, from its sizes and element_size alone (structured
+    boxes: 24 per cubic cell; gmsh: a tet of edge h holds ~h^3 / 8.5), before anything is meshed;
+    None where only the file tells (mesh, shell)."""
+    h = spec.element_size
+    if h is None or spec.shape in ("mesh", "shell"):
+        return None
+    if spec.shape in ("box", "beam"):
+        volume = math.prod(spec.size)
+        if spec.mesh == "structured":
+            return 24.0 * math.prod(max(1.0, L / h) for L in spec.size)
+    elif spec.shape == "sphere":
+        volume = math.pi / 6.0 * spec.diameter**3
+    elif spec.shape in ("disc", "cylinder"):
+        volume = math.pi / 4.0 * spec.diameter**2 * spec.thickness
+    else:  # walnut: an ellipsoidal wall; its surface by Thomsen's formula
+        a, b, c = 0.5 * spec.width, 0.5 * spec.thickness, 0.5 * spec.length
+        p = 1.6075
+        area = 4.0 * math.pi * (((a * b) ** p + (a * c) ** p + (b * c) ** p) / 3.0) ** (1.0 / p)
+        volume = area * max(spec.wall, spec.suture_wall, spec.layers * h)
+    return 8.5 * volume / h**3
 
 
 def _generated_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:

@@ -16,3 +16,14 @@ def time_unit(t_max: float) -> tuple[float, str]:
     if t < 1.0:
         return 1e3, "ms"
     return 1.0, "s"
+
+
+def duration_text(seconds: float) -> str:
+    """A wall time as a person reads it: '45 s', '12 min', '3.5 h' ('?' for nan: not known yet)."""
+    if seconds != seconds:
+        return "?"
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from time import monotonic
 
-from ._units import time_unit
+from ._units import duration_text, time_unit
 
 
 def _stdout_is_terminal() -> bool:
@@ -13,6 +14,11 @@ def _stdout_is_terminal() -> bool:
         return sys.stdout.isatty()
     except (AttributeError, ValueError):  # replaced or closed stdout
         return False
+
+
+# Wall seconds between the plain progress lines of a run without a terminal (CRACKLE_LOG_INTERVAL
+# sets another: a cluster log may want fewer).
+LOG_INTERVAL = float(os.environ.get("CRACKLE_LOG_INTERVAL", "30"))
 
 
 class Progress:
@@ -24,6 +30,10 @@ class Progress:
     redraws (every ``refresh_interval`` s) it only reads the clock. ``stage``
     shows at once what the run is doing before its first step (e.g. compiling
     kernels); ``note`` prints a line above the bar.
+
+    Without a bar (no terminal: a piped run, a batch job's log), ``log`` (a
+    callable taking a line) gets a plain progress line every ``log_interval``
+    wall seconds: time, per cent, steps/s, broken, ETA.
     """
 
     def __init__(
@@ -32,6 +42,8 @@ class Progress:
         enabled: bool | None = None,
         delay: float = 1.0,
         refresh_interval: float = 0.1,
+        log=None,
+        log_interval: float = LOG_INTERVAL,
     ):
         self.end_time = float(end_time)
         self.enabled = _stdout_is_terminal() if enabled is None else bool(enabled)
@@ -42,6 +54,8 @@ class Progress:
         self._task = None
         self._last = (0.0, 0, 0)  # latest (time, steps, broken)
         self._stage = ""
+        self.log = None if self.enabled else log
+        self.log_interval = float(log_interval)
         self._restart_clock()
 
     def _restart_clock(self) -> None:
@@ -49,6 +63,8 @@ class Progress:
         self._next_draw = self._start + self.delay
         self._rate = None
         self._rate_mark = (self._start, 0)  # (wall time, steps) of the last redraw
+        self._log_mark = None  # (wall time, simulated time, steps) at the first update, then at each line
+        self._log_first = None
 
     def __enter__(self) -> Progress:
         self._restart_clock()
@@ -59,6 +75,8 @@ class Progress:
 
     def update(self, time: float, steps: int, broken: int) -> None:
         if not self.enabled:
+            if self.log is not None:
+                self._log_line(monotonic(), float(time), int(steps), int(broken))
             return
         self._last = (time, steps, broken)
         now = monotonic()
@@ -133,6 +151,20 @@ class Progress:
             stage=self._stage,
         )
         self._bar.refresh()
+
+    def _log_line(self, now: float, time: float, steps: int, broken: int) -> None:
+        if self._log_mark is None:
+            self._log_mark = self._log_first = (now, time, steps)
+            return
+        if now - self._log_mark[0] < self.log_interval:
+            return
+        wall0, time0, _ = self._log_first
+        rate = (steps - self._log_mark[2]) / (now - self._log_mark[0])
+        done = min(time / self.end_time, 1.0) if self.end_time > 0 else 1.0
+        eta = (now - wall0) * (self.end_time - time) / (time - time0) if time > time0 else float("nan")
+        self._log_mark = (now, time, steps)
+        self.log(f"  t = {time * self._scale:.4g} / {self.end_time * self._scale:.4g} {self._unit} ({done:.0%}), "
+                 f"{steps:,} steps, {rate:,.0f} steps/s, broken {broken:,}, ETA {duration_text(eta)}")
 
     def close(self) -> None:
         """Draw the final state (if the bar was shown) and release the terminal."""

@@ -16,9 +16,10 @@ from typing import Literal
 
 import numpy as np
 
+from ..budget import ModelTooLarge, check_model_size
 from ..loading.arrays import TOOL_PENALTY_FACTOR, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
-from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
+from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, Nodes, Springs
@@ -44,6 +45,7 @@ class LatticeSpec(Strict):
 class Scenario(ScenarioBase):
     method: Literal["lattice"]
     """picks this method"""
+    unread_keys = FDEM_ONLY_KEYS
     lattice: LatticeSpec
     """the nodes and springs"""
     material: ElasticSpec
@@ -79,6 +81,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     tools, supports, pressures = build_loading(scenario, base)
     if pressures:
         raise ScenarioError("pressures: the lattice has no faces to load; remove [[pressures]]")
+    try:
+        check_model_size(math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes", "lattice.spacing",
+                         scenario.run.max_memory)
+    except ModelTooLarge as err:
+        raise ScenarioError(str(err)) from None
     x, mass, pairs, rest = lattice_arrays(spec, scenario.material)
     n, n_spring = len(x), len(pairs)
     k = np.full(n_spring, 0.4 * scenario.material.youngs_modulus * spec.spacing)

@@ -7,6 +7,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from ..scenario import ScenarioError
 from .tools import BARY_TOL, SURF_TRI_COLUMNS, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
 Tools = namedtuple(
@@ -78,6 +79,11 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
     )
 
 
+# A tool (not seated) that starts deeper in the specimen than this fraction of the specimen's
+# extent is a set-up mistake, not a contact: its penalty would throw the points out at once.
+DEEP_START = 0.05
+
+
 def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndarray, node_offset: np.ndarray,
                   what: str = "points") -> list[str]:
     """Seat the points (positions x, contact radius per point or one for all) inside the tools
@@ -101,6 +107,13 @@ def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndar
             notes.append(f"tool {tool.name}: {inside} {what} inside it at set-up start unloaded there (seat = true)")
         else:
             deepest = float(-np.min(trial_offset[trial_tool != node_tool]))
+            extent = float(np.max(np.ptp(x, axis=0)))
+            if deepest > DEEP_START * extent:
+                raise ScenarioError(
+                    f"tools: tool {tool.name} starts {deepest:.3g} m deep in the specimen ({deepest / extent:.0%} of its "
+                    f"{extent:.3g} m; {inside} {what} inside it): a specimen in other units than the tools (a mesh "
+                    "file in mm: specimen.scale = 1e-3) or a tool off its place; place it on the surface (touch = true)"
+                )
             notes.append(f"tool {tool.name}: {inside} {what} start inside it (up to {deepest:.3g} m deep) and are "
                          "pushed out from the first step; set seat = true on it to start them unloaded")
     return notes

@@ -19,12 +19,14 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from ..budget import ModelTooLarge, check_model_size
 from ..loading.build import build_loading, build_precracks
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, resolve_path
+from ..scenario import ElasticSpec, PrecrackSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
 from ..geometry.meshes import MeshError, read_mesh
+from ..geometry.specimens import check_file_units
 from .particles import plate_particles, shell_particles, tet_node_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
@@ -35,7 +37,7 @@ class MeshfreeSpecimen(Specimen):
 
     shape: Literal["box", "beam", "tube", "mesh", "shell"]
     """box and beam: size, origin (the thinnest side is the wall thickness); tube: inner_radius, thickness,
-    length, axis, origin; mesh: file (a solid, a particle at each node); shell: file (a closed or open
+    length, axis, origin; mesh: file, scale (a solid, a particle at each node); shell: file (a closed or open
     triangle surface), wall, scale, center (walled inwards as FDEM's shell, particles.layers through the wall)"""
     origin: Vec3 = (0.0, 0.0, 0.0)
     """m, box and beam: the lower corner; tube: the centre of its first end (the axis starts there)"""
@@ -99,7 +101,7 @@ class MeshfreeSpecimen(Specimen):
 
 
 # The keys of the specimens whose particles are a tet mesh's nodes (the rest are refused).
-MESH_KEYS = {"mesh": {"shape", "file", "initial_velocity"},
+MESH_KEYS = {"mesh": {"shape", "file", "scale", "initial_velocity"},
              "shell": {"shape", "file", "wall", "scale", "center", "initial_velocity"}}
 
 
@@ -226,6 +228,7 @@ class MeshfreeMaterial(ElasticSpec):
 class Scenario(ScenarioBase):
     method: Literal["meshfree"]
     """picks this method"""
+    unread_keys = FDEM_ONLY_KEYS
     specimen: MeshfreeSpecimen
     """the plate, tube, mesh or shell the particles fill"""
     particles: ParticlesSpec = ParticlesSpec()
@@ -249,13 +252,31 @@ class Scenario(ScenarioBase):
         return self
 
 
+def _planned_particles(spec, particles) -> float | None:
+    """The particle count particles.spacing asks for on a box, beam or tube, before any is made
+    (a mesh or surface file's is bounded by the file itself)."""
+    a, layers = particles.spacing, particles.layers
+    if a is None or spec.shape in ("mesh", "shell"):
+        return None
+    if spec.shape == "tube":
+        return 2.0 * math.pi * (spec.inner_radius + 0.5 * spec.thickness) * spec.length / a**2 * layers
+    in_plane = sorted(spec.size)[1:]  # the thinnest side is the thickness, across the layers
+    return (in_plane[0] / a + 1.0) * (in_plane[1] / a + 1.0) * layers
+
+
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
     tools, supports, pressures = build_loading(scenario, base)
     spec, particles = scenario.specimen, scenario.particles
+    planned = _planned_particles(spec, particles)
+    if planned is not None:
+        try:
+            check_model_size(planned, "particles", "particles.spacing", scenario.run.max_memory)
+        except ModelTooLarge as err:
+            raise ScenarioError(str(err)) from None
     try:
         if spec.shape == "mesh":
             mesh = read_mesh(resolve_path(spec.file, base))
-            plate = tet_node_particles(mesh.points, mesh.tets)
+            plate = tet_node_particles(mesh.points * spec.scale, mesh.tets)
         elif spec.shape == "shell":
             plate = shell_particles(resolve_path(spec.file, base), spec.wall, particles.layers, spec.scale,
                                     spec.center, particles.spacing)
@@ -269,6 +290,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         raise ScenarioError(f"{key}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"particles.{err}") from None
+    if spec.shape in ("mesh", "shell"):
+        try:
+            check_file_units(plate.X, tools, "scale" in spec.model_fields_set, "specimen.file")
+        except ValueError as err:
+            raise ScenarioError(str(err)) from None
     mat = scenario.material
     try:
         return build_meshfree_simulation(

@@ -19,11 +19,13 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..geometry.meshes import MeshError
+from ..budget import ModelTooLarge, check_model_size
+from ..geometry.meshes import MeshError, read_with_meshio
+from ..geometry.specimens import check_file_units
 from ..loading import History
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
-from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
+from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, LoadFactor, Pressures
@@ -65,6 +67,16 @@ class ShellSpec(Strict):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"surface '{self.surface}' needs {', '.join(missing)}")
+        # The sizes in the file's own terms (a rectangle's sides; a cylinder's length and girth).
+        sides = {"rectangle": self.size, "cylinder": (self.length, 2.0 * math.pi * self.radius)
+                 if self.surface == "cylinder" else None}.get(self.surface)
+        if sides is not None:
+            if self.element_size > max(sides):
+                raise ValueError(f"element_size = {self.element_size:g} m is larger than the {self.surface} "
+                                 f"({max(sides):g} m across); sizes are in metres (10 mm is 0.01)")
+            if self.thickness >= min(sides):
+                raise ValueError(f"thickness = {self.thickness:g} m is not thin against the {self.surface} ({min(sides):g} m "
+                                 "across): a Kirchhoff-Love shell is thin; sizes are in metres")
         return self
 
 
@@ -125,6 +137,7 @@ class FractureSpec(Strict):
 class Scenario(ScenarioBase):
     method: Literal["shell"]
     """picks this method"""
+    unread_keys = FDEM_ONLY_KEYS
     shell: ShellSpec
     """the mid-surface and its thickness"""
     material: ElasticSpec
@@ -164,10 +177,21 @@ class Scenario(ScenarioBase):
 def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimulation:
     tools, supports, pressures = build_loading(scenario, base)
     spec, mat = scenario.shell, scenario.material
+    planned = _planned_triangles(spec)
+    if planned is not None:
+        try:
+            check_model_size(planned, "triangles", "shell.element_size", scenario.run.max_memory)
+        except ModelTooLarge as err:
+            raise ScenarioError(str(err)) from None
     try:
         mesh = _surface(spec, base)
     except (SurfaceError, MeshError) as err:
         raise ScenarioError(f"shell.{'file' if spec.surface == 'file' else 'size'}: {err}") from None
+    if spec.surface == "file":
+        try:
+            check_file_units(mesh.X, tools, "scale" in spec.model_fields_set, "shell.file")
+        except ValueError as err:
+            raise ScenarioError(str(err)) from None
     mesh, material = _regions(mesh, scenario)
     tips = []
     for i, crack in enumerate(scenario.cracks):
@@ -292,6 +316,15 @@ def _pressures(shell, pressures, scale) -> Pressures:
     return Pressures(times, values, counts)
 
 
+def _planned_triangles(spec: ShellSpec) -> float | None:
+    """About how many triangles shell.element_size asks for (rectangle, cylinder; 4 per cell at most)."""
+    if spec.surface == "rectangle":
+        return 4.0 * math.prod(max(1.0, L / spec.element_size) for L in spec.size)
+    if spec.surface == "cylinder":
+        return 4.0 * max(3.0, 2.0 * math.pi * spec.radius / spec.element_size) * max(1.0, spec.length / spec.element_size)
+    return None
+
+
 def _surface(spec: ShellSpec, base: Path | None):
     if spec.surface == "rectangle":
         nx, ny = (max(1, int(round(L / spec.element_size))) for L in spec.size)
@@ -300,12 +333,8 @@ def _surface(spec: ShellSpec, base: Path | None):
         around = max(3, int(round(2.0 * math.pi * spec.radius / spec.element_size)))
         along = max(1, int(round(spec.length / spec.element_size)))
         return cylinder(spec.radius, spec.length, around, along, spec.thickness, spec.origin)
-    import meshio
-
-    try:
-        surface = meshio.read(resolve_path(spec.file, base))
-    except Exception as err:  # meshio raises many kinds for a bad or missing file
-        raise MeshError(f"cannot read {spec.file}: {err}") from None
+    # meshio's failures (and its sys.exit on a file no reader takes) as one MeshError
+    surface = read_with_meshio(resolve_path(spec.file, base), hint="give a triangle surface (.stl, .obj, .msh, .vtu)")
     triangles = [block.data for block in surface.cells if block.type == "triangle"]
     if not triangles:
         raise MeshError(f"{spec.file} holds no triangles")

@@ -9,6 +9,7 @@ is interrupted keeps everything written so far.
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import signal
 import sys
@@ -25,15 +26,33 @@ from ..loading.arrays import LOAD_CELL_RING
 from .checkpoint import CHECKPOINT_FILE, Checkpoint, CheckpointError, load_checkpoint, save_checkpoint
 from .energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error
 from .simulation import Simulation
+from ..io._units import duration_text
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
 
 
-# |energy_error| above which the summary and the screen warn.
+# |energy_error| above which the summary and the screen warn, once a run has taken
+# AUDIT_MIN_STEPS steps: the audit is second-order in the step, and a run of a few steps (a tool's
+# ramp just begun) holds energies so small that its rounding terms are tens of per cent of them.
 ENERGY_WARNING = 0.05
+AUDIT_MIN_STEPS = 20
 
 
 class UnstableRunError(RuntimeError):
     """The run blew up (non-finite or runaway energy); outputs up to that point are kept."""
+
+
+class StoppedAtOnce(RuntimeError):
+    """A Ctrl-C stopped the run at once (a second one during a chunk, or one while the summary and
+    plots are written): what was written is kept."""
+
+
+class DiskFullError(RuntimeError):
+    """The output folder's disk (or quota) filled up during the run: it stopped like an
+    interrupt, with what could be written kept and the last checkpoint resumable."""
+
+
+# The write errors that mean "no room": stop the run cleanly rather than show a traceback.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 @dataclass
@@ -155,8 +174,23 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     outputs up to the checkpoint are kept and the new rows follow them.
 
     Rows fall on a grid of steps fixed by end_time and history_samples (and the field frames),
-    from step 0: a resumed run writes the rows an uninterrupted one would."""
+    from step 0: a resumed run writes the rows an uninterrupted one would. A Ctrl-C that stops
+    the run at once (a second one, or one while the summary and plots are written) raises
+    StoppedAtOnce saying what is kept."""
     out = Path(out_dir)
+    try:
+        return _run(sim, control, out, scenario_name, scenario, resume)
+    except KeyboardInterrupt:
+        resumable = (out / CHECKPOINT_FILE).is_file()
+        raise StoppedAtOnce(
+            f"stopped at once by Ctrl-C at t = {sim.time:.4e} s: what was written by then (history.csv, events.csv) is "
+            f"kept in {out}, without a summary" + (f"; --resume {out} continues from the last checkpoint"
+                                                  if resumable else "")
+        ) from None
+
+
+def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, scenario: dict | None,
+         resume: Checkpoint | None) -> RunResult:
     out.mkdir(parents=True, exist_ok=True)
     if resume is None:
         clear_outputs(out)
@@ -178,7 +212,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     low_since = resume.low_since if resume is not None else None  # since when the tool force stayed low after a failure
 
     with contextlib.ExitStack() as stack:
-        progress = stack.enter_context(Progress(control.end_time, enabled=control.progress))
+        progress = stack.enter_context(Progress(control.end_time, enabled=control.progress, log=control.report))
         interrupt = stack.enter_context(_InterruptRequest())
 
         def say(text: str) -> None:
@@ -207,17 +241,31 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
             stop = min(total_steps, _next_multiple(step, chunk))
             return min(stop, _next_multiple(step, field_every)) if fields is not None else stop
 
+        written_until = sim.steps  # the steps of the last history row written (or kept, resuming)
         if next_stop(sim.steps) > sim.steps + 1:
             # One step alone compiles the kernels before the timed probe; it never skips a row (a
             # row's state does not depend on how its steps were split).
             sim.advance(1, dt)
         progress.stage("")
-        probe = None  # (wall time, steps) after the first chunk, which also starts the thread pool
+        # The cost estimate is timed over the first steps after compiling, taken in pieces of
+        # 1, 2, 4 ... steps until PROBE_SECONDS have passed: a big model says what it costs
+        # within seconds, not after its first row (a row's state does not depend on the split).
+        probe = (wallclock.perf_counter(), sim.steps)
+        piece = 1
         last_checkpoint = wallclock.perf_counter()
         estimated = False
         try:
             while sim.steps < total_steps:
-                sim.advance(next_stop(sim.steps) - sim.steps, dt)
+                stop = next_stop(sim.steps)
+                while sim.steps < stop:
+                    sim.advance(stop - sim.steps if estimated else min(stop - sim.steps, piece), dt)
+                    if not estimated:
+                        piece *= 2
+                        if wallclock.perf_counter() - probe[0] > PROBE_SECONDS:
+                            estimated = True
+                            estimate = _cost_estimate(probe, sim.steps, total_steps, started, fields, field_every)
+                            if estimate:
+                                say(estimate)
                 if not sim.state_is_finite():
                     raise UnstableRunError(
                         f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
@@ -225,6 +273,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                     )
                 row = {"time": sim.time, **sim.sample(dt)}
                 history.append(row)
+                written_until = sim.steps
                 t, xyz, modes, ids = sim.new_events()
                 if len(ids):
                     events.append_many(t, xyz, modes, ids)
@@ -232,13 +281,6 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                 if fields is not None and sim.steps % field_every == 0:
                     _write_fields(fields, sim)
                 progress.update(sim.time, sim.steps, sim.broken)
-                if probe is None:
-                    probe = (wallclock.perf_counter(), sim.steps)
-                elif not estimated and wallclock.perf_counter() - probe[0] > PROBE_SECONDS:
-                    estimated = True
-                    estimate = _cost_estimate(probe, sim.steps, total_steps, started, fields, field_every)
-                    if estimate:
-                        say(estimate)
 
                 energy_terms = [v for k, v in row.items() if k.startswith("energy.")]
                 if not all(math.isfinite(v) for v in row.values()):
@@ -282,10 +324,31 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
                     last_checkpoint = wallclock.perf_counter()
         except UnstableRunError as err:
             status, message = "unstable", str(err)
-        if fields is not None and status != "unstable" and sim.steps % field_every:
+        except OSError as err:
+            if err.errno not in DISK_FULL:
+                raise
+            status, message = "disk full", f"the disk is full ({err.filename or out}) at t = {sim.time:.4e} s"
+        if fields is not None and status not in ("unstable", "disk full") and sim.steps % field_every:
             _write_fields(fields, sim)
-        if status != "unstable" and control.checkpoint:
-            save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, n_events, scenario or {}))
+        # A full disk keeps the last checkpoint unless the history holds the current state's row
+        # (a checkpoint past the last row written would leave a gap in the resumed history).
+        if status != "unstable" and control.checkpoint and (status != "disk full" or written_until == sim.steps):
+            try:
+                save_checkpoint(out, Checkpoint(sim, dt, scale, low_since, n_events, scenario or {}))
+            except OSError as err:
+                if err.errno not in DISK_FULL:
+                    raise
+                status, message = "disk full", message or f"the disk is full ({out}) at t = {sim.time:.4e} s"
+                message += "; the checkpoint could not be updated (an earlier one, if any, is whole)"
+    if status == "disk full":
+        # Nothing more is written (the summary and plots need room too); the history and events
+        # keep their complete lines, which a resumed run reads up to its checkpoint.
+        resumable = (out / CHECKPOINT_FILE).is_file()
+        raise DiskFullError(
+            f"stopped: {message}. What was written is kept in {out}" + (
+                f"; free some space and continue with --resume {out} (the same scenario, --quick and --set)"
+                if resumable else "; no checkpoint was written, so free some space and rerun")
+        )
 
     hist = read_history_csv(out / "history.csv")
     peaks, peak_times = sim.load_cell.peaks()
@@ -314,7 +377,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     }
     for warning in summary.get("warnings", [])[len(sim.warnings):]:  # those only the end of the run can tell
         control.report(f"  warning: {warning}")
-    if abs(summary["energy_error"]) > ENERGY_WARNING:
+    if abs(summary["energy_error"]) > ENERGY_WARNING and sim.steps >= AUDIT_MIN_STEPS:
         warning = (
             f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
             f"{ENERGY_WARNING:.0%}): results may not be trustworthy; reduce run.safety or check the contact "
@@ -345,19 +408,11 @@ def _cost_estimate(probe, steps: int, total_steps: int, started: float, fields, 
     total = now - started + per_step * (total_steps - steps)
     if total < ESTIMATE_ABOVE:
         return ""
-    text = f"  estimated wall time {_duration(total)} ({per_step * 1e3:.3g} ms per step)"
+    text = f"  estimated wall time {duration_text(total)} ({per_step * 1e3:.3g} ms per step)"
     if fields is not None and fields.steps:
         frames = len(fields.steps) + (total_steps - steps) // field_every + 1
         text += f"; fields ~{frames * fields.last_frame_bytes / 1e6:,.0f} MB ({frames} frames)"
     return text
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 def _next_multiple(step: int, every: int) -> int:
@@ -433,4 +488,4 @@ def _write_fields(writer: FieldWriter, sim) -> None:
                         component_names=f.get("component_names"))
 
 
-__all__ = ["Checkpoint", "CheckpointError", "RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "load_cell_steps", "load_checkpoint", "run", "steps_to"]
+__all__ = ["Checkpoint", "CheckpointError", "DiskFullError", "StoppedAtOnce", "RunControl", "RunResult", "Simulation", "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "load_cell_steps", "load_checkpoint", "run", "steps_to"]

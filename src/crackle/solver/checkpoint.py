@@ -64,8 +64,12 @@ def save_checkpoint(out_dir: Path, checkpoint: Checkpoint) -> Path:
     writing leaves the previous checkpoint whole)."""
     path = Path(out_dir) / CHECKPOINT_FILE
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        pickle.dump(checkpoint, f, protocol=pickle.HIGHEST_PROTOCOL)
+    try:
+        with open(tmp, "wb") as f:
+            pickle.dump(checkpoint, f, protocol=pickle.HIGHEST_PROTOCOL)
+    except BaseException:  # e.g. a full disk: no half file left beside the previous checkpoint
+        tmp.unlink(missing_ok=True)
+        raise
     os.replace(tmp, path)
     return path
 

@@ -38,6 +38,14 @@ from .plan import absolute_source
 from .runner import COMPLETED, dask_client, outcome_of, run_one
 
 FAILED_DISTANCE = 10.0  # a run that did not finish: far from any curve (a curve's own scale is 1)
+# A fit that misses its targets by more than this (relative) is of no use: a target in other units
+# (kN for N, mm for m) or bounds that exclude the answer. The calibration says so and exits 1.
+USEFUL_MISFIT = 0.5
+
+
+class CalibrationFailed(RuntimeError):
+    """Every candidate run failed, or the best fit misses the targets beyond any use; the
+    outputs (calibration.json, calibration.csv) are written first."""
 
 
 @dataclass(frozen=True)
@@ -222,7 +230,8 @@ def evaluate(scenario: str, folder: str, overrides: dict, quick: bool, threads: 
         values[target.text] = value
         misfits.append((value - target.value) / abs(target.value))
     distance = float(np.sqrt(np.mean(np.square(misfits))))
-    return {**outcomes[0], "distance": min(distance, FAILED_DISTANCE), "values": values}
+    return {**outcomes[0], "distance": min(distance, FAILED_DISTANCE), "values": values,
+            "misfits": {target.text: float(d) for target, d in zip(targets, misfits)}}
 
 
 def target_folder(folder: str, source: str, scenario: str) -> str:
@@ -262,7 +271,11 @@ def calibrate(scenario: str, target: str | Path | list, fit: list[str], start: l
     # The bounds' ends must make valid scenarios (a refused value would stall the search).
     for source in dict.fromkeys(t.scenario or scenario for t in targets):
         for corner in (dict(zip(keys, (b[0] for b in bounds.values()))), dict(zip(keys, (b[1] for b in bounds.values())))):
-            load_scenario(source, {**fixed_overrides, **corner}, quick)
+            loaded, _ = load_scenario(source, {**fixed_overrides, **corner}, quick)
+            if tool is not None and source == scenario:
+                names = [t.name for t in loaded.all_tools()] + [name for _, name in loaded.support_grips()]
+                if tool not in names:
+                    raise ScenarioError(f"--tool {tool}: no such tool in {Path(scenario).stem} ({', '.join(names) or 'no tools'})")
 
     out = Path(out_dir)
     (out / "candidates").mkdir(parents=True, exist_ok=True)
@@ -283,7 +296,8 @@ def calibrate(scenario: str, target: str | Path | list, fit: list[str], start: l
             results = [{"distance": FAILED_DISTANCE, **outcome_of(future)} for future in futures]
             for k, result in enumerate(results):
                 candidates[first + k].update(distance=result["distance"], status=result["status"],
-                                             message=result.get("message", ""), **result.get("values", {}))
+                                             message=result.get("message", ""), misfits=result.get("misfits", {}),
+                                             **result.get("values", {}))
             best = min(c["distance"] for c in candidates)
             report(f"  {len(candidates)} runs, best distance so far {best:.4g}")
             return [r["distance"] for r in results]
@@ -300,6 +314,17 @@ def calibrate(scenario: str, target: str | Path | list, fit: list[str], start: l
     best = min(candidates, key=lambda c: (c["distance"], c["candidate"]))
     fitted = candidates[-1] if surface is not None else best
     _write_outputs(out, keys, candidates, fitted, best, surface is not None, x0, targets, tool, bounds, fit_result)
+    finished = [c for c in candidates if c["status"] in COMPLETED]
+    if not finished:
+        reasons = list(dict.fromkeys(c["message"] for c in candidates if c["message"]))
+        raise CalibrationFailed(f"every one of the {len(candidates)} runs failed ({'; '.join(reasons[:2]) or 'no message'}); "
+                                f"calibration.csv in {out} lists them")
+    if fitted["distance"] > USEFUL_MISFIT:
+        raise CalibrationFailed(
+            f"the best fit misses the targets by {fitted['distance']:.3g} (relative, more than {USEFUL_MISFIT:g}): a "
+            "target in other units than the run's (N and m; kN or mm?) or --fit bounds that leave the answer out; "
+            f"calibration.json in {out} has each target's misfit"
+        )
     return CalibrationResult(out, {key: fitted[key] for key in keys}, fitted["distance"], len(candidates),
                              Path(fitted["folder"]))
 
@@ -323,6 +348,9 @@ def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, targets,
         "runs": len(candidates),
         "generations": int(fit_result.nit),
         "converged": bool(fit_result.success),
+        "relative_misfit": fitted["distance"],
+        "misfit_per_target": fitted.get("misfits", {}),
+        "usable": bool(fitted.get("status") in COMPLETED and fitted["distance"] <= USEFUL_MISFIT),
         "optimizer_message": str(fit_result.message),
         "targets": [t.text for t in targets],
         "fitted_values": {text: fitted.get(text) for text in value_targets},

@@ -10,7 +10,9 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import signal
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -112,7 +114,10 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None
             got = outcome.get(run.index, {"status": "missing", "message": "no finished summary.json"})
             row.update(status=got["status"], message=got["message"], summary={})
         rows.append(row)
-    write_table(out, list(plan.vary), rows, plots)
+    unknown = write_table(out, list(plan.vary), rows, plots)
+    if unknown:
+        raise ScenarioError(f"--plot {'; '.join(unknown)}: no such scalar in the runs' summaries; the table and the "
+                            "other plots are written, and rerunning with the right name reuses the finished runs")
     return SweepResult(out, rows, len(todo))
 
 
@@ -146,7 +151,7 @@ def dask_client(scheduler: str | None, workers: int | None, threads_per_run: int
     if scheduler is None:
         workers = workers or max(1, min(n_runs, cores // (threads_per_run or 1)))
         threads = threads_per_run or max(1, cores // workers)
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        cluster = _quiet_cluster(LocalCluster, workers)
         client = Client(cluster)
         where = f"a local cluster of {workers} workers"
     else:
@@ -163,6 +168,19 @@ def dask_client(scheduler: str | None, workers: int | None, threads_per_run: int
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _quiet_cluster(LocalCluster, workers: int):
+    """A local cluster whose worker processes ignore Ctrl-C (they inherit SIGINT ignored): the
+    sweep's own process stops them and says so in one line, instead of each worker printing its
+    traceback."""
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -> dict[int, dict]:

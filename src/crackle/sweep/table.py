@@ -6,6 +6,8 @@ are left out: they stay in each run's summary)."""
 
 from __future__ import annotations
 
+import difflib
+
 import csv
 import math
 import re
@@ -49,7 +51,9 @@ def table_rows(varied_keys: list[str], rows: list[dict]) -> tuple[list[str], lis
     return columns, records
 
 
-def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: list[str] = ()) -> None:
+def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: list[str] = ()) -> list[str]:
+    """sweep.csv, sweep.parquet and plots/sweep_KEY.png; returns the `plotted` names that are no
+    column of the table (a misspelt --plot), each with the nearest column where one is close."""
     columns, records = table_rows(varied_keys, rows)
     with open(out / "sweep.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, columns, restval="")
@@ -57,9 +61,14 @@ def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: li
         for record in records:
             writer.writerow({k: _csv_value(v) for k, v in record.items()})
     _write_parquet(out / "sweep.parquet", columns, records)
+    known = [name for name in plotted if name in columns]
     for key in varied_keys:
         plot_against(out / "plots" / f"sweep_{_file_part(key)}.png", key, varied_keys, records,
-                     list(DEFAULT_PLOTTED) + [name for name in plotted if name not in DEFAULT_PLOTTED])
+                     list(DEFAULT_PLOTTED) + [name for name in known if name not in DEFAULT_PLOTTED])
+    finished = any(record.get("status") in ("completed", "stopped") for record in records)
+    unknown = [name for name in plotted if name not in columns] if finished else []
+    return [name + "".join(f" (did you mean {close}?)" for close in difflib.get_close_matches(name, columns, n=1))
+            for name in unknown]
 
 
 def _csv_value(value):
