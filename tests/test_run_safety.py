@@ -266,3 +266,38 @@ def test_a_ctrl_c_that_stops_at_once_says_what_is_kept(tmp_path, capsys, monkeyp
     err = _one_line(capsys.readouterr().err)
     assert "stopped at once by Ctrl-C" in err and "kept in" in err and "no results" not in err
     assert len((out / "history.csv").read_text().splitlines()) > 2
+
+
+def _dem_without_method(tmp_path):
+    from crackle.scenario import examples_dir
+
+    path = tmp_path / "no-method.toml"
+    path.write_text((examples_dir() / "dem-ucs.toml").read_text().replace('method = "dem"\n', ""))
+    return str(path)
+
+
+def _junk(tmp_path, name, data: bytes):
+    path = tmp_path / name
+    path.write_bytes(data)
+    return str(path)
+
+
+@pytest.mark.parametrize("argv, expected", [
+    # did-you-mean within the section, not a key of another one ("radius" of a tool)
+    (lambda p: ["dem-ucs", "--quick", "--set", "packing.radius=1e-3"], "did you mean mean_radius?"),
+    # a DEM file without `method`: the missing method, not FDEM's nearest key
+    (lambda p: [_dem_without_method(p), "--quick"], 'add method = "dem"'),
+    # a binary file as packing.file: the line, shortened
+    (lambda p: ["dem-ucs", "--quick", "--set", f"packing.file={_junk(p, 'junk.txt', bytes(range(256)) * 4)}"],
+     "line 1"),
+    # a .msh no reader takes as the shell's surface (meshio would sys.exit)
+    (lambda p: ["shell-tear", "--quick", "--set", "shell.surface=file", "--set",
+                f"shell.file={_junk(p, 'bad.msh', b'$MeshFormat' + bytes(100))}"], "shell.file: meshio cannot read"),
+    # a shell element larger than its plate (not a roller's fault), a shell thicker than its plate
+    (lambda p: ["shell-tear", "--quick", "--set", "shell.element_size=1"], "element_size = 1 m is larger than the rectangle"),
+    (lambda p: ["shell-tear", "--quick", "--set", "shell.thickness=1"], "thickness = 1 m is not thin"),
+])
+def test_messages_name_the_right_thing(tmp_path, capsys, argv, expected):
+    assert main(["run", *argv(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    assert expected in _one_line(capsys.readouterr().err)
+    assert not (tmp_path / "o").exists()
