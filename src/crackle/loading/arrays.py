@@ -79,6 +79,9 @@ def tool_arrays(tools, default_penalty: float, contact_depth: float, force_slots
     )
 
 
+# The words of the set-up note for points inside a tool that does not seat them (the driver's
+# advice when energy appears from nowhere looks for them).
+STARTS_INSIDE = "start inside it"
 # A tool (not seated) that starts deeper in the specimen than this fraction of the specimen's
 # extent is a set-up mistake, not a contact: its penalty would throw the points out at once.
 DEEP_START = 0.05
@@ -114,7 +117,7 @@ def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndar
                     f"{extent:.3g} m; {inside} {what} inside it): a specimen in other units than the tools (a mesh "
                     "file in mm: specimen.scale = 1e-3) or a tool off its place; place it on the surface (touch = true)"
                 )
-            notes.append(f"tool {tool.name}: {inside} {what} start inside it (up to {deepest:.3g} m deep) and are "
+            notes.append(f"tool {tool.name}: {inside} {what} {STARTS_INSIDE} (up to {deepest:.3g} m deep) and are "
                          "pushed out from the first step; set seat = true on it to start them unloaded")
     return notes
 

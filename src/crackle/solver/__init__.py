@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..loading.arrays import LOAD_CELL_RING
+from ..loading.arrays import LOAD_CELL_RING, STARTS_INSIDE
 from .checkpoint import CHECKPOINT_FILE, Checkpoint, CheckpointError, load_checkpoint, save_checkpoint
 from .energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error
 from .simulation import Simulation
@@ -269,7 +269,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                 if not sim.state_is_finite():
                     raise UnstableRunError(
                         f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
-                        "velocities); reduce run.dt or run.safety, or check loads and penalties"
+                        f"velocities); {_advice(sim, 'reduce run.dt or run.safety, or check loads and penalties')}"
                     )
                 row = {"time": sim.time, **sim.sample(dt)}
                 history.append(row)
@@ -286,7 +286,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                 if not all(math.isfinite(v) for v in row.values()):
                     raise UnstableRunError(
                         f"the run went unstable at t = {sim.time:.4e} s (non-finite values); "
-                        "reduce run.dt or run.safety, or check loads and penalties"
+                        f"{_advice(sim, 'reduce run.dt or run.safety, or check loads and penalties')}"
                     )
                 # Not in the first steps: a moving tool's work is booked a step after the motion
                 # it causes, so a run's first rows hold more energy than was put in.
@@ -294,14 +294,14 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                 if created > UNSTABLE_CREATED:
                     raise UnstableRunError(
                         f"the run went unstable at t = {sim.time:.4e} s (the model holds {created:.0%} more "
-                        "energy than the work put in); reduce run.safety, or run.target_dt with mass scaling"
+                        f"energy than the work put in); {_advice(sim, 'reduce run.safety, or run.target_dt with mass scaling')}"
                     )
                 external = abs(row.get("energy.external", 0.0))
                 scale = max(scale, external)
                 if energy_terms and sum(abs(v) for v in energy_terms) > 1e6 * scale + 1e-3:
                     raise UnstableRunError(
                         f"the run went unstable at t = {sim.time:.4e} s (energy grew without work "
-                        "put in); reduce run.dt or run.safety"
+                        f"put in); {_advice(sim, 'reduce run.dt or run.safety')}"
                     )
                 force = max((_tool_force(row, name) for name in tool_names), default=0.0)
                 # The peak over every step (the load cell keeps it), not only over the rows.
@@ -380,8 +380,8 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
     if abs(summary["energy_error"]) > ENERGY_WARNING and sim.steps >= AUDIT_MIN_STEPS:
         warning = (
             f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
-            f"{ENERGY_WARNING:.0%}): results may not be trustworthy; reduce run.safety or check the contact "
-            "penalties (energies.png shows when the imbalance grew)"
+            f"{ENERGY_WARNING:.0%}): results may not be trustworthy; "
+            f"{_advice(sim, 'reduce run.safety or check the contact penalties')} (energies.png shows when the imbalance grew)"
         )
         summary["warnings"] = [*summary.get("warnings", []), warning]
         control.report(f"  warning: {warning}")
@@ -413,6 +413,16 @@ def _cost_estimate(probe, steps: int, total_steps: int, started: float, fields, 
         frames = len(fields.steps) + (total_steps - steps) // field_every + 1
         text += f"; fields ~{frames * fields.last_frame_bytes / 1e6:,.0f} MB ({frames} frames)"
     return text
+
+
+def _advice(sim, usual: str) -> str:
+    """What to do about energy from nowhere: `usual` (the step, the penalties), unless the set-up
+    noted points starting inside a tool, whose penalty throws them out with energy never put in."""
+    inside = next((w for w in sim.warnings if STARTS_INSIDE in w), None)
+    if inside is None:
+        return usual
+    return (f"{inside.split(':')[0]} started with points inside it (the set-up note), whose penalty throws them out "
+            "with energy never put in: set seat = true on it, or place it on the surface (touch = true)")
 
 
 def _next_multiple(step: int, every: int) -> int:
