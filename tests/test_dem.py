@@ -478,3 +478,18 @@ def test_clamped_supports_are_refused_for_particles():
     with pytest.raises(ScenarioError, match=r'supports\.0\.kind: "clamped" is not available for DEM.*use "fixed"'):
         load_scenario("dem-ucs", overrides=['supports=[{kind="clamped", where={plane_point=[0, 0, 0], '
                                             'plane_normal=[0, 0, 1]}}]'])
+
+
+def test_bond_force_fields_of_a_stretched_pair():
+    """The bond lines' `normal_force` (tension positive) is kn x stretch within 1e-9 and their
+    `shear_force` 0 for a pure stretch; pushed together, -kn x overlap (issue 44)."""
+    delta = 1e-8
+    for sign in (1.0, -1.0):
+        sim = _pair()
+        _force_after(sim, (sign * delta, 0.0, 0.0))
+        fields = sim.fields()
+        name, cells, data = fields["blocks"][0]
+        assert name == "line" and cells.tolist() == [[0, 1]]
+        assert data["normal_force"][0] == pytest.approx(sign * KN * delta, rel=1e-9)
+        assert data["shear_force"][0] <= 1e-9 * KN * delta
+        assert fields["point_data"]["id"][:2].tolist() == [0, 1]

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
+from datetime import datetime, timezone
+from pathlib import Path
 from time import monotonic
 
 from ._units import duration_text, time_unit
@@ -44,6 +47,7 @@ class Progress:
         refresh_interval: float = 0.1,
         log=None,
         log_interval: float = LOG_INTERVAL,
+        status_path=None,
     ):
         self.end_time = float(end_time)
         self.enabled = _stdout_is_terminal() if enabled is None else bool(enabled)
@@ -56,6 +60,7 @@ class Progress:
         self._stage = ""
         self.log = None if self.enabled else log
         self.log_interval = float(log_interval)
+        self.status_path = None if status_path is None else Path(status_path)
         self._restart_clock()
 
     def _restart_clock(self) -> None:
@@ -74,9 +79,9 @@ class Progress:
         self.close()
 
     def update(self, time: float, steps: int, broken: int) -> None:
+        if self.log is not None or self.status_path is not None:
+            self._log_line(monotonic(), float(time), int(steps), int(broken))
         if not self.enabled:
-            if self.log is not None:
-                self._log_line(monotonic(), float(time), int(steps), int(broken))
             return
         self._last = (time, steps, broken)
         now = monotonic()
@@ -153,8 +158,10 @@ class Progress:
         self._bar.refresh()
 
     def _log_line(self, now: float, time: float, steps: int, broken: int) -> None:
+        """Every log_interval: the progress line (without a terminal) and status.json."""
         if self._log_mark is None:
             self._log_mark = self._log_first = (now, time, steps)
+            self._write_status("running", now, time, steps, broken, 0.0, float("nan"))
             return
         if now - self._log_mark[0] < self.log_interval:
             return
@@ -163,8 +170,32 @@ class Progress:
         done = min(time / self.end_time, 1.0) if self.end_time > 0 else 1.0
         eta = (now - wall0) * (self.end_time - time) / (time - time0) if time > time0 else float("nan")
         self._log_mark = (now, time, steps)
-        self.log(f"  t = {time * self._scale:.4g} / {self.end_time * self._scale:.4g} {self._unit} ({done:.0%}), "
-                 f"{steps:,} steps, {rate:,.0f} steps/s, broken {broken:,}, ETA {duration_text(eta)}")
+        self._write_status("running", now, time, steps, broken, rate, eta)
+        if self.log is not None:
+            self.log(f"  t = {time * self._scale:.4g} / {self.end_time * self._scale:.4g} {self._unit} ({done:.0%}), "
+                     f"{steps:,} steps, {rate:,.0f} steps/s, broken {broken:,}, ETA {duration_text(eta)}")
+
+    def _write_status(self, state: str, now: float, time: float, steps: int, broken: int, rate: float, eta: float):
+        """status.json for tools that poll a running job (written, then renamed into place)."""
+        if self.status_path is None:
+            return
+        record = {"state": state, "time": time, "end_time": self.end_time, "fraction": min(time / self.end_time, 1.0),
+                  "steps": steps, "steps_per_second": rate, "broken": broken,
+                  "eta_seconds": None if eta != eta else eta, "wall_seconds": now - self._start,
+                  "updated": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+        tmp = self.status_path.with_name(self.status_path.name + ".tmp")
+        try:
+            tmp.write_text(json.dumps(record, indent=1) + "\n")
+            os.replace(tmp, self.status_path)
+        except OSError:
+            pass  # a progress report is not worth stopping a run for (a full disk stops it at its next row)
+
+    def finish(self, state: str, time: float, steps: int, broken: int) -> None:
+        """The run's last status.json: `state` its status (completed, stopped, interrupted ...)."""
+        now = monotonic()
+        first = self._log_first
+        rate = (steps - first[2]) / (now - first[0]) if first is not None and now > first[0] else 0.0
+        self._write_status(state, now, time, steps, broken, rate, 0.0)
 
     def close(self) -> None:
         """Draw the final state (if the bar was shown) and release the terminal."""

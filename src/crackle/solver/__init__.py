@@ -212,7 +212,8 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
     low_since = resume.low_since if resume is not None else None  # since when the tool force stayed low after a failure
 
     with contextlib.ExitStack() as stack:
-        progress = stack.enter_context(Progress(control.end_time, enabled=control.progress, log=control.report))
+        progress = stack.enter_context(Progress(control.end_time, enabled=control.progress, log=control.report,
+                                                status_path=out / "status.json"))
         interrupt = stack.enter_context(_InterruptRequest())
 
         def say(text: str) -> None:
@@ -340,6 +341,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                     raise
                 status, message = "disk full", message or f"the disk is full ({out}) at t = {sim.time:.4e} s"
                 message += "; the checkpoint could not be updated (an earlier one, if any, is whole)"
+        progress.finish(status, sim.time, sim.steps, sim.broken)
     if status == "disk full":
         # Nothing more is written (the summary and plots need room too); the history and events
         # keep their complete lines, which a resumed run reads up to its checkpoint.
@@ -475,7 +477,7 @@ class _InterruptRequest:
 
 
 # What a run writes into its output folder (and a rerun into the same folder removes first).
-OUTPUT_FILES = ("summary.json", "history.csv", "events.csv", "fields.pvd", CHECKPOINT_FILE) + tuple(
+OUTPUT_FILES = ("summary.json", "status.json", "history.csv", "events.csv", "fields.pvd", CHECKPOINT_FILE) + tuple(
     f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth",
                                      "time_step", "stress_strain")
 )
