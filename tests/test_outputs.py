@@ -46,3 +46,31 @@ def test_status_json_follows_the_run(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert status["state"] == summary["status"] == "completed"
     assert status["steps"] == summary["steps"] and status["fraction"] == 1.0 and status["broken"] == summary["broken"]
+
+
+def test_sweep_plots_name_the_scenario_and_the_units(tmp_path, monkeypatch):
+    """plots/sweep_KEY.png: a title with the scenario and what is plotted, units in brackets from
+    the schema (the varied key) and from the summary's units (the scalars)."""
+    import crackle.io.plots as plots
+    from crackle.sweep.table import plot_against
+
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    records = [{"material.interface.tensile_strength": t, "status": "completed", "peak_force": 1e3 * t / 1e6,
+                "energy_error": 1e-3} for t in (2e6, 3e6, 4e6)]
+    plot_against(tmp_path / "p.png", "material.interface.tensile_strength", ["material.interface.tensile_strength"],
+                 records, ["peak_force", "energy_error"], "three-point-bending")
+    axes = figures[0].axes
+    assert axes[0].get_title() == "three-point-bending: peak_force, energy_error against tensile_strength"
+    assert [ax.get_ylabel() for ax in axes] == ["peak_force [N]", "energy_error [-]"]
+    assert axes[-1].get_xlabel() == "material.interface.tensile_strength [Pa]"
+
+
+def test_key_units_come_from_the_schema():
+    from crackle.keys import key_unit
+
+    assert key_unit("three-point-bending", "tools.top.speed") == "m/s"
+    assert key_unit("three-point-bending", "tools.0.speed") == "m/s"
+    assert key_unit("brazilian-disc", "loading.angle") == "degrees"
+    assert key_unit("walnut-crush", "material.interface.fracture_energy") == "J/m^2"
+    assert key_unit("dem-ucs", "packing.seed") is None  # a number without a unit

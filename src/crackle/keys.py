@@ -8,6 +8,11 @@ current).
 from __future__ import annotations
 
 import math
+import typing
+
+# The units a field's description starts with (its first word), as the schemas write them.
+UNITS = {"m", "s", "Pa", "N", "J", "K", "kg", "m/s", "rad/s", "1/s", "degrees", "J/m^2", "kg/m^3", "Pa/m", "N/m^3",
+         "m^2", "m^3", "bytes", "Hz"}
 
 HEADER = "| key | type | default | range | unit and meaning |\n|---|---|---|---|---|"
 DOC_INTRO = """# Scenario keys
@@ -124,3 +129,38 @@ def _value(value) -> str:
     if isinstance(value, dict):
         return "{}" if not value else str(value)
     return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def key_unit(source, dotted: str) -> str | None:
+    """The unit of a scenario key (`tools.top.speed`, `material.interface.tensile_strength`) from
+    its schema's description (the first word, when it is one of UNITS), for the scenario `source`
+    (an example name or a file); None where the key has no unit or is not found."""
+    from .methods import get_method
+    from .scenario import load_scenario
+
+    try:
+        scenario, _ = load_scenario(source)
+    except Exception:  # noqa: BLE001 - a label, not worth failing a sweep's plots for
+        return None
+    models = [get_method(scenario.method).Scenario]
+    parts = dotted.split(".")
+    for k, part in enumerate(parts):
+        field = next((_fields(m)[part] for m in models if part in _fields(m)), None)
+        if field is None:
+            continue  # a list entry's number or name (tools.top)
+        if k == len(parts) - 1:
+            word = (field.description or "").replace(",", " ").split(" ")[0]
+            return word if word in UNITS else None
+        stack, models = [field.annotation], []
+        while stack:
+            t = stack.pop()
+            if _fields(t):
+                models.append(t)
+            else:
+                stack.extend(typing.get_args(t))
+    return None
+
+
+def _fields(model) -> dict:
+    """A schema's fields: a pydantic model's or a pydantic dataclass's (the laws' parameters)."""
+    return getattr(model, "model_fields", None) or getattr(model, "__pydantic_fields__", None) or {}

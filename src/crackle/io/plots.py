@@ -46,6 +46,11 @@ def _new_figure(**kwargs):
     return fig
 
 
+def axis_label(quantity: str, unit: str | None) -> str:
+    """Every axis of crackle's figures: 'quantity [unit]' ('quantity' alone when it has no unit)."""
+    return f"{quantity} [{unit}]" if unit else quantity
+
+
 def _save(fig, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -103,8 +108,8 @@ def plot_load_displacement(history, path) -> Path:
         ax.legend(title="tool")
     else:
         ax.text(0.5, 0.5, "no tool data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel("displacement [mm]")
-    ax.set_ylabel("force [kN]")
+    ax.set_xlabel(axis_label("displacement", "mm"))
+    ax.set_ylabel(axis_label("force", "kN"))
     ax.set_title("Load-displacement")
     ax.grid(True, alpha=0.3)
     return _save(fig, path)
@@ -120,8 +125,8 @@ def plot_stress_strain(history, path, stress: str = "platen.stress", strain: str
         ax.plot(np.asarray(cols[strain], float) * 100.0, np.asarray(cols[stress], float) * 1e-6)
     else:
         ax.text(0.5, 0.5, "no platen data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel("platen strain [%]")
-    ax.set_ylabel("platen stress [MPa]")
+    ax.set_xlabel(axis_label("platen strain", "%"))
+    ax.set_ylabel(axis_label("platen stress", "MPa"))
     ax.set_title("Stress-strain")
     ax.grid(True, alpha=0.3)
     return _save(fig, path)
@@ -150,8 +155,8 @@ def plot_energies(history, path) -> Path:
         ax.legend(fontsize="small", ncol=2)
     else:
         ax.text(0.5, 0.5, "no energy data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel(f"time [{unit}]")
-    ax.set_ylabel("energy [J]")
+    ax.set_xlabel(axis_label("time", unit))
+    ax.set_ylabel(axis_label("energy", "J"))
     ax.set_title("Energy history")
     ax.grid(True, alpha=0.3)
     return _save(fig, path)
@@ -211,8 +216,8 @@ def plot_crack_pattern(events, bounds, path) -> Path:
         ax.autoscale_view()
         ax.margins(0.05)
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel(f"{'xyz'[i]} [mm]")
-        ax.set_ylabel(f"{'xyz'[j]} [mm]")
+        ax.set_xlabel(axis_label("xyz"[i], "mm"))
+        ax.set_ylabel(axis_label("xyz"[j], "mm"))
         ax.set_title(f"{'xyz'[i]}{'xyz'[j]} projection")
     if scatter is not None:
         fig.colorbar(scatter, ax=list(axes), label=f"failure time [{unit}]", shrink=0.9)
@@ -234,9 +239,9 @@ def plot_fragment_sizes(masses, path) -> Path:
         ax.step(m * 1e3, np.cumsum(m) / m.sum(), where="post", color="tab:red")
         ax.plot(m * 1e3, np.cumsum(m) / m.sum(), ".", color="tab:red")
         ax.set_xscale("log")
-    ax.set_xlabel("fragment mass (g)")
-    ax.set_ylabel("mass fraction in fragments this size or smaller")
-    ax.set_title(f"{len(m)} fragment(s)")
+    ax.set_xlabel(axis_label("fragment mass", "g"))
+    ax.set_ylabel(axis_label("mass fraction in fragments this size or smaller", "-"))
+    ax.set_title(f"Fragment sizes ({len(m)} fragments)")
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
 
@@ -256,9 +261,9 @@ def plot_time_steps(element_dt, bulk_dt, limit: dict, path) -> Path:
     ax.axvline(limit["dt"] * scale, color="k", ls="--", label=f"run's stable step ({limit['kind']}, element {limit['element']})")
     if hi > lo:
         ax.set_xscale("log")
-    ax.set_xlabel(f"stable time step ({unit})")
-    ax.set_ylabel("elements")
-    ax.set_title(f"stable step {limit['dt'] * scale:.3g} {unit}, median element {limit['median_dt'] * scale:.3g} {unit}")
+    ax.set_xlabel(axis_label("stable time step", unit))
+    ax.set_ylabel(axis_label("elements", "count"))
+    ax.set_title(f"Time step: stable {limit['dt'] * scale:.3g} {unit}, median element {limit['median_dt'] * scale:.3g} {unit}")
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
@@ -271,13 +276,14 @@ def plot_crack_growth(length_history, speed_history, path) -> Path:
     fig = _new_figure(figsize=(6, 6))
     ax1 = fig.add_subplot(211)
     ax1.step(lh[:, 0] * 1e3, lh[:, 1] * 1e3, where="post", color="tab:red")
-    ax1.set_ylabel("main crack length (mm)")
+    ax1.set_ylabel(axis_label("main crack length", "mm"))
+    ax1.set_title("Crack growth")
     ax1.grid(True, alpha=0.3)
     ax2 = fig.add_subplot(212, sharex=ax1)
     if len(sh):
         ax2.plot(sh[:, 0] * 1e3, sh[:, 1], color="tab:blue")
-    ax2.set_xlabel("time (ms)")
-    ax2.set_ylabel("growth speed (m/s)")
+    ax2.set_xlabel(axis_label("time", "ms"))
+    ax2.set_ylabel(axis_label("growth speed", "m/s"))
     ax2.grid(True, alpha=0.3)
     return _save(fig, path)
 

@@ -364,7 +364,7 @@ def _write_outputs(out, keys, candidates, fitted, best, by_surface, x0, targets,
 
 
 def _plot_overlay(path, target_u, target_f, start, fitted, tool, keys) -> None:
-    from ..io.plots import _new_figure, _save
+    from ..io.plots import _new_figure, _save, axis_label
 
     fig = _new_figure(figsize=(6, 4.5))
     ax = fig.add_subplot()
@@ -377,8 +377,8 @@ def _plot_overlay(path, target_u, target_f, start, fitted, tool, keys) -> None:
             u, f = curve
             values = ", ".join(f"{k.split('.')[-1]}={candidate[k]:.4g}" for k in keys)
             ax.plot(u * 1e3, f * 1e-3, style, label=f"{label}: {values} (distance {candidate['distance']:.3g})")
-    ax.set_xlabel("displacement [mm]")
-    ax.set_ylabel("force [kN]")
+    ax.set_xlabel(axis_label("displacement", "mm"))
+    ax.set_ylabel(axis_label("force", "kN"))
     ax.set_title("Calibration: load-displacement")
     ax.legend(fontsize=7)
     ax.grid(True, alpha=0.3)

@@ -114,7 +114,7 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None
             got = outcome.get(run.index, {"status": "missing", "message": "no finished summary.json"})
             row.update(status=got["status"], message=got["message"], summary={})
         rows.append(row)
-    unknown = write_table(out, list(plan.vary), rows, plots)
+    unknown = write_table(out, list(plan.vary), rows, plots, plan.scenario)
     if unknown:
         raise ScenarioError(f"--plot {'; '.join(unknown)}: no such scalar in the runs' summaries; the table and the "
                             "other plots are written, and rerunning with the right name reuses the finished runs")

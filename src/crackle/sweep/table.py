@@ -51,9 +51,22 @@ def table_rows(varied_keys: list[str], rows: list[dict]) -> tuple[list[str], lis
     return columns, records
 
 
-def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: list[str] = ()) -> list[str]:
-    """sweep.csv, sweep.parquet and plots/sweep_KEY.png; returns the `plotted` names that are no
-    column of the table (a misspelt --plot), each with the nearest column where one is close."""
+# Units of the summary scalars a sweep plots (axis labels); a scalar not listed is labelled by its name.
+SUMMARY_UNITS = {
+    "peak_force": "N", "peak_force_time": "s", "peak_stress": "Pa", "brazilian_strength": "Pa",
+    "nominal_strength": "Pa", "platen_modulus": "Pa", "energy_error": "-", "broken": "count", "steps": "count",
+    "wall_time": "s", "dt": "s", "stable_dt": "s", "end_time": "s", "splitting_angle": "degrees",
+    "tensile_strength_ratio": "-", "loaded_area": "m^2", "plastic_zone_length": "m", "max_temperature": "K",
+    "max_plastic_strain": "-", "particles": "count", "bonds": "count", "load_cell_window": "s",
+}
+
+
+def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: list[str] = (),
+                scenario: str | None = None) -> list[str]:
+    """sweep.csv, sweep.parquet and plots/sweep_KEY.png (titled with `scenario`, the sweep's
+    example name or file, whose schema gives the varied keys' units); returns the `plotted` names
+    that are no column of the table (a misspelt --plot), each with the nearest column where one is
+    close."""
     columns, records = table_rows(varied_keys, rows)
     with open(out / "sweep.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, columns, restval="")
@@ -64,7 +77,7 @@ def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: li
     known = [name for name in plotted if name in columns]
     for key in varied_keys:
         plot_against(out / "plots" / f"sweep_{_file_part(key)}.png", key, varied_keys, records,
-                     list(DEFAULT_PLOTTED) + [name for name in known if name not in DEFAULT_PLOTTED])
+                     list(DEFAULT_PLOTTED) + [name for name in known if name not in DEFAULT_PLOTTED], scenario)
     finished = any(record.get("status") in ("completed", "stopped") for record in records)
     unknown = [name for name in plotted if name not in columns] if finished else []
     return [name + "".join(f" (did you mean {close}?)" for close in difflib.get_close_matches(name, columns, n=1))
@@ -95,10 +108,12 @@ def _file_part(key: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", key)
 
 
-def plot_against(path: Path, key: str, varied_keys: list[str], records: list[dict], names: list[str]) -> None:
+def plot_against(path: Path, key: str, varied_keys: list[str], records: list[dict], names: list[str],
+                 scenario: str | None = None) -> None:
     """Each named scalar against `key`, a line per combination of the other varied keys' values
     (failed runs left out). Values that are not numbers are placed in order, labelled."""
-    from ..io.plots import _new_figure, _save
+    from ..io.plots import _new_figure, _save, axis_label
+    from ..keys import key_unit
 
     names = [n for n in names if any(_number(r.get(n)) is not None for r in records)]
     if not names:
@@ -121,13 +136,15 @@ def plot_against(path: Path, key: str, varied_keys: list[str], records: list[dic
             if points:
                 label = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in zip(others, group)) or None
                 ax.plot([p[0] for p in points], [p[1] for p in points], "o-", label=label)
-        ax.set_ylabel(name)
+        ax.set_ylabel(axis_label(name, SUMMARY_UNITS.get(name)))
         ax.grid(alpha=0.3)
         if others and ax is axes[0]:
             ax.legend(fontsize=7)
     if labels:
         axes[-1].set_xticks(range(len(labels)), labels, rotation=30, fontsize=7)
-    axes[-1].set_xlabel(key)
+    axes[-1].set_xlabel(axis_label(key, key_unit(scenario, key) if scenario and numeric else None))
+    name = Path(scenario).stem if scenario else "sweep"
+    axes[0].set_title(f"{name}: {', '.join(names)} against {key.split('.')[-1]}", fontsize=9)
     _save(fig, path)
 
 
