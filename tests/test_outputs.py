@@ -74,3 +74,24 @@ def test_key_units_come_from_the_schema():
     assert key_unit("brazilian-disc", "loading.angle") == "degrees"
     assert key_unit("walnut-crush", "material.interface.fracture_energy") == "J/m^2"
     assert key_unit("dem-ucs", "packing.seed") is None  # a number without a unit
+
+
+def test_a_crowded_crack_pattern_shows_slices(tmp_path, monkeypatch):
+    """10,000 failures spread through a 27 x 12 x 54 mm sample: each view shows the slice a tenth
+    of the depth thick through the middle (about 1,000 each), and says so in its title."""
+    import crackle.io.plots as plots
+
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    rng = np.random.default_rng(0)
+    n = 10_000
+    size = np.array([0.027, 0.012, 0.054])
+    xyz = rng.random((n, 3)) * size
+    events = {"time": rng.random(n) * 1e-3, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+              "mode": np.array(["tension"] * n)}
+    plots.plot_crack_pattern(events, ((0.0, 0.0, 0.0), tuple(size)), tmp_path / "c.png")
+    axes = figures[0].axes[:3]
+    assert [ax.get_title().split(",")[0] for ax in axes] == ["xy slice", "xz slice", "yz slice"]
+    for ax, k in zip(axes, (2, 1, 0)):
+        inside = int(np.count_nonzero(np.abs(xyz[:, k] - 0.5 * size[k]) <= 0.05 * size[k]))
+        assert f"({inside:,} of 10,000)" in ax.get_title() and 800 < inside < 1200

@@ -176,12 +176,21 @@ def _events(events) -> dict[str, np.ndarray]:
     return out
 
 
+# Failures above which the crack pattern shows slices (SLICE_FRACTION of the depth) instead of
+# whole projections.
+SLICE_ABOVE = 2000
+SLICE_FRACTION = 0.1
+
+
 def plot_crack_pattern(events, bounds, path) -> Path:
     """Failure points in three projections (xy, xz, yz), coloured by time.
 
     ``events`` holds arrays ``time, x, y, z, mode`` (a dict, or the path of
     events.csv); ``bounds`` is ``(lo, hi)`` of the specimen, drawn as a
-    rectangle in each view (or None). Coordinates are shown in mm.
+    rectangle in each view (or None). Coordinates are shown in mm. Above
+    SLICE_ABOVE failures (a collapsed DEM sample: projections would be solid
+    colour) each view shows a slice through the specimen's middle, SLICE_FRACTION
+    of its depth thick, with smaller marks.
     """
     from matplotlib.colors import Normalize
     from matplotlib.lines import Line2D
@@ -199,17 +208,27 @@ def plot_crack_pattern(events, bounds, path) -> Path:
     fig = _new_figure(figsize=(14, 4.8))
     axes = fig.subplots(1, 3)
     scatter = None
+    sliced = n > SLICE_ABOVE and bounds is not None
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)]):
+        shown = np.ones(n, dtype=bool)
+        title = f"{'xyz'[i]}{'xyz'[j]} projection"
+        if sliced:
+            k = 3 - i - j  # the axis across the view
+            lo_k, hi_k = bounds[0][k] * 1e3, bounds[1][k] * 1e3
+            middle, half = 0.5 * (lo_k + hi_k), 0.5 * SLICE_FRACTION * (hi_k - lo_k)
+            shown = np.abs(xyz_mm[:, k] - middle) <= half
+            title = (f"{'xyz'[i]}{'xyz'[j]} slice, |{'xyz'[k]} - {middle:.3g}| <= {half:.2g} mm "
+                     f"({np.count_nonzero(shown):,} of {n:,})")
         if bounds is not None:
             lo = np.asarray(bounds[0], float) * 1e3
             hi = np.asarray(bounds[1], float) * 1e3
             ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j],
                                    fill=False, edgecolor="0.3", linewidth=1.2))
         for mode in np.unique(ev["mode"]):
-            sel = ev["mode"] == mode
+            sel = (ev["mode"] == mode) & shown
             scatter = ax.scatter(xyz_mm[sel, i], xyz_mm[sel, j], c=t[sel], norm=norm,
                                  cmap="viridis", marker=_MODE_MARKERS.get(mode, "x"),
-                                 s=14, linewidths=0.3 if mode in _MODE_MARKERS else 1.0)
+                                 s=4 if sliced else 14, linewidths=0.3 if mode in _MODE_MARKERS else 1.0)
         if n == 0:
             ax.text(0.5, 0.5, "no failures", transform=ax.transAxes,
                     ha="center", va="center", color="0.4")
@@ -218,14 +237,14 @@ def plot_crack_pattern(events, bounds, path) -> Path:
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel(axis_label("xyz"[i], "mm"))
         ax.set_ylabel(axis_label("xyz"[j], "mm"))
-        ax.set_title(f"{'xyz'[i]}{'xyz'[j]} projection")
+        ax.set_title(title, fontsize=9 if sliced else None)
     if scatter is not None:
         fig.colorbar(scatter, ax=list(axes), label=f"failure time [{unit}]", shrink=0.9)
         handles = [Line2D([], [], linestyle="", marker=_MODE_MARKERS.get(m, "x"),
                           color="0.3", label=m) for m in np.unique(ev["mode"])]
         fig.legend(handles=handles, title="failure mode", loc="outside lower center",
                    ncol=len(handles), fontsize="small")
-    fig.suptitle(f"Crack pattern ({n} failures)")
+    fig.suptitle(f"Crack pattern ({n:,} failures)")
     return _save(fig, path)
 
 
