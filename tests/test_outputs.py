@@ -95,3 +95,46 @@ def test_a_crowded_crack_pattern_shows_slices(tmp_path, monkeypatch):
     for ax, k in zip(axes, (2, 1, 0)):
         inside = int(np.count_nonzero(np.abs(xyz[:, k] - 0.5 * size[k]) <= 0.05 * size[k]))
         assert f"({inside:,} of 10,000)" in ax.get_title() and 800 < inside < 1200
+
+
+def test_shell_fields_carry_the_membrane_force_of_a_uniform_strain():
+    """The shell-tear plate (E, nu, t of its scenario) stretched uniformly along x by 2^-10 (exact
+    in binary): every triangle's membrane_force has N_xx = E t e / (1 - nu^2) and N_yy = nu N_xx
+    within 1e-9, e the Green strain (1 + 2^-10)^2 / 2 - 1/2 that membrane_strain reports, the
+    rest zero (issue 44)."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+
+    scenario, base = load_scenario("shell-tear", quick=True)
+    sim = build_simulation(scenario, base)[0]
+    mesh = sim.shell.mesh
+    stretch = 2.0**-10
+    sim.nodes.x[:] = mesh.X
+    sim.nodes.x[:, 0] = mesh.X[:, 0] * (1.0 + stretch)
+    fields = sim.fields()
+    name, cells, data = fields["blocks"][0]
+    assert name == "triangle" and data["membrane_force"].shape == (len(cells), 6)
+    e = 0.5 * ((1.0 + stretch) ** 2 - 1.0)
+    E, nu, t = scenario.material.youngs_modulus, scenario.material.poissons_ratio, scenario.shell.thickness
+    strain, force = data["membrane_strain"], data["membrane_force"]
+    assert np.allclose(strain[:, 0], e, rtol=1e-9, atol=0.0) and np.all(np.abs(strain[:, 1:]) < 1e-9 * e)
+    n_xx = E * t * e / (1.0 - nu**2)
+    assert np.allclose(force[:, 0], n_xx, rtol=1e-9, atol=0.0)
+    assert np.allclose(force[:, 1], nu * n_xx, rtol=1e-9, atol=0.0)
+    assert np.all(np.abs(force[:, 2:]) < 1e-9 * n_xx)
+    assert np.all(data["bending_energy"] < 1e-12 * n_xx * e)  # flat: no bending
+
+
+def test_shell_vtu_has_membrane_fields(tmp_path):
+    """The quick shell-tear run's last frame read back: membrane_strain and membrane_force
+    (6 components per triangle) and bending_energy (one per triangle), finite."""
+    out = tmp_path / "tear"
+    assert main(["run", "shell-tear", "--quick", "--set", "run.end_time=5e-5", "--set", "run.field_frames=1",
+                 "--out", str(out)]) == 0
+    mesh = _last_frame(out)
+    triangles = len(mesh.cells[0].data)
+    assert mesh.cells[0].type == "triangle"
+    assert mesh.cell_data["membrane_force"][0].shape == (triangles, 6)
+    assert mesh.cell_data["membrane_strain"][0].shape == (triangles, 6)
+    assert mesh.cell_data["bending_energy"][0].shape == (triangles,)
+    assert all(np.all(np.isfinite(mesh.cell_data[k][0])) for k in ("membrane_force", "membrane_strain", "bending_energy"))

@@ -223,6 +223,24 @@ class Shell:
         the edges' own)."""
         return strain_energies(x, self.faces, self.edges if xi is None else self.edges._replace(xi=xi))
 
+    def membrane_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per triangle at positions x: the membrane strain (Green-Lagrange, as the membrane law
+        uses it) and the membrane force N = lam_t tr(E) I + 2 mu_t E (N/m), each a symmetric
+        tensor in the global axes through the triangle's reference frame, (m, 6) in the order
+        xx yy zz xy yz xz (io.fields.STRESS_COMPONENTS)."""
+        faces, tri, frame = self.faces, self.mesh.tri, self.frames
+        Ds = np.stack([x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]], axis=2)
+        F = Ds @ faces.dm_inv.reshape(-1, 2, 2)
+        strain = 0.5 * (np.einsum("kia,kib->kab", F, F) - np.eye(2))
+        trace = strain[:, 0, 0] + strain[:, 1, 1]
+        force = (faces.lam_t * trace)[:, None, None] * np.eye(2) + 2.0 * faces.mu_t[:, None, None] * strain
+
+        def global_components(t):
+            g = np.einsum("kia,kab,kjb->kij", frame, t, frame)
+            return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
+
+        return global_components(strain), global_components(force)
+
     def stable_dt(self, tool_k=0.0) -> float:
         """The largest stable step times stability.STEP_MARGIN, by Lanczos on the shell's forces
         (membrane and bending; tool penalties tool_k N/m per node)."""

@@ -6,10 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
-from .jintegral import energy_release_rate, j_integral, mts_kink_angle, stress_intensity
+from .jintegral import bending_density, energy_release_rate, j_integral, mts_kink_angle, stress_intensity
 from .kernels import advance
 from .mesh import altitudes
 from .model import Shell
@@ -234,11 +235,17 @@ class ShellSimulation:
                 [MODE_NAMES[a.mode] for a in new], np.array([a.tip for a in new], dtype=np.int64))
 
     def fields(self) -> dict:
+        """The mid-surface's triangles with, per triangle, the membrane strain and force (global
+        xx yy zz xy yz xz) and the bending energy per area; per vertex the displacement, velocity."""
         n, mesh = self.nodes, self.shell.mesh
+        strain, force = self.shell.membrane_state(n.x)
         return {
             "points": n.x,
             "point_data": {"displacement": n.x - mesh.X, "velocity": n.v},
-            "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy()})],
+            "component_names": {"membrane_strain": STRESS_COMPONENTS, "membrane_force": STRESS_COMPONENTS},
+            "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy(),
+                                               "membrane_strain": strain, "membrane_force": force,
+                                               "bending_energy": bending_density(self.shell, n.x)})],
         }
 
     def describe(self) -> str:
