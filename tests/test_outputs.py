@@ -138,3 +138,24 @@ def test_shell_vtu_has_membrane_fields(tmp_path):
     assert mesh.cell_data["membrane_strain"][0].shape == (triangles, 6)
     assert mesh.cell_data["bending_energy"][0].shape == (triangles,)
     assert all(np.all(np.isfinite(mesh.cell_data[k][0])) for k in ("membrane_force", "membrane_strain", "bending_energy"))
+
+
+def test_shell_centre_crack_plots_its_j_history(tmp_path, monkeypatch):
+    """shell-centre-crack writes plots/j_history.png: J of both tips against time, the closed form
+    (the summary's j_reference) as a line and each tip's final G as a marker."""
+    import crackle.io.plots as plots
+
+    out = tmp_path / "crack"
+    assert main(["run", "shell-centre-crack", "--quick", "--set", "run.end_time=1e-4", "--out", str(out)]) == 0
+    assert (out / "plots" / "j_history.png").stat().st_size > 0
+    summary = json.loads((out / "summary.json").read_text())
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    from crackle.io import read_history_csv
+
+    plots.plot_j_history(read_history_csv(out / "history.csv"), tmp_path / "j.png", summary["j_reference"], [1.0, 2.0])
+    ax = figures[0].axes[0]
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert labels == ["J, tip 0", "G at the end, tip 0", "J, tip 1", "G at the end, tip 1", "closed form"]
+    assert ax.get_lines()[-1].get_ydata()[0] == summary["j_reference"]
+    assert ax.get_ylabel() == "J, G [J/m^2]" and ax.get_title()

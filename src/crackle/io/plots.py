@@ -307,6 +307,32 @@ def plot_crack_growth(length_history, speed_history, path) -> Path:
     return _save(fig, path)
 
 
+def plot_j_history(history, path, reference: float | None = None, final_g=None) -> Path | None:
+    """J (J/m^2) of each crack tip (history columns j.tipK) against time, with the closed-form
+    reference where the scenario gives one (a dashed line) and each tip's final G (virtual crack
+    extension) as a marker at the end; None when the history has no J column."""
+    cols = _columns(history)
+    names = sorted(k for k in cols if k.startswith("j.tip"))
+    if not names or len(cols["time"]) == 0:
+        return None
+    scale, unit = time_unit(float(np.max(cols["time"])))
+    t = cols["time"] * scale
+    fig = _new_figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    for k, name in enumerate(names):
+        line, = ax.plot(t, cols[name], label=f"J, tip {name[5:]}")
+        if final_g is not None and k < len(final_g) and final_g[k] is not None:
+            ax.plot([t[-1]], [final_g[k]], "s", color=line.get_color(), label=f"G at the end, tip {name[5:]}")
+    if reference is not None:
+        ax.axhline(reference, color="0.3", linestyle="--", label="closed form")
+    ax.set_xlabel(axis_label("time", unit))
+    ax.set_ylabel(axis_label("J, G", "J/m^2"))
+    ax.set_title("J-integral at the crack tips")
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
 def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
     """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -289,4 +290,13 @@ class ShellSimulation:
         return out
 
     def extra_plots(self, out_dir) -> None:
-        pass
+        """plots/j_history.png: each tip's J over the run, the closed form and the final G."""
+        from ..io import read_history_csv
+        from ..io.plots import plot_j_history
+
+        if not self.tips:
+            return
+        g = self.g_values()
+        final_g = [float(np.mean(row)) for row in g] if g.size else None
+        plot_j_history(read_history_csv(Path(out_dir) / "history.csv"), Path(out_dir) / "plots" / "j_history.png",
+                       self.j_reference, final_g)

@@ -479,7 +479,7 @@ class _InterruptRequest:
 # What a run writes into its output folder (and a rerun into the same folder removes first).
 OUTPUT_FILES = ("summary.json", "status.json", "history.csv", "events.csv", "fields.pvd", CHECKPOINT_FILE) + tuple(
     f"plots/{name}.png" for name in ("load_displacement", "energies", "crack_pattern", "fragment_sizes", "crack_growth",
-                                     "time_step", "stress_strain")
+                                     "time_step", "stress_strain", "j_history")
 )
 OUTPUT_GLOBS = ("fields/step_*.vtu",)
 
