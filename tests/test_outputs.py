@@ -7,6 +7,7 @@ import json
 
 import meshio
 import numpy as np
+import pytest
 
 from crackle.cli import main
 
@@ -159,3 +160,24 @@ def test_shell_centre_crack_plots_its_j_history(tmp_path, monkeypatch):
     assert labels == ["J, tip 0", "G at the end, tip 0", "J, tip 1", "G at the end, tip 1", "closed form"]
     assert ax.get_lines()[-1].get_ydata()[0] == summary["j_reference"]
     assert ax.get_ylabel() == "J, G [J/m^2]" and ax.get_title()
+
+
+def test_shell_crack_pattern_draws_the_pre_crack(tmp_path, monkeypatch):
+    """shell-centre-crack (no growth in its quick form): crack_pattern.png draws the pre-crack as
+    cut, from -25 to 25 mm along x at y = 0 (the chain of edges nearest the polyline)."""
+    import crackle.io.plots as plots
+
+    figures = []
+    save = plots._save
+
+    def keep(fig, path):
+        figures.append((fig.get_suptitle(), [(line.get_label(), line.get_xydata().copy()) for line in fig.axes[0].get_lines()]))
+        return save(fig, path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    assert main(["run", "shell-centre-crack", "--quick", "--set", "run.end_time=5e-5", "--out", str(tmp_path / "o")]) == 0
+    patterns = [lines for title, lines in figures if title.startswith("Crack pattern")]
+    pre = [xy for label, xy in patterns[-1] if label == "pre-crack"]
+    assert len(pre) == 1
+    assert pre[0][:, 0].min() == pytest.approx(-25.0, abs=1e-9) and pre[0][:, 0].max() == pytest.approx(25.0, abs=1e-9)
+    assert np.all(np.abs(pre[0][:, 1]) < 1e-9)

@@ -176,13 +176,15 @@ def _events(events) -> dict[str, np.ndarray]:
     return out
 
 
+# Colours of the crack pattern's lines by their label.
+_PATH_COLOURS = {"pre-crack": "black", "grown": "tab:red"}
 # Failures above which the crack pattern shows slices (SLICE_FRACTION of the depth) instead of
 # whole projections.
 SLICE_ABOVE = 2000
 SLICE_FRACTION = 0.1
 
 
-def plot_crack_pattern(events, bounds, path) -> Path:
+def plot_crack_pattern(events, bounds, path, paths=()) -> Path:
     """Failure points in three projections (xy, xz, yz), coloured by time.
 
     ``events`` holds arrays ``time, x, y, z, mode`` (a dict, or the path of
@@ -190,7 +192,8 @@ def plot_crack_pattern(events, bounds, path) -> Path:
     rectangle in each view (or None). Coordinates are shown in mm. Above
     SLICE_ABOVE failures (a collapsed DEM sample: projections would be solid
     colour) each view shows a slice through the specimen's middle, SLICE_FRACTION
-    of its depth thick, with smaller marks.
+    of its depth thick, with smaller marks. ``paths``: (label, (k, 3) points)
+    drawn as lines (a shell's pre-cracks, the paths its tips ran), m.
     """
     from matplotlib.colors import Normalize
     from matplotlib.lines import Line2D
@@ -229,9 +232,13 @@ def plot_crack_pattern(events, bounds, path) -> Path:
             scatter = ax.scatter(xyz_mm[sel, i], xyz_mm[sel, j], c=t[sel], norm=norm,
                                  cmap="viridis", marker=_MODE_MARKERS.get(mode, "x"),
                                  s=4 if sliced else 14, linewidths=0.3 if mode in _MODE_MARKERS else 1.0)
+        for label, points in paths:
+            points = np.asarray(points, float) * 1e3
+            ax.plot(points[:, i], points[:, j], "-", color=_PATH_COLOURS.get(label, "tab:red"), linewidth=1.5,
+                    label=label if ax is axes[0] else None)
         if n == 0:
-            ax.text(0.5, 0.5, "no failures", transform=ax.transAxes,
-                    ha="center", va="center", color="0.4")
+            ax.text(0.5, 0.5 if not paths else 0.92, "no failures" if not paths else "no growth",
+                    transform=ax.transAxes, ha="center", va="center", color="0.4")
         ax.autoscale_view()
         ax.margins(0.05)
         ax.set_aspect("equal", adjustable="datalim")
@@ -244,6 +251,8 @@ def plot_crack_pattern(events, bounds, path) -> Path:
                           color="0.3", label=m) for m in np.unique(ev["mode"])]
         fig.legend(handles=handles, title="failure mode", loc="outside lower center",
                    ncol=len(handles), fontsize="small")
+    if paths:
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper right", fontsize="small")
     fig.suptitle(f"Crack pattern ({n:,} failures)")
     return _save(fig, path)
 

@@ -193,12 +193,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
         except ValueError as err:
             raise ScenarioError(str(err)) from None
     mesh, material = _regions(mesh, scenario)
-    tips = []
+    tips, pre_cracks = [], []
     for i, crack in enumerate(scenario.cracks):
         try:
             path = edge_path(mesh, crack.polyline)
             if len(path) < 2:
                 raise SurfaceError("the polyline is shorter than an element")
+            pre_cracks.append(mesh.X[path].copy())
             mesh, opened = split_along(mesh, path)
         except SurfaceError as err:
             raise ScenarioError(f"cracks.{i}.polyline: {err}") from None
@@ -245,6 +246,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     sim.warnings.extend(seating)
+    sim.pre_cracks = pre_cracks
     pressed = bool(pressures or tools)
     if growth is not None and fracture.criterion == "j" and _can_bend(mesh.X, scenario.edge_loads, pressed, scale):
         sim.warnings.append('fracture.criterion = "j": growth compares the domain J with Gc, and J holds no share of '

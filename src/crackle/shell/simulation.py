@@ -71,6 +71,8 @@ class ShellSimulation:
         self.load_cell = LoadCell(tools)
         self.growth = growth
         self.advances: list[Advance] = []  # every cut, in order
+        self.pre_cracks: list[np.ndarray] = []  # the [[cracks]] as cut, reference positions (set-up)
+        self._tip_starts = [shell.mesh.X[tip.vertex].copy() for tip in self.tips]
         self._reported = 0  # advances already in events.csv
         self.fracture_energy = 0.0  # J: what the cuts and the moves at the tip changed at once (_replace_shell)
         self.warnings: list[str] = []
@@ -290,10 +292,18 @@ class ShellSimulation:
         return out
 
     def extra_plots(self, out_dir) -> None:
-        """plots/j_history.png: each tip's J over the run, the closed form and the final G."""
+        """plots/crack_pattern.png redrawn with the pre-cracks and the paths the tips ran;
+        plots/j_history.png: each tip's J over the run, the closed form and the final G."""
         from ..io import read_history_csv
         from ..io.plots import plot_j_history
 
+        from ..io.plots import plot_crack_pattern
+
+        out = Path(out_dir)
+        grown = [np.array([start] + [a.position for a in self.advances if a.tip == k])
+                 for k, start in enumerate(self._tip_starts)]
+        plot_crack_pattern(out / "events.csv", self.bounds(), out / "plots" / "crack_pattern.png",
+                           paths=[("pre-crack", p) for p in self.pre_cracks] + [("grown", p) for p in grown if len(p) > 1])
         if not self.tips:
             return
         g = self.g_values()
