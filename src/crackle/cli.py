@@ -19,15 +19,9 @@ def _cmd_run(args) -> int:
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
-    except UnstableRunError as err:
+    except (UnstableRunError, DiskFullError, StoppedAtOnce) as err:  # a run that ended early, outputs kept
         print(f"crackle: {err}", file=sys.stderr)
-        return 3
-    except DiskFullError as err:
-        print(f"crackle: {err}", file=sys.stderr)
-        return 1
-    except StoppedAtOnce as err:
-        print(f"crackle: {err}", file=sys.stderr)
-        return 130
+        return {UnstableRunError: 3, DiskFullError: 1, StoppedAtOnce: 130}[type(err)]
     except KeyboardInterrupt:
         # During the run the driver handles Ctrl-C itself (status "interrupted", outputs kept);
         # this is one during reading, meshing or set-up.
