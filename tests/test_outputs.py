@@ -127,8 +127,8 @@ def test_shell_fields_carry_the_membrane_force_of_a_uniform_strain():
 
 
 def test_shell_vtu_has_membrane_fields(tmp_path):
-    """The quick shell-tear run's last frame read back: membrane_strain and membrane_force
-    (6 components per triangle) and bending_energy (one per triangle), finite."""
+    """The quick shell-tear run's last frame read back: membrane_strain, membrane_force and
+    bending_moment (6 components per triangle) and bending_energy (one per triangle), finite."""
     out = tmp_path / "tear"
     assert main(["run", "shell-tear", "--quick", "--set", "run.end_time=5e-5", "--set", "run.field_frames=1",
                  "--out", str(out)]) == 0
@@ -137,8 +137,10 @@ def test_shell_vtu_has_membrane_fields(tmp_path):
     assert mesh.cells[0].type == "triangle"
     assert mesh.cell_data["membrane_force"][0].shape == (triangles, 6)
     assert mesh.cell_data["membrane_strain"][0].shape == (triangles, 6)
+    assert mesh.cell_data["bending_moment"][0].shape == (triangles, 6)
     assert mesh.cell_data["bending_energy"][0].shape == (triangles,)
-    assert all(np.all(np.isfinite(mesh.cell_data[k][0])) for k in ("membrane_force", "membrane_strain", "bending_energy"))
+    assert all(np.all(np.isfinite(mesh.cell_data[k][0]))
+               for k in ("membrane_force", "membrane_strain", "bending_moment", "bending_energy"))
 
 
 def test_shell_centre_crack_plots_its_j_history(tmp_path, monkeypatch):
@@ -181,3 +183,28 @@ def test_shell_crack_pattern_draws_the_pre_crack(tmp_path, monkeypatch):
     assert len(pre) == 1
     assert pre[0][:, 0].min() == pytest.approx(-25.0, abs=1e-9) and pre[0][:, 0].max() == pytest.approx(25.0, abs=1e-9)
     assert np.all(np.abs(pre[0][:, 1]) < 1e-9)
+
+
+def test_shell_bending_moment_of_a_cylindrical_bend():
+    """The shell-tear plate bent onto a cylinder of radius 1 m about y (x = R sin(X/R), z = R (1 -
+    cos(X/R))): every triangle without a free edge has M_xx = -D / R (D = E t^3 / 12 (1 - nu^2);
+    negative for a bend towards the surface's normal), M_yy = nu M_xx and M_xy = 0, within 1e-9
+    (issue 44: the moment tensor the bending form H implies)."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+
+    scenario, base = load_scenario("shell-tear", quick=True)
+    sim = build_simulation(scenario, base)[0]
+    shell = sim.shell
+    X, R = shell.mesh.X, 1.0
+    x = X.copy()
+    x[:, 0] = R * np.sin(X[:, 0] / R)
+    x[:, 2] = R * (1.0 - np.cos(X[:, 0] / R))
+    moment = shell.bending_moment_state(x)
+    E, nu, t = scenario.material.youngs_modulus, scenario.material.poissons_ratio, scenario.shell.thickness
+    D = E * t**3 / (12.0 * (1.0 - nu**2))
+    inner = ~shell.mesh.boundary[shell.mesh.face_edge].any(axis=1)
+    assert inner.sum() > 0.8 * len(moment)
+    assert np.allclose(moment[inner, 0], -D / R, rtol=1e-9, atol=0.0)
+    assert np.allclose(moment[inner, 1], -nu * D / R, rtol=1e-9, atol=0.0)
+    assert np.all(np.abs(moment[inner, 2:]) < 1e-9 * D / R)

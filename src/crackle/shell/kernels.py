@@ -397,22 +397,38 @@ def face_energies(x, faces, edges, which, membrane_out, bending_out):
     """The membrane and bending strain energy (J) at positions x (and the edges' xi) of the
     triangles `which`, into membrane_out[k] and bending_out[k] for which[k]."""
     tri, area = faces.tri, faces.area
-    ends, opposite, theta0 = edges.ends, edges.opposite, edges.theta0
     for k in range(which.shape[0]):
         f = which[k]
         membrane_out[k] = membrane(x, tri[f, 0], tri[f, 1], tri[f, 2], faces.dm_inv[f], area[f], faces.lam_t[f],
                                    faces.mu_t[f])[9]
-        d = np.zeros(3)
-        for i in range(3):
-            e = faces.face_edge[f, i]
-            if opposite[e, 1] != FREE_EDGE:
-                qx, qy, qz = _second_wing(x, e, opposite, edges.ghost)
-                angle = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], qx, qy, qz)
-                if opposite[e, 1] == CLAMPED:
-                    angle *= 2.0
-                d[i] = angle - theta0[e] + _turn(edges, e, f)
-        m0, m1, m2 = bending_moments(faces.bend, f, d[0], d[1], d[2])
-        bending_out[k] = 0.5 * (m0 * d[0] + m1 * d[1] + m2 * d[2])
+        d0, d1, d2 = _face_turns(x, faces, edges, f)
+        m0, m1, m2 = bending_moments(faces.bend, f, d0, d1, d2)
+        bending_out[k] = 0.5 * (m0 * d0 + m1 * d1 + m2 * d2)
+
+
+@njit(cache=True, inline="always")
+def _face_turns(x, faces, edges, f):
+    """The turns d of face f's three edges at positions x (the dihedral angle's change plus the
+    mid-edge rotation's share; 0 across a free edge), as the bending energy 1/2 d^T H d uses them."""
+    ends, opposite, theta0 = edges.ends, edges.opposite, edges.theta0
+    d = np.zeros(3)
+    for i in range(3):
+        e = faces.face_edge[f, i]
+        if opposite[e, 1] != FREE_EDGE:
+            qx, qy, qz = _second_wing(x, e, opposite, edges.ghost)
+            angle = dihedral_angle(x, ends[e, 0], ends[e, 1], opposite[e, 0], qx, qy, qz)
+            if opposite[e, 1] == CLAMPED:
+                angle *= 2.0
+            d[i] = angle - theta0[e] + _turn(edges, e, f)
+    return d[0], d[1], d[2]
+
+
+@njit(cache=True)
+def face_edge_moments(x, faces, edges, out):
+    """Per face, H d: the bending moment conjugate to each edge's turn (N m), into out (m, 3)."""
+    for f in range(faces.tri.shape[0]):
+        d0, d1, d2 = _face_turns(x, faces, edges, f)
+        out[f, 0], out[f, 1], out[f, 2] = bending_moments(faces.bend, f, d0, d1, d2)
 
 
 def strain_energies(x, faces, edges) -> tuple[float, float]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..solver import stability
 from ..solver.integrator import FREE
-from .kernels import CLAMPED, Edges, Faces, Nodes, element_forces, internal_forces, strain_energies
+from .kernels import CLAMPED, Edges, Faces, Nodes, element_forces, face_edge_moments, internal_forces, strain_energies
 from .mesh import ShellMesh, altitudes
 
 
@@ -240,6 +240,26 @@ class Shell:
             return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
 
         return global_components(strain), global_components(force)
+
+    def bending_moment_state(self, x: np.ndarray) -> np.ndarray:
+        """Per triangle at positions x (and the edges' mid-edge rotations) the bending moment
+        tensor M (N m/m), (m, 6) in the global order xx yy zz xy yz xz through the triangle's
+        reference frame. The bending form H = A D [nu c c^T + (1 - nu) G] is the energy of
+        M = D [nu tr(kappa) I + (1 - nu) kappa], kappa = sum_i c_i d_i m_i m_i^T, whose moment
+        conjugate to edge i's turn is (H d)_i = A c_i m_i^T M m_i (m_i the edge's outward normal,
+        c_i = |e_i| / 2A): three edges' normal moments give M (a free edge's is zero: condensed)."""
+        edge_moments = np.zeros((len(self.mesh.tri), 3))
+        face_edge_moments(x, self.faces, self.edges, edge_moments)
+        frame, local, _ = face_frames(self.mesh)
+        edge_vec = np.stack([local[:, (i + 2) % 3] - local[:, (i + 1) % 3] for i in range(3)], axis=1)
+        length = np.linalg.norm(edge_vec, axis=2)
+        nx, ny = edge_vec[..., 1] / length, -edge_vec[..., 0] / length
+        normal_moment = edge_moments / (0.5 * length)  # m_i^T M m_i
+        system = np.stack([nx * nx, 2.0 * nx * ny, ny * ny], axis=2)  # rows: edges; columns: M11, M12, M22
+        m11, m12, m22 = np.moveaxis(np.linalg.solve(system, normal_moment[..., None])[..., 0], 1, 0)
+        M = np.stack([np.stack([m11, m12], axis=1), np.stack([m12, m22], axis=1)], axis=1)
+        g = np.einsum("kia,kab,kjb->kij", frame, M, frame)
+        return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
 
     def stable_dt(self, tool_k=0.0) -> float:
         """The largest stable step times stability.STEP_MARGIN, by Lanczos on the shell's forces

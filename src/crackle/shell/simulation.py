@@ -238,16 +238,19 @@ class ShellSimulation:
                 [MODE_NAMES[a.mode] for a in new], np.array([a.tip for a in new], dtype=np.int64))
 
     def fields(self) -> dict:
-        """The mid-surface's triangles with, per triangle, the membrane strain and force (global
-        xx yy zz xy yz xz) and the bending energy per area; per vertex the displacement, velocity."""
+        """The mid-surface's triangles with, per triangle, the membrane strain and force and the
+        bending moment (global xx yy zz xy yz xz) and the bending energy per area; per vertex the
+        displacement, velocity."""
         n, mesh = self.nodes, self.shell.mesh
         strain, force = self.shell.membrane_state(n.x)
         return {
             "points": n.x,
             "point_data": {"displacement": n.x - mesh.X, "velocity": n.v},
-            "component_names": {"membrane_strain": STRESS_COMPONENTS, "membrane_force": STRESS_COMPONENTS},
+            "component_names": {"membrane_strain": STRESS_COMPONENTS, "membrane_force": STRESS_COMPONENTS,
+                                "bending_moment": STRESS_COMPONENTS},
             "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy(),
                                                "membrane_strain": strain, "membrane_force": force,
+                                               "bending_moment": self.shell.bending_moment_state(n.x),
                                                "bending_energy": bending_density(self.shell, n.x)})],
         }
 
