@@ -8,7 +8,8 @@ current).
 from __future__ import annotations
 
 import math
-import typing
+
+from .schema import schema_fields, section_schemas
 
 # The units a field's description starts with (its first word), as the schemas write them.
 UNITS = {"m", "s", "Pa", "N", "J", "K", "kg", "m/s", "rad/s", "1/s", "degrees", "J/m^2", "kg/m^3", "Pa/m", "N/m^3",
@@ -145,22 +146,11 @@ def key_unit(source, dotted: str) -> str | None:
     models = [get_method(scenario.method).Scenario]
     parts = dotted.split(".")
     for k, part in enumerate(parts):
-        field = next((_fields(m)[part] for m in models if part in _fields(m)), None)
+        field = next((schema_fields(m)[part] for m in models if part in schema_fields(m)), None)
         if field is None:
             continue  # a list entry's number or name (tools.top)
         if k == len(parts) - 1:
             word = (field.description or "").replace(",", " ").split(" ")[0]
             return word if word in UNITS else None
-        stack, models = [field.annotation], []
-        while stack:
-            t = stack.pop()
-            if _fields(t):
-                models.append(t)
-            else:
-                stack.extend(typing.get_args(t))
+        models = section_schemas(field.annotation)  # a choice among sections: look in each
     return None
-
-
-def _fields(model) -> dict:
-    """A schema's fields: a pydantic model's or a pydantic dataclass's (the laws' parameters)."""
-    return getattr(model, "model_fields", None) or getattr(model, "__pydantic_fields__", None) or {}

@@ -15,7 +15,7 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
+from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3, schema_fields, section_schemas
 
 
 class ScenarioError(ValueError):
@@ -809,22 +809,12 @@ def _refuse_without_method(data: dict, source) -> None:
 def _section_model(model, path):
     """The schema of the section at `path` (field names, list indices skipped), or None where the
     path leaves the schemas (a choice by kind, a dict)."""
-    import typing
-
     for part in path:
         if isinstance(part, int):
             continue
-        field = getattr(model, "model_fields", {}).get(part)
-        if field is None:
-            return None
-        stack, models = [field.annotation], []
-        while stack:
-            t = stack.pop()
-            if hasattr(t, "model_fields"):
-                models.append(t)
-            else:
-                stack.extend(typing.get_args(t))
-        if len(models) != 1:  # a plain value, or a choice among sections
+        field = schema_fields(model).get(part)
+        models = section_schemas(field.annotation) if field is not None else []
+        if len(models) != 1:  # not a field, a plain value, or a choice among sections
             return None
         model = models[0]
     return model

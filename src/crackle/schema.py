@@ -3,6 +3,7 @@ their own schema: one home for a parameter, its unit, default and range)."""
 
 from __future__ import annotations
 
+import typing
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -22,3 +23,21 @@ STRICT_DATACLASS = ConfigDict(extra="forbid", use_attribute_docstrings=True, all
 
 class Strict(BaseModel):
     model_config = STRICT
+
+
+def schema_fields(model) -> dict:
+    """A schema's fields: a pydantic model's or a pydantic dataclass's (a law's parameters); {} else."""
+    return getattr(model, "model_fields", None) or getattr(model, "__pydantic_fields__", None) or {}
+
+
+def section_schemas(annotation) -> list:
+    """The schemas a field's annotation holds (through Optional, lists, unions, Annotated): one for
+    a section, several for a choice among sections, none for a plain value."""
+    found, stack = [], [annotation]
+    while stack:
+        t = stack.pop()
+        if schema_fields(t):
+            found.append(t)
+        else:
+            stack.extend(typing.get_args(t))
+    return found

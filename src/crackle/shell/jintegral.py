@@ -41,16 +41,11 @@ def j_integral(shell: Shell, x: np.ndarray, tip, direction, r_in: float, r_out: 
     q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
     q_face = q[mesh.tri]
     ring = np.flatnonzero(np.ptp(q_face, axis=1) > 0.0)  # dq/dX vanishes elsewhere
-    tri = mesh.tri[ring]
     dm_inv = faces.dm_inv[ring].reshape(-1, 2, 2)
-    Ds = np.stack([x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]], axis=2)  # (k, 3, 2)
-    F = Ds @ dm_inv
+    F, E, N = shell.membrane_kinematics(x, ring)
     Hu = F - frame[ring]
-    C = np.einsum("kia,kib->kab", F, F)
-    E = 0.5 * (C - np.eye(2))
     trace = E[:, 0, 0] + E[:, 1, 1]
     lam_t, mu_t = faces.lam_t[ring], faces.mu_t[ring]
-    N = lam_t[:, None, None] * trace[:, None, None] * np.eye(2) + 2.0 * mu_t[:, None, None] * E
     W = mu_t * np.einsum("kab,kab->k", E, E) + 0.5 * lam_t * trace**2 + bending_density(shell, x, ring)
     P = F @ N
     grad_q = np.einsum("kra,kr->ka", dm_inv, (q_face[ring, 1:] - q_face[ring, :1]))

@@ -223,23 +223,27 @@ class Shell:
         the edges' own)."""
         return strain_energies(x, self.faces, self.edges if xi is None else self.edges._replace(xi=xi))
 
-    def membrane_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per triangle at positions x: the membrane strain (Green-Lagrange, as the membrane law
-        uses it) and the membrane force N = lam_t tr(E) I + 2 mu_t E (N/m), each a symmetric
-        tensor in the global axes through the triangle's reference frame, (m, 6) in the order
-        xx yy zz xy yz xz (io.fields.STRESS_COMPONENTS)."""
-        faces, tri, frame = self.faces, self.mesh.tri, self.frames
+    def membrane_kinematics(self, x: np.ndarray, which=None):
+        """(F (k, 3, 2), E (k, 2, 2), N (k, 2, 2)) of the triangles `which` (default all) at positions
+        x, in each triangle's reference frame: the deformation gradient, the Green-Lagrange strain
+        the membrane law uses and the membrane force N = lam_t tr(E) I + 2 mu_t E (N/m)."""
+        faces = self.faces
+        which = np.arange(len(self.mesh.tri)) if which is None else which
+        tri = self.mesh.tri[which]
         Ds = np.stack([x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]], axis=2)
-        F = Ds @ faces.dm_inv.reshape(-1, 2, 2)
-        strain = 0.5 * (np.einsum("kia,kib->kab", F, F) - np.eye(2))
-        trace = strain[:, 0, 0] + strain[:, 1, 1]
-        force = (faces.lam_t * trace)[:, None, None] * np.eye(2) + 2.0 * faces.mu_t[:, None, None] * strain
+        F = Ds @ faces.dm_inv[which].reshape(-1, 2, 2)
+        E = 0.5 * (np.einsum("kia,kib->kab", F, F) - np.eye(2))
+        trace = E[:, 0, 0] + E[:, 1, 1]
+        lam_t, mu_t = faces.lam_t[which], faces.mu_t[which]
+        N = lam_t[:, None, None] * trace[:, None, None] * np.eye(2) + 2.0 * mu_t[:, None, None] * E
+        return F, E, N
 
-        def global_components(t):
-            g = np.einsum("kia,kab,kjb->kij", frame, t, frame)
-            return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
-
-        return global_components(strain), global_components(force)
+    def membrane_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per triangle at positions x: the membrane strain and force (membrane_kinematics), each a
+        symmetric tensor in the global axes through the triangle's reference frame, (m, 6) in the
+        order xx yy zz xy yz xz (io.fields.STRESS_COMPONENTS)."""
+        _, strain, force = self.membrane_kinematics(x)
+        return _global_components(self.frames, strain), _global_components(self.frames, force)
 
     def bending_moment_state(self, x: np.ndarray) -> np.ndarray:
         """Per triangle at positions x (and the edges' mid-edge rotations) the bending moment
@@ -258,13 +262,18 @@ class Shell:
         system = np.stack([nx * nx, 2.0 * nx * ny, ny * ny], axis=2)  # rows: edges; columns: M11, M12, M22
         m11, m12, m22 = np.moveaxis(np.linalg.solve(system, normal_moment[..., None])[..., 0], 1, 0)
         M = np.stack([np.stack([m11, m12], axis=1), np.stack([m12, m22], axis=1)], axis=1)
-        g = np.einsum("kia,kab,kjb->kij", frame, M, frame)
-        return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
+        return _global_components(frame, M)
 
     def stable_dt(self, tool_k=0.0) -> float:
         """The largest stable step times stability.STEP_MARGIN, by Lanczos on the shell's forces
         (membrane and bending; tool penalties tool_k N/m per node)."""
         return stability.stable_step(self.mesh.X, self.nodes.mass, self.forces, self.mesh.element_size(), tool_k)
+
+
+def _global_components(frame: np.ndarray, tensor: np.ndarray) -> np.ndarray:
+    """Symmetric 2 x 2 tensors in each triangle's frame (m, 3, 2) as global (m, 6): xx yy zz xy yz xz."""
+    g = np.einsum("kia,kab,kjb->kij", frame, tensor, frame)
+    return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 0, 1], g[:, 1, 2], g[:, 0, 2]], axis=1)
 
 
 def build_shell(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray | None = None) -> Shell:
