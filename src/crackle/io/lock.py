@@ -17,6 +17,8 @@ class FolderBusy(RuntimeError):
 
 
 def _alive(pid: int) -> bool:
+    if pid <= 0:  # no process (a lock left half-written); os.kill(-1, 0) would ask about every process
+        return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
