@@ -143,46 +143,111 @@ def test_shell_vtu_has_membrane_fields(tmp_path):
                for k in ("membrane_force", "membrane_strain", "bending_moment", "bending_energy"))
 
 
-def test_shell_centre_crack_plots_its_j_history(tmp_path, monkeypatch):
-    """shell-centre-crack writes plots/j_history.png: J of both tips against time, the closed form
-    (the summary's j_reference) as a line and each tip's final G as a marker."""
+@pytest.fixture(scope="module")
+def centre_crack(tmp_path_factory):
+    """shell-centre-crack's quick form run to its end (quasi-static under 100 MPa): (the output
+    folder, its summary, every figure's ("suptitle|first axes' title", [(line label, xy)]) as
+    written)."""
     import crackle.io.plots as plots
 
-    out = tmp_path / "crack"
-    assert main(["run", "shell-centre-crack", "--quick", "--set", "run.end_time=1e-4", "--out", str(out)]) == 0
-    assert (out / "plots" / "j_history.png").stat().st_size > 0
-    summary = json.loads((out / "summary.json").read_text())
-    figures = []
-    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
-    from crackle.io import read_history_csv
-
-    plots.plot_j_history(read_history_csv(out / "history.csv"), tmp_path / "j.png", summary["j_reference"], [1.0, 2.0])
-    ax = figures[0].axes[0]
-    labels = [line.get_label() for line in ax.get_lines()]
-    assert labels == ["J, tip 0", "G at the end, tip 0", "J, tip 1", "G at the end, tip 1", "closed form"]
-    assert ax.get_lines()[-1].get_ydata()[0] == summary["j_reference"]
-    assert ax.get_ylabel() == "J, G [J/m^2]" and ax.get_title()
-
-
-def test_shell_crack_pattern_draws_the_pre_crack(tmp_path, monkeypatch):
-    """shell-centre-crack (no growth in its quick form): crack_pattern.png draws the pre-crack as
-    cut, from -25 to 25 mm along x at y = 0 (the chain of edges nearest the polyline)."""
-    import crackle.io.plots as plots
-
+    out = tmp_path_factory.mktemp("centre") / "crack"
     figures = []
     save = plots._save
 
     def keep(fig, path):
-        figures.append((fig.get_suptitle(), [(line.get_label(), line.get_xydata().copy()) for line in fig.axes[0].get_lines()]))
+        figures.append((fig.get_suptitle() + "|" + fig.axes[0].get_title(),
+                        [(line.get_label(), line.get_xydata().copy()) for line in fig.axes[0].get_lines()]))
         return save(fig, path)
 
-    monkeypatch.setattr(plots, "_save", keep)
-    assert main(["run", "shell-centre-crack", "--quick", "--set", "run.end_time=5e-5", "--out", str(tmp_path / "o")]) == 0
-    patterns = [lines for title, lines in figures if title.startswith("Crack pattern")]
-    pre = [xy for label, xy in patterns[-1] if label == "pre-crack"]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(plots, "_save", keep)
+        assert main(["run", "shell-centre-crack", "--quick", "--out", str(out)]) == 0
+    return out, json.loads((out / "summary.json").read_text()), figures
+
+
+def _figure(figures, title):
+    """The lines of the last figure with that title (the shell redraws its crack pattern)."""
+    return [lines for names, lines in figures if any(name.startswith(title) for name in names.split("|"))][-1]
+
+
+def test_shell_centre_crack_plots_j_and_g_over_time(centre_crack):
+    """plots/j_history.png: J and G of both tips against time and the closed form (the summary's
+    j_reference) as a line; history.csv's last g.tip0 is the summary's energy_release_rate (the
+    same state, within 1e-12), and G follows J in plane (paper 002: they are the same integral
+    for in-plane loading; within 1e-3 at the end)."""
+    from crackle.io import read_history_csv
+
+    out, summary, figures = centre_crack
+    assert (out / "plots" / "j_history.png").stat().st_size > 0
+    lines = _figure(figures, "Energy release")
+    assert [label for label, _ in lines] == ["J, tip 0", "G, tip 0", "J, tip 1", "G, tip 1", "closed form"]
+    assert lines[-1][1][0, 1] == summary["j_reference"]
+    history = read_history_csv(out / "history.csv")
+    assert history["g.tip0"][-1] == pytest.approx(summary["energy_release_rate"], rel=1e-12)
+    assert history["g.tip0"][-1] == pytest.approx(history["j.tip0"][-1], rel=1e-3)
+
+
+def test_shell_edge_loads_make_a_load_displacement_curve(centre_crack):
+    """An edge-loaded shell's load_displacement.png has the curve "edge loads": at the end the
+    force is both ends' 100 MPa x 100 mm x 1 mm (20 kN, within 1e-12) and the area under
+    force against displacement is the external work the energy audit books (energy.external,
+    within 1e-3: the trapezoid over ~100 samples)."""
+    from crackle.io import read_history_csv
+
+    out, _, figures = centre_crack
+    history = read_history_csv(out / "history.csv")
+    force, displacement = history["edge_load.force"], history["edge_load.displacement"]
+    assert force[-1] == pytest.approx(2 * 100e6 * 0.1 * 0.001, rel=1e-12)
+    assert np.trapezoid(force, displacement) == pytest.approx(history["energy.external"][-1], rel=1e-3)
+    assert [label for label, _ in _figure(figures, "Load-displacement")] == ["edge loads"]
+
+
+def test_shell_crack_faces_are_line_cells_with_the_opening(centre_crack):
+    """The last frame's crack faces: 2 x 10 line cells (both faces of the 50 mm pre-crack's
+    ten 5 mm edges), crack_opening the same on both faces of an edge, symmetric about the
+    centre, and at the middle within 15 % of the closed form 2v = 4 sigma a / E V1(a/b)
+    sqrt(1 - x^2/a^2) (Tada's centre-cracked strip, V1(0.5) = 1.191; the 5 mm triangles are
+    stiffer: 0.87 of it here)."""
+    out, _, _ = centre_crack
+    mesh = _last_frame(out)
+    kinds = [block.type for block in mesh.cells]
+    assert kinds == ["triangle", "line"] and len(mesh.cells[1].data) == 20
+    opening = mesh.cell_data["crack_opening"][1]
+    assert np.all(opening[0::2] == opening[1::2]) and np.all(opening > 0.0)
+    x = mesh.points[mesh.cells[1].data].mean(axis=1)[0::2, 0]
+    by_x = opening[0::2][np.argsort(x)]
+    assert np.allclose(by_x, by_x[::-1], rtol=1e-6)
+    sigma, E, a, ratio = 100e6, 200e9, 0.025, 0.5
+    v1 = -0.071 - 0.535 * ratio + 0.169 * ratio**2 + 0.020 * ratio**3 - 1.071 / ratio * np.log(1.0 - ratio)
+    middle = np.argmin(np.abs(x))
+    closed = 4 * sigma * a / E * v1 * np.sqrt(1.0 - (x[middle] / a) ** 2)
+    assert opening[0::2][middle] == pytest.approx(closed, rel=0.15)
+    assert np.all(mesh.cell_data["crack_opening"][0] == 0.0)
+
+
+def test_shell_crack_pattern_draws_the_pre_crack(centre_crack):
+    """shell-centre-crack (no growth in its quick form): crack_pattern.png draws the pre-crack as
+    cut, from -25 to 25 mm along x at y = 0 (the chain of edges nearest the polyline)."""
+    _, _, figures = centre_crack
+    pre = [xy for label, xy in _figure(figures, "Crack pattern") if label == "pre-crack"]
     assert len(pre) == 1
     assert pre[0][:, 0].min() == pytest.approx(-25.0, abs=1e-9) and pre[0][:, 0].max() == pytest.approx(25.0, abs=1e-9)
     assert np.all(np.abs(pre[0][:, 1]) < 1e-9)
+
+
+def test_crack_faces_pair_the_cut_edges_only():
+    """ShellMesh.crack_faces on a 4 x 2 rectangle: none before a cut; a cut along two edges of
+    the middle line gives exactly those two edge pairs, each pair on the same reference points."""
+    from crackle.shell.mesh import edge_path, rectangle, split_along
+
+    mesh = rectangle(0.4, 0.2, 4, 2, 0.01)
+    assert mesh.crack_faces().shape == (0, 2)
+    cut, _ = split_along(mesh, edge_path(mesh, [[0.0, 0.1, 0.0], [0.2, 0.1, 0.0]]))
+    pairs = cut.crack_faces()
+    assert pairs.shape == (2, 2)
+    ends = np.sort(cut.X[cut.edge[pairs]][..., 0], axis=2)  # (pair, face, end) x
+    assert np.array_equal(ends[:, 0], ends[:, 1])
+    assert np.all(np.abs(cut.X[cut.edge[pairs]][..., 1] - 0.1) < 1e-12)
 
 
 def test_shell_bending_moment_of_a_cylindrical_bend():

@@ -18,6 +18,7 @@ from ._units import time_unit
 from .outputs import read_events_csv, read_history_csv
 
 _TOOL_COLUMN = re.compile(r"^tool\.(.+)\.(fx|fy|fz|ux|uy|uz)$")
+EDGE_LOAD_FORCE, EDGE_LOAD_DISPLACEMENT = "edge_load.force", "edge_load.displacement"  # a shell's edge loads
 _MODE_MARKERS = {"tension": "o", "shear": "^", "mixed": "s"}
 
 
@@ -81,7 +82,8 @@ def _magnitude(cols: dict, prefix: str, components: tuple[str, ...]) -> np.ndarr
 def tool_curves(history) -> dict[str, tuple[np.ndarray, np.ndarray, bool]]:
     """Each tool's (displacement magnitude, force magnitude, fixed) over the history. A tool that
     never moves (a support plate) gets the travel of the moving tools (the largest of their
-    displacements), where its reaction belongs."""
+    displacements), where its reaction belongs. A shell's edge loads (edge_load.force,
+    edge_load.displacement) are one more curve, "edge loads"."""
     cols = _columns(history)
     tools = tool_names(cols)
     disp = {tool: _magnitude(cols, f"tool.{tool}.", ("ux", "uy", "uz")) for tool in tools}
@@ -92,6 +94,9 @@ def tool_curves(history) -> dict[str, tuple[np.ndarray, np.ndarray, bool]]:
         force = _magnitude(cols, f"tool.{tool}.", ("fx", "fy", "fz"))
         fixed = travel is not None and not np.any(disp[tool] != 0.0)
         out[tool] = (travel if fixed else disp[tool], force, fixed)
+    if EDGE_LOAD_FORCE in cols and EDGE_LOAD_DISPLACEMENT in cols:
+        out["edge loads"] = (np.asarray(cols[EDGE_LOAD_DISPLACEMENT], float), np.asarray(cols[EDGE_LOAD_FORCE], float),
+                             False)
     return out
 
 
@@ -105,7 +110,7 @@ def plot_load_displacement(history, path) -> Path:
         ax.plot(disp * 1e3, force * 1e-3, "--" if fixed else "-", label=f"{tool} (fixed)" if fixed else tool)
     tools = list(curves)
     if tools:
-        ax.legend(title="tool")
+        ax.legend(title="load")
     else:
         ax.text(0.5, 0.5, "no tool data", transform=ax.transAxes, ha="center")
     ax.set_xlabel(axis_label("displacement", "mm"))
@@ -316,10 +321,10 @@ def plot_crack_growth(length_history, speed_history, path) -> Path:
     return _save(fig, path)
 
 
-def plot_j_history(history, path, reference: float | None = None, final_g=None) -> Path | None:
-    """J (J/m^2) of each crack tip (history columns j.tipK) against time, with the closed-form
-    reference where the scenario gives one (a dashed line) and each tip's final G (virtual crack
-    extension) as a marker at the end; None when the history has no J column."""
+def plot_j_history(history, path, reference: float | None = None) -> Path | None:
+    """J and G (J/m^2) of each crack tip (history columns j.tipK, g.tipK: the domain J-integral
+    and the virtual crack extension) against time, with the closed-form reference where the
+    scenario gives one (a dashed line); None when the history has no J column."""
     cols = _columns(history)
     names = sorted(k for k in cols if k.startswith("j.tip"))
     if not names or len(cols["time"]) == 0:
@@ -328,15 +333,16 @@ def plot_j_history(history, path, reference: float | None = None, final_g=None) 
     t = cols["time"] * scale
     fig = _new_figure(figsize=(6, 4.5))
     ax = fig.add_subplot()
-    for k, name in enumerate(names):
-        line, = ax.plot(t, cols[name], label=f"J, tip {name[5:]}")
-        if final_g is not None and k < len(final_g) and final_g[k] is not None:
-            ax.plot([t[-1]], [final_g[k]], "s", color=line.get_color(), label=f"G at the end, tip {name[5:]}")
+    for name in names:
+        tip = name[5:]
+        line, = ax.plot(t, cols[name], label=f"J, tip {tip}")
+        if f"g.tip{tip}" in cols:
+            ax.plot(t, cols[f"g.tip{tip}"], ":", color=line.get_color(), label=f"G, tip {tip}")
     if reference is not None:
         ax.axhline(reference, color="0.3", linestyle="--", label="closed form")
     ax.set_xlabel(axis_label("time", unit))
     ax.set_ylabel(axis_label("J, G", "J/m^2"))
-    ax.set_title("J-integral at the crack tips")
+    ax.set_title("Energy release at the crack tips")
     ax.legend(fontsize=7)
     ax.grid(True, alpha=0.3)
     return _save(fig, path)
@@ -345,13 +351,13 @@ def plot_j_history(history, path, reference: float | None = None, final_g=None) 
 def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
     """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
 
-    Load-displacement is skipped when the history has no tool columns.
+    Load-displacement is skipped when the history has neither tool nor edge-load columns.
     Returns the paths written.
     """
     plots_dir = Path(out_dir) / "plots"
     cols = _columns(history)
     paths = []
-    if tool_names(cols):
+    if tool_names(cols) or EDGE_LOAD_FORCE in cols:
         paths.append(plot_load_displacement(cols, plots_dir / "load_displacement.png"))
     paths.append(plot_energies(cols, plots_dir / "energies.png"))
     paths.append(plot_crack_pattern(events, bounds, plots_dir / "crack_pattern.png"))

@@ -170,30 +170,51 @@ def energy_release_rate(shell: Shell, x: np.ndarray, tip, direction, r_in: float
     moved vertices carry along. For in-plane loading this is the domain J above, term by term;
     it also holds bending and pressure, which that J leaves out. Like J it leaves out the
     kinetic terms: a quasi-static measure."""
-    mesh = shell.mesh
-    tip = np.asarray(tip, dtype=float)
-    d = np.asarray(direction, dtype=float)
-    d = d / np.linalg.norm(d)
-    q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
-    eps = step * mesh.element_size()
-    shift = eps * q[:, None] * d
-    local, keep, changed, xi = _patch(shell, q > 0.0)
-    clamped = None if shell.clamped is None else shell.clamped[keep]
-    energies = []
-    for sign in (1.0, -1.0):
-        faces, edges, *_ = build_arrays(replace(local, X=local.X + sign * shift[keep]), shell.material, clamped)
-        membrane_energy, bending_energy = np.zeros(len(changed)), np.zeros(len(changed))
-        face_energies(x[keep] + sign * shift[keep], faces, edges._replace(xi=xi), changed, membrane_energy, bending_energy)
-        energies.append(float(membrane_energy.sum() + bending_energy.sum()))
-    work = 0.0 if external is None else float(np.sum(external * q[:, None] * d))
-    nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
-    return -((energies[0] - energies[1]) / (2.0 * eps) - work) / float(mesh.thickness[nearest])
+    return VirtualExtension(shell, tip, direction, r_in, r_out, step).release_rate(shell, x, external)
+
+
+class VirtualExtension:
+    """The part of a virtual crack extension that only the reference mesh decides (the patch
+    about the tip and its two shifted models), built once per tip, ring and shell so that G can
+    be evaluated at every history sample for the cost of two patch energies."""
+
+    def __init__(self, shell: Shell, tip, direction, r_in: float, r_out: float, step: float = 1e-4):
+        mesh = shell.mesh
+        tip = np.asarray(tip, dtype=float)
+        d = np.asarray(direction, dtype=float)
+        d = d / np.linalg.norm(d)
+        self.shell = shell
+        q = np.clip((r_out - np.linalg.norm(mesh.X - tip, axis=1)) / (r_out - r_in), 0.0, 1.0)
+        self.q_shift = q[:, None] * d  # (n, 3): each vertex's move per unit crack extension
+        self.eps = step * mesh.element_size()
+        local, self.keep, self.changed, self.edge_index = _patch(shell, q > 0.0)
+        clamped = None if shell.clamped is None else shell.clamped[self.keep]
+        shift = self.eps * self.q_shift[self.keep]
+        self.models = [build_arrays(replace(local, X=local.X + sign * shift), shell.material, clamped)[:2]
+                       for sign in (1.0, -1.0)]
+        nearest = int(np.argmin(np.linalg.norm(mesh.X[mesh.tri].mean(axis=1) - tip, axis=1)))
+        self.thickness = float(mesh.thickness[nearest])
+
+    def release_rate(self, shell: Shell, x: np.ndarray, external: np.ndarray | None = None) -> float:
+        """G (J/m^2) at the positions x (n, 3) of `shell` (the one this was built for), the
+        external nodal forces `external` (n, 3) carried along with the moved vertices."""
+        if shell is not self.shell:
+            raise ValueError("a virtual crack extension belongs to the shell it was built for; build one for the cut shell")
+        xi = shell.edges.xi[self.edge_index]
+        energies = []
+        for sign, (faces, edges) in zip((1.0, -1.0), self.models):
+            membrane_energy, bending_energy = np.zeros(len(self.changed)), np.zeros(len(self.changed))
+            face_energies(x[self.keep] + sign * self.eps * self.q_shift[self.keep], faces, edges._replace(xi=xi),
+                          self.changed, membrane_energy, bending_energy)
+            energies.append(float(membrane_energy.sum() + bending_energy.sum()))
+        work = 0.0 if external is None else float(np.sum(external * self.q_shift))
+        return -((energies[0] - energies[1]) / (2.0 * self.eps) - work) / self.thickness
 
 
 def _patch(shell: Shell, moved: np.ndarray):
     """The part of the shell a virtual crack extension needs: (its mesh, the kept vertices'
-    indices, the triangles whose energy the moved vertices change, as indices into it, the
-    mid-edge rotations of its edges). A triangle's energy depends on its corners and the far
+    indices, the triangles whose energy the moved vertices change, as indices into it, each of
+    its edges' index in the shell's, where the mid-edge rotations are read). A triangle's energy depends on its corners and the far
     corners of its three neighbours, so it changes only within two layers of triangles about
     the moved vertices; a third layer keeps those triangles' hinges interior, as in the shell."""
     tri = shell.mesh.tri
@@ -217,5 +238,4 @@ def _patch(shell: Shell, moved: np.ndarray):
     full_keys = np.sort(shell.mesh.edge, axis=1) @ np.array([n, 1])
     local_keys = np.sort(keep[local.edge], axis=1) @ np.array([n, 1])
     order = np.argsort(full_keys)
-    xi = shell.edges.xi[order[np.searchsorted(full_keys[order], local_keys)]]
-    return local, keep, np.searchsorted(context, changed), xi
+    return local, keep, np.searchsorted(context, changed), order[np.searchsorted(full_keys[order], local_keys)]

@@ -38,6 +38,24 @@ class ShellMesh:
         """Mask of the boundary edges (one face)."""
         return self.edge_face[:, 1] < 0
 
+    def crack_faces(self) -> np.ndarray:
+        """(p, 2) edge indices: each pair of boundary edges with the same ends in the reference
+        configuration, the two faces of a cut (split_along and the growing cracks copy a vertex
+        to its exact position, so the faces coincide bit for bit). A seam the surface left
+        unjoined counts too: mechanically it is a crack."""
+        edges = np.flatnonzero(self.boundary)
+        if len(edges) == 0:
+            return np.zeros((0, 2), dtype=np.int64)
+        a, b = self.X[self.edge[edges, 0]], self.X[self.edge[edges, 1]]
+        diff = b - a  # the faces run an edge in opposite directions: key each by its ends in x, y, z order
+        a_first = diff[np.arange(len(diff)), np.argmax(diff != 0.0, axis=1)] > 0.0
+        keys = np.where(a_first[:, None], np.hstack([a, b]), np.hstack([b, a]))
+        _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        group = group.ravel()
+        paired = count[group] == 2
+        order = np.argsort(group[paired], kind="stable")
+        return edges[paired][order].reshape(-1, 2)
+
     def element_size(self) -> float:
         """Median edge length (m)."""
         return float(np.median(np.linalg.norm(self.X[self.edge[:, 1]] - self.X[self.edge[:, 0]], axis=1)))

@@ -11,7 +11,8 @@ from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
-from .jintegral import bending_density, energy_release_rate, j_integral, mts_kink_angle, stress_intensity
+from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
+from .jintegral import VirtualExtension, bending_density, j_integral, mts_kink_angle, stress_intensity
 from .kernels import advance
 from .mesh import altitudes
 from .model import Shell
@@ -77,6 +78,11 @@ class ShellSimulation:
         self.fracture_energy = 0.0  # J: what the cuts and the moves at the tip changed at once (_replace_shell)
         self.warnings: list[str] = []
         self._thinnest = float(np.min(altitudes(shell.mesh.X, shell.mesh.tri)))  # the step's length: moves keep to it
+        self._extensions: dict = {}  # (tip vertex, direction, ring) -> VirtualExtension of the current shell
+
+    def __getstate__(self):
+        # the virtual extensions are rebuilt on demand: a checkpoint need not carry them
+        return {**self.__dict__, "_extensions": {}}
 
     @property
     def nodes(self):
@@ -151,6 +157,7 @@ class ShellSimulation:
             return
         before = self._jump_energy(dt)
         self.shell = new
+        self._extensions = {}  # they belong to the shell before the cut
         self.fracture_energy += before - self._jump_energy(dt)
 
     def _jump_energy(self, dt: float) -> float:
@@ -210,10 +217,31 @@ class ShellSimulation:
             np.add.at(forces, tri[loaded, c], faces.pressure_force[loaded])
         return forces
 
+    def edge_load_columns(self) -> dict[str, float]:
+        """The edge loads as one load-displacement pair (none without edge loads): edge_load.force,
+        the magnitude of all the applied edge forces summed (N), and edge_load.displacement, the
+        loaded vertices' displacement along their loads weighted by those (m), so that force x
+        displacement rate is the edge loads' power. A plate pulled by both ends reads the sum of
+        both ends' forces against half its elongation."""
+        load = self.nodes.load
+        total = float(np.sum(np.linalg.norm(load, axis=1)))
+        if total == 0.0:
+            return {}
+        lf = self.load_factor
+        factor = float(np.interp(self.time, lf.times[:lf.n], lf.values[:lf.n]))
+        return {EDGE_LOAD_FORCE: factor * total,
+                EDGE_LOAD_DISPLACEMENT: float(np.sum(load * (self.nodes.x - self.shell.mesh.X))) / total}
+
     def _tip_g(self, tip: CrackTip) -> list[float]:
-        X, external = self.shell.mesh.X, self.external_forces()
-        return [energy_release_rate(self.shell, self.nodes.x, X[tip.vertex], tip.direction, *ring, external=external)
-                for ring in self.rings]
+        external = self.external_forces()
+        return [self._extension(tip, ring).release_rate(self.shell, self.nodes.x, external) for ring in self.rings]
+
+    def _extension(self, tip: CrackTip, ring) -> VirtualExtension:
+        """The tip's virtual crack extension over `ring`, built once per shell, tip and direction."""
+        key = (tip.vertex, tuple(tip.direction), ring)
+        if key not in self._extensions:
+            self._extensions[key] = VirtualExtension(self.shell, self.shell.mesh.X[tip.vertex], tip.direction, *ring)
+        return self._extensions[key]
 
     def g_values(self) -> np.ndarray:
         """G (J/m^2) by virtual crack extension at each tip (rows) over each ring (columns), at the
@@ -222,9 +250,11 @@ class ShellSimulation:
 
     def sample(self, dt: float) -> dict[str, float]:
         row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
-               "broken": self.broken}
+               "broken": self.broken, **self.edge_load_columns()}
         for k, values in enumerate(self.j_values()):
             row[f"j.tip{k}"] = float(np.mean(values))
+        for k, values in enumerate(self.g_values()):
+            row[f"g.tip{k}"] = float(np.mean(values))
         for k, tip in enumerate(self.tips):
             row[f"crack.tip{k}"] = tip.extension
         return row
@@ -239,19 +269,27 @@ class ShellSimulation:
 
     def fields(self) -> dict:
         """The mid-surface's triangles with, per triangle, the membrane strain and force and the
-        bending moment (global xx yy zz xy yz xz) and the bending energy per area; per vertex the
-        displacement, velocity."""
+        bending moment (global xx yy zz xy yz xz) and the bending energy per area; the crack
+        faces as lines (cell_kind 1: both faces of every cut edge, pre-cracks and grown) with the
+        crack's opening there, the distance between the two faces' midpoints (m); per vertex
+        the displacement, velocity."""
         n, mesh = self.nodes, self.shell.mesh
         strain, force = self.shell.membrane_state(n.x)
+        pairs = mesh.crack_faces()
+        middle = 0.5 * (n.x[mesh.edge[pairs, 0]] + n.x[mesh.edge[pairs, 1]])  # (p, 2, 3)
+        opening = np.linalg.norm(middle[:, 0] - middle[:, 1], axis=1)
+        blocks = [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy(),
+                                          "membrane_strain": strain, "membrane_force": force,
+                                          "bending_moment": self.shell.bending_moment_state(n.x),
+                                          "bending_energy": bending_density(self.shell, n.x)})]
+        if len(pairs):
+            blocks.append(("line", mesh.edge[pairs.ravel()], {"crack_opening": np.repeat(opening, 2)}))
         return {
             "points": n.x,
             "point_data": {"displacement": n.x - mesh.X, "velocity": n.v},
             "component_names": {"membrane_strain": STRESS_COMPONENTS, "membrane_force": STRESS_COMPONENTS,
                                 "bending_moment": STRESS_COMPONENTS},
-            "blocks": [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy(),
-                                               "membrane_strain": strain, "membrane_force": force,
-                                               "bending_moment": self.shell.bending_moment_state(n.x),
-                                               "bending_energy": bending_density(self.shell, n.x)})],
+            "blocks": blocks,
         }
 
     def describe(self) -> str:
@@ -296,7 +334,7 @@ class ShellSimulation:
 
     def extra_plots(self, out_dir) -> None:
         """plots/crack_pattern.png redrawn with the pre-cracks and the paths the tips ran;
-        plots/j_history.png: each tip's J over the run, the closed form and the final G."""
+        plots/j_history.png: each tip's J and G over the run and the closed form."""
         from ..io import read_history_csv
         from ..io.plots import plot_j_history
 
@@ -307,9 +345,5 @@ class ShellSimulation:
                  for k, start in enumerate(self._tip_starts)]
         plot_crack_pattern(out / "events.csv", self.bounds(), out / "plots" / "crack_pattern.png",
                            paths=[("pre-crack", p) for p in self.pre_cracks] + [("grown", p) for p in grown if len(p) > 1])
-        if not self.tips:
-            return
-        g = self.g_values()
-        final_g = [float(np.mean(row)) for row in g] if g.size else None
-        plot_j_history(read_history_csv(Path(out_dir) / "history.csv"), Path(out_dir) / "plots" / "j_history.png",
-                       self.j_reference, final_g)
+        if self.tips:
+            plot_j_history(read_history_csv(out / "history.csv"), out / "plots" / "j_history.png", self.j_reference)
