@@ -47,6 +47,7 @@ class GrowthLaw:
     max_speed: float  # m/s, V_max
     exponent: float = 1.0  # m
     criterion: str = "j"  # "j": the domain J; "g": G by virtual crack extension
+    kink: str = "mts"  # the turn's criterion: a key of jintegral.KINK_CRITERIA
 
     def speed(self, j: float) -> float:
         """V (m/s) at J (J/m^2): 0 below Gc."""

@@ -127,6 +127,10 @@ class FractureSpec(Strict):
     """what Griffith's check compares with Gc: j, the domain J (cheap; exact for in-plane loading), or g, the energy
     release rate by virtual crack extension (bending and pressure included; two rebuilds of the model per ring and
     check: for sheets that bend or tear out of plane)"""
+    kink: Literal["mts", "merr"] = "mts"
+    """the direction a growing tip turns to: mts, the maximum tangential stress (Erdogan-Sih: -70.5 deg in pure mode
+    II), or merr, the maximum energy release rate of an infinitesimal kink (Hussain-Pu-Underwood, paper 002's
+    criterion: -75.2 deg in pure mode II); both from the tip's K_I, K_II (K_III counted with the opening)"""
     reference: Literal["none", "centre-crack", "axial-crack-folias"] = "none"
     """the closed form in summary.json's j_reference: centre-crack, K^2 / E with K = sigma sqrt(pi a) times Tada's
     width factor, for one crack inside a rectangle pulled by its edge loads; axial-crack-folias, (M sigma
@@ -242,7 +246,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     growth = None
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
-                           fracture.criterion)
+                           fracture.criterion, fracture.kink)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     sim.warnings.extend(seating)

@@ -12,7 +12,7 @@ from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
 from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
-from .jintegral import VirtualExtension, bending_density, j_integral, mts_kink_angle, stress_intensity
+from .jintegral import KINK_CRITERIA, VirtualExtension, bending_density, j_integral, stress_intensity
 from .kernels import advance
 from .mesh import altitudes
 from .model import Shell
@@ -130,12 +130,12 @@ class ShellSimulation:
                 tip.active = not through
 
     def _heading(self, tip: CrackTip, j: float) -> tuple[np.ndarray, int]:
-        """The direction the tip grows in: its direction turned by the maximum tangential stress
-        criterion's kink angle for its K_I, K_II and K_III (jintegral.stress_intensity), in the
-        surface's tangent plane; and the failure mode of that mixity (the shear modes' share,
+        """The direction the tip grows in: its direction turned by the growth law's kink criterion
+        (maximum tangential stress or energy release rate) for its K_I, K_II and K_III
+        (jintegral.stress_intensity), in the surface's tangent plane; and the failure mode of that mixity (the shear modes' share,
         (K_II^2 + K_III^2) / K^2)."""
         k1, k2, k3 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
-        angle = mts_kink_angle(k1, k2, k3)
+        angle = KINK_CRITERIA[self.growth.kink](k1, k2, k3)
         X, tri = self.shell.mesh.X, self.shell.mesh.tri
         around = tri[np.any(tri == tip.vertex, axis=1)]
         normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
