@@ -72,8 +72,9 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
     sqrt(r) there: opening across the crack in the surface, sliding along it, tearing along the
     normal), summed over the vertex pairs 2 to `pairs` along the crack's faces from the tip
     (_flank_pairs) with weights 1 / sqrt(r), each in the frame of its chord to the tip; only the
-    pairs on the tip's own branch count (chord within BRANCH_COS of `direction`: behind a kink
-    the faces carry the old branch's mixity), the nearest alone if it is the only one. The
+    pairs on the tip's own branch count (branch_pairs: behind a kink the faces carry the old
+    branch's mixity), the nearest alone if it is the only one; none (right after a kink) reads
+    as mode I. The
     faces' displacement alone gives K 10-20 % low with constant-strain triangles (their error
     next to the tip), alike for the modes: their ratios are what is used. Sliding is along the
     chord towards the tip (d at the tip), opening along m = n x d, n the surface normal: K_II > 0
@@ -82,13 +83,7 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
         return 0.0, 0.0, 0.0
     mesh = shell.mesh
     X = mesh.X
-    heading = np.asarray(direction, float) / np.linalg.norm(direction)
-    branch = []  # the pairs on the tip's own branch: a kink behind it ends that
-    for pair in _flank_pairs(mesh, tip, pairs):
-        chord = X[tip] - X[pair[0]]
-        if chord @ heading < BRANCH_COS * np.linalg.norm(chord):
-            break
-        branch.append(pair)
+    branch = branch_pairs(mesh, tip, direction, pairs)
     jumps = np.zeros(3)  # opening, sliding, tearing
     for upper, lower in branch[1:] or branch:
         chord = X[tip] - X[upper]
@@ -109,6 +104,27 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
     at_tip = int(np.flatnonzero(np.any(mesh.tri == tip, axis=1))[0])
     k = np.sqrt(shell.triangle_material.youngs_modulus[at_tip] * j)
     return tuple(float(k * c / size) for c in jumps)
+
+
+def branch_pairs(mesh, tip: int, direction, count: int = 4) -> list[tuple[int, int]]:
+    """The crack-face vertex pairs (_flank_pairs, up to `count`) on the tip's own branch: each
+    pair's chord to the tip, and the faces behind it, within BRANCH_COS of `direction`. A pair
+    at a kink (the faces behind it run the old branch's way) opens with the old branch's mixity
+    and ends the branch: right after a kink there is none."""
+    X = mesh.X
+    heading = np.asarray(direction, float) / np.linalg.norm(direction)
+    flank = _flank_pairs(mesh, tip, count + 1)
+    branch = []
+    for k, pair in enumerate(flank[:count]):
+        chord = X[tip] - X[pair[0]]
+        if chord @ heading < BRANCH_COS * np.linalg.norm(chord):
+            break
+        if k + 1 < len(flank):
+            behind = X[pair[0]] - X[flank[k + 1][0]]
+            if behind @ heading < BRANCH_COS * np.linalg.norm(behind):
+                break
+        branch.append(pair)
+    return branch
 
 
 def _flank_pairs(mesh, tip: int, count: int) -> list[tuple[int, int]]:

@@ -12,7 +12,7 @@ from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
 from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
-from .jintegral import KINK_CRITERIA, VirtualExtension, bending_density, j_integral, stress_intensity
+from .jintegral import KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity
 from .kernels import advance
 from .mesh import altitudes
 from .model import Shell
@@ -50,6 +50,7 @@ class CrackTip:
     extension: float = 0.0  # m grown since the start
     pending: float = 0.0  # m run (speed x time) since the last cut, not yet an edge
     active: bool = True  # False once the crack reached a boundary
+    aim: np.ndarray | None = None  # unit vector the kink criterion last chose (the cut follows the mesh's nearest edge)
 
 
 class ShellSimulation:
@@ -125,22 +126,31 @@ class ShellSimulation:
                 length = float(np.linalg.norm(direction))  # the move may have shortened it
                 tip.pending -= length
                 tip.extension += length
-                tip.vertex, tip.direction = vertex, direction / length
+                tip.vertex, tip.direction, tip.aim = vertex, direction / length, heading
                 self.advances.append(Advance(self.time, self.shell.mesh.X[vertex].copy(), k, mode))
                 tip.active = not through
 
     def _heading(self, tip: CrackTip, j: float) -> tuple[np.ndarray, int]:
         """The direction the tip grows in: its direction turned by the growth law's kink criterion
         (maximum tangential stress or energy release rate) for its K_I, K_II and K_III
-        (jintegral.stress_intensity), in the surface's tangent plane; and the failure mode of that mixity (the shear modes' share,
-        (K_II^2 + K_III^2) / K^2)."""
+        (jintegral.stress_intensity), in the surface's tangent plane; right after a kink, where
+        no crack-face pair measures the new branch's mixity (jintegral.branch_pairs), the
+        direction the criterion chose last (a cut follows the mesh's edge nearest to it, up to
+        ~20 deg off where the mesh cannot be turned: aiming on keeps such a step from steering
+        the path). Also the failure mode of that mixity (the shear modes' share, (K_II^2 +
+        K_III^2) / K^2)."""
         k1, k2, k3 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
-        angle = KINK_CRITERIA[self.growth.kink](k1, k2, k3)
         X, tri = self.shell.mesh.X, self.shell.mesh.tri
         around = tri[np.any(tri == tip.vertex, axis=1)]
         normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
-        side = np.cross(normal / np.linalg.norm(normal), tip.direction)
-        return np.cos(angle) * tip.direction + np.sin(angle) * side, failure_mode((k2 * k2 + k3 * k3) / (k1 * k1 + k2 * k2 + k3 * k3))
+        normal /= np.linalg.norm(normal)
+        mode = failure_mode((k2 * k2 + k3 * k3) / (k1 * k1 + k2 * k2 + k3 * k3))
+        if tip.aim is not None and not branch_pairs(self.shell.mesh, tip.vertex, tip.direction):
+            aim = tip.aim - (tip.aim @ normal) * normal
+            return aim / np.linalg.norm(aim), mode
+        angle = KINK_CRITERIA[self.growth.kink](k1, k2, k3)
+        side = np.cross(normal, tip.direction)
+        return np.cos(angle) * tip.direction + np.sin(angle) * side, mode
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
