@@ -185,6 +185,7 @@ def test_shell_centre_crack_plots_j_and_g_over_time(centre_crack):
     history = read_history_csv(out / "history.csv")
     assert history["g.tip0"][-1] == pytest.approx(summary["energy_release_rate"], rel=1e-12)
     assert history["g.tip0"][-1] == pytest.approx(history["j.tip0"][-1], rel=1e-3)
+    assert summary["j_static"] is True and not any("still moved" in w for w in summary["warnings"])
 
 
 def test_shell_edge_loads_make_a_load_displacement_curve(centre_crack):

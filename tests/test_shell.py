@@ -781,6 +781,23 @@ def test_merr_kink_angle_maximises_the_kinked_release_rate():
     assert kinked_release_rate(0.0, 2.0, 3.0) == pytest.approx(13.0, rel=1e-12)  # K_I^2 + K_II^2 straight on
 
 
+def test_a_j_read_mid_oscillation_is_flagged(tmp_path):
+    """shell-centre-crack's quick plate, undamped (run.damping = 0), read at 300 us, 100 us after
+    its ramp: it rings about equilibrium (kinetic energy ~1e-3 of the strain energy; J 0.82 of
+    the closed form where the damped run settles at 0.85): summary j_static false, its
+    kinetic_to_strain above STATIC_KINETIC (1e-4) and a warning that says so and what to do; the
+    example as shipped (damped, 500 us) reads j_static true with no such warning
+    (tests/test_outputs.py runs it)."""
+    from crackle.shell.simulation import STATIC_KINETIC
+
+    out = tmp_path / "ringing"
+    assert main(["run", "shell-centre-crack", "--quick", "--set", "run.damping=0", "--set", "run.end_time=3e-4",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["j_static"] is False and summary["kinetic_to_strain"] > STATIC_KINETIC
+    assert any("still moved" in w and "run.damping" in w for w in summary["warnings"])
+
+
 INCLINED = """
 name = "inclined-crack"
 method = "shell"
