@@ -477,14 +477,13 @@ def test_shell_tear_example_quick_tears_straight():
     """The shipped example shell-tear --quick (a 0.5 mm aluminium sheet with a 30 mm edge crack,
     its two flaps pulled out of plane by rigid grips, 800 triangles, Gc = 10 kJ/m^2 on G by
     virtual crack extension). At 2 ms, before any cut: G is path independent over the two rings
-    in this bending-dominated case, within 3 % (measured 2.1 %; 4.09 and 4.17 kJ/m^2), where
-    the domain J, without the moments' share, is not (0.89 and 0.34 kJ/m^2); the grips pull
-    (> 10 N; 42.9 N). By 4 ms: the crack has torn at least two cells straight on along its
-    line (every new tip on y = 0, x increasing; measured 3 cuts from 2.74 ms: tearing, K_III,
-    must not turn it), each cut only after G reached Gc, and the energy audit with contact,
-    damping, the mid-edge rotations and the cuts closes to 1 % (measured -0.19 %). The summary
-    warns that the tip's J (without the moments) is off its G by more than 5 % (measured 615
-    against 4,142 J/m^2 at 2 ms: -85 %)."""
+    in this bending-dominated case, within 3 % (measured 2.1 %; 4.09 and 4.17 kJ/m^2), and the
+    J-integral, its bending share now in it, is G within 3 % on each ring (issue 40; measured
+    1e-7; before, without the moments' share, 0.89 and 0.34 kJ/m^2); the grips pull (> 10 N;
+    42.9 N). By 4 ms: the crack has torn at least two cells straight on along its line (every
+    new tip on y = 0, x increasing; measured 3 cuts from 2.74 ms: tearing, K_III, must not turn
+    it), each cut only after G reached Gc, and the energy audit with contact, damping, the
+    mid-edge rotations and the cuts closes to 1 % (measured -0.19 %)."""
     scenario, _ = load_scenario("shell-tear", quick=True)
     sim = build_simulation(scenario)
     assert sim.warnings == []  # growth on G: nothing to say at set-up
@@ -494,9 +493,7 @@ def test_shell_tear_example_quick_tears_straight():
     assert len(sim.shell.mesh.tri) == 800 and not sim.advances
     g, j = sim.g_values()[0], sim.j_values()[0]
     assert min(g) > 1000.0 and np.ptp(g) < 0.03 * np.mean(g)
-    assert np.ptp(j) > 0.3 * np.mean(j)
-    warned = [w for w in sim.summary()["warnings"] if "the sheet bends at the tip" in w]
-    assert len(warned) == len(sim.tips) and "criterion" not in warned[0]
+    assert np.allclose(j, g, rtol=0.03, atol=0.0)
     assert np.max(np.abs(sim.sample(dt)["tool.press_over.fz"])) > 10.0
     while sim.time < scenario.run.end_time:
         sim.advance(20, dt)
@@ -506,18 +503,70 @@ def test_shell_tear_example_quick_tears_straight():
     assert abs(relative_imbalance(sim.energies(dt))) < 0.01
 
 
-def test_growth_on_j_where_the_sheet_can_bend_is_warned_at_set_up():
-    """Griffith on the domain J (no moments' share) where the sheet can bend is never silent: a
-    sheet that tools, pressures, a curved surface or an edge load across it can bend gets a set-up
-    warning naming fracture.criterion; a flat sheet pulled in its plane (where J = G) gets none."""
-    for name, overrides, warned in (("shell-tear", ['fracture.criterion="j"'], True),
-                                    ("pipe-axial-crack", ["fracture.toughness=5000"], True),
-                                    ("shell-centre-crack", ["fracture.toughness=5000"], False),
-                                    ("shell-centre-crack", ["fracture.toughness=5000", "edge_loads.0.traction=[0,1e8,1e6]"],
-                                     True)):
-        scenario, _ = load_scenario(name, quick=True, overrides=overrides)
-        warnings = build_simulation(scenario).warnings
-        assert any("fracture.criterion" in w for w in warnings) == warned, (name, overrides)
+BENT_TUBE = """
+name = "bent-tube"
+method = "shell"
+[shell]
+surface = "cylinder"
+radius = 0.05
+length = 0.2
+element_size = 0.0025
+thickness = 0.001
+[material]
+density = 7800.0
+youngs_modulus = 200e9
+poissons_ratio = 0.3
+[[cracks]]
+polyline = [[0.0433, -0.025, 0.1], [0.05, 0.0, 0.1], [0.0433, 0.025, 0.1]]
+[[edge_loads]]
+where = { box_min = [0.0, -1.0, 0.199], box_max = [1.0, 1.0, 1.0] }
+traction = [0.0, 0.0, 50e6]
+ramp_time = 2e-4
+[[edge_loads]]
+where = { box_min = [-1.0, -1.0, 0.199], box_max = [0.0, 1.0, 1.0] }
+traction = [0.0, 0.0, -50e6]
+ramp_time = 2e-4
+[[supports]]
+kind = "roller"
+normal = [0.0, 0.0, 1.0]
+where = { plane_point = [0.0, 0.0, 0.0], plane_normal = [0.0, 0.0, 1.0] }
+[[supports]]
+kind = "roller"
+normal = [0.0, 1.0, 0.0]
+where = { box_min = [-0.06, -1e-4, -1e-4], box_max = [0.06, 1e-4, 1e-4] }
+[[supports]]
+kind = "roller"
+normal = [1.0, 0.0, 0.0]
+where = { box_min = [-1e-4, -0.06, -1e-4], box_max = [1e-4, 0.06, 1e-4] }
+[fracture]
+j_rings = [[0.005, 0.0125], [0.0075, 0.015]]
+[run]
+end_time = 5e-4
+damping = 2e4
+"""
+
+
+def test_g_is_path_independent_on_a_tube_bent_with_a_through_crack(tmp_path):
+    """A 100 mm tube (t = 1 mm, 2.5 mm cells) bent by +-50 MPa on the two halves of its free end,
+    with a circumferential through crack of 60 deg on the tension side at mid-length: the flanks
+    bend (the bending energy's share of G above 5 % at both tips) and G by virtual crack
+    extension, its moves kept in each vertex's tangent plane (a move along the tip's tangent
+    would leave the curved surface), is the same over the two rings within 1 % (measured 0.13 %
+    at 500 us, 0.1 % at 1.2 ms). The J-integral reads 8-11 % above it here (docs/validation.md,
+    paper 002: the membrane's domain integral on a sheet curved along the crack; open)."""
+    path = tmp_path / "bent.toml"
+    path.write_text(BENT_TUBE)
+    scenario, _ = load_scenario(path)
+    sim = build_simulation(scenario)
+    dt = 0.7 * sim.stable_dt
+    while sim.time < scenario.run.end_time:
+        sim.advance(20, dt)
+    g = sim.g_values()
+    assert len(sim.tips) == 2 and np.all(g > 1000.0)
+    assert np.all(np.ptp(g, axis=1) < 0.01 * g.mean(axis=1))
+    bending = np.array([[sim._extension(tip, ring).bending_release(sim.shell, sim.nodes.x) for ring in sim.rings]
+                        for tip in sim.tips])
+    assert np.all(bending > 0.05 * g)
 
 
 @pytest.mark.parametrize("criterion", ["j", "g"])
@@ -779,6 +828,38 @@ def test_merr_kink_angle_maximises_the_kinked_release_rate():
         assert kinked_release_rate(best, 1.0, k2) >= kinked_release_rate(grid, 1.0, k2).max() * (1 - 1e-9)
         assert best < mts_kink_angle(1.0, k2) < 0.0
     assert kinked_release_rate(0.0, 2.0, 3.0) == pytest.approx(13.0, rel=1e-12)  # K_I^2 + K_II^2 straight on
+
+
+def _static_plate(tmp_path, text: str, name: str):
+    """A plate of this file's templates without growth (toughness inf), damped to 500 us."""
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text.replace("toughness = 400.0", "toughness = inf").replace("toughness = 2000.0", "toughness = inf")
+                    .replace("end_time = 3.5e-4", "end_time = 5e-4").replace("end_time = 2.2e-4", "end_time = 5e-4"))
+    scenario, _ = load_scenario(path)
+    sim = build_simulation(scenario)
+    dt = 0.7 * sim.stable_dt
+    while sim.time < scenario.run.end_time:
+        sim.advance(20, dt)
+    return sim
+
+
+def test_configurational_force_across_the_crack(tmp_path):
+    """The configurational force in the surface (summary configurational_force: G by virtual
+    extension along the crack, = J, and across it): for a straight crack the across component is
+    J_2 = -2 K_I K_II / E (J_1 = (K_I^2 + K_II^2) / E), so -J_1 where K_I = K_II (the 45-deg
+    crack pulled along y, 2.5 mm cells, static: -1.07 and -0.81 at the two tips, asymmetric
+    supports; within 25 %) and 0 in pure mode II (the shear plate: within 3 % of J_1; measured
+    1.2-1.5 %). The along component is J to 1e-6 (the membrane's domain integral against its
+    virtual extension). Its sign is the side the kink turns to (negative: clockwise, as MTS)."""
+    inclined = _static_plate(tmp_path, INCLINED, "inclined")
+    forces = inclined.configurational_forces()
+    assert np.allclose(forces[:, 0], inclined.j_values().mean(axis=1), rtol=1e-6, atol=0.0)
+    assert np.all(forces[:, 1] / forces[:, 0] > -1.25) and np.all(forces[:, 1] / forces[:, 0] < -0.75)
+    shear = _static_plate(tmp_path, KINK, "shear")
+    forces = shear.configurational_forces()
+    assert np.all(np.abs(forces[:, 1]) < 0.03 * forces[:, 0])
+    summary = shear.summary()
+    assert np.allclose(summary["configurational_force"], forces, rtol=1e-12)
 
 
 def test_a_j_read_mid_oscillation_is_flagged(tmp_path):
