@@ -11,9 +11,9 @@ are rebuilt and the state carried over: positions and velocities of the old vert
 parent's for each new copy (the split conserves mass and momentum), the supports and tool state
 of the parent, the work counters on the old vertices (the copies start at zero).
 
-The direction: the maximum tangential stress criterion (Erdogan and Sih; K_I and K_II from J and
-the crack faces' displacements, jintegral.stress_intensity): straight ahead in mode I, 70.5 deg
-off in pure mode II. So that the path is not locked to the mesh's edge directions, an edge at
+The direction: the kink criterion (maximum tangential stress, Erdogan and Sih, or maximum energy
+release rate; K_I and K_II from J and the crack faces' displacements, jintegral.stress_intensity):
+straight ahead in mode I, 70.5 (75.2) deg off in pure mode II. So that the path is not locked to the mesh's edge directions, an edge at
 the tip is first turned onto that heading (local remeshing by moving vertices, `align_ahead`):
 the tip's neighbours move in the reference surface, each at its distance from the tip, as far
 as their triangles stay well shaped; their state is interpolated from the old mesh. Then the
@@ -25,6 +25,14 @@ condensed); moving vertices changes the strain and kinetic energy a little (thei
 shapes, their masses, their interpolated state). `energy.fracture` books both jumps; the membrane energy near
 the tip is then released by the motion (kinetic, then damping). The Griffith energy Gc x
 thickness x extension is in the summary, not the audit.
+
+Nucleation (a first version of paper 002's outlook): with a strength (`fracture.strength`), a free
+edge of the sheet (its outer boundary or a hole's; not a crack's faces, not a loaded or supported
+vertex) starts a crack where its membrane stress along the edge reaches the strength: at a free
+edge the stress across it is zero, so that tangential stress is the largest principal one there,
+and the crack runs into the sheet normal to it. The edge's vertex opens (the crack's mouth) and
+the first edge inward, turned onto the normal first, is cut; its far end is the new tip, which
+grows by Griffith and the speed law like any other.
 """
 
 from __future__ import annotations
@@ -33,6 +41,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..loading.tools import NO_TOOL
+from ..solver.integrator import FREE
 from .mesh import altitudes, split_along
 from .model import Shell, build_shell
 
@@ -48,6 +58,7 @@ class GrowthLaw:
     exponent: float = 1.0  # m
     criterion: str = "j"  # "j": the domain J; "g": G by virtual crack extension
     kink: str = "mts"  # the turn's criterion: a key of jintegral.KINK_CRITERIA
+    strength: float = float("inf")  # Pa, a free edge's tangential membrane stress that starts a crack (inf: none)
 
     def speed(self, j: float) -> float:
         """V (m/s) at J (J/m^2): 0 below Gc."""
@@ -62,6 +73,48 @@ class Advance:
     position: np.ndarray  # reference, the new tip
     tip: int
     mode: int  # solver.failures code of the tip's mixity
+
+
+def edge_stresses(shell: Shell, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The free-edge vertices that may start a crack (two boundary edges, not on a crack's faces,
+    not loaded, clamped, touching a tool or held in the sheet's plane by a support: a roller
+    across the sheet leaves it free), their membrane stress along the edge (Pa: the mean
+    membrane force of their triangles over the thickness, t N t with t the edge's tangent) and
+    the unit vector into the sheet normal to the edge, in its tangent plane."""
+    mesh, nodes = shell.mesh, shell.nodes
+    X = mesh.X
+    bounding = mesh.edge[mesh.boundary]
+    on_crack = np.zeros(len(X), dtype=bool)
+    on_crack[mesh.edge[mesh.crack_faces().ravel()]] = True
+    count = np.bincount(bounding.ravel(), minlength=len(X))
+    held = np.any(nodes.load != 0.0, axis=1) | (nodes.tool != NO_TOOL)
+    if shell.clamped is not None:
+        held |= shell.clamped
+    candidates = np.flatnonzero((count == 2) & ~on_crack & ~held)
+    _, force = shell.membrane_state(x)
+    stress = force / mesh.thickness[:, None]
+    tensor = np.stack([stress[:, [0, 3, 5]], stress[:, [3, 1, 4]], stress[:, [5, 4, 2]]], axis=1)  # (m, 3, 3)
+    free, tangential, inward = [], [], []
+    for v in candidates:
+        ends = bounding[np.any(bounding == v, axis=1)].ravel()
+        ends = ends[ends != v]
+        tangent = X[ends[1]] - X[ends[0]]
+        tangent /= np.linalg.norm(tangent)
+        faces = np.flatnonzero(np.any(mesh.tri == v, axis=1))
+        normal = _normals(X, mesh.tri[faces]).sum(axis=0)
+        into = np.cross(normal, tangent)
+        into /= np.linalg.norm(into)
+        if into @ (X[mesh.tri[faces]].mean(axis=(0, 1)) - X[v]) < 0.0:
+            into = -into
+        if nodes.constraint[v] != FREE:
+            projection = nodes.projection[nodes.constraint[v]]
+            if not np.allclose(projection @ np.stack([tangent, into], axis=1), np.stack([tangent, into], axis=1),
+                               rtol=0.0, atol=1e-9):
+                continue
+        free.append(v)
+        tangential.append(tangent @ tensor[faces].mean(axis=0) @ tangent)
+        inward.append(into)
+    return np.array(free, dtype=np.int64), np.array(tangential), np.array(inward).reshape(-1, 3)
 
 
 def step_ahead(shell: Shell, vertex: int, direction: np.ndarray) -> tuple[int, float] | None:

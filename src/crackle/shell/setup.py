@@ -127,6 +127,10 @@ class FractureSpec(Strict):
     """what Griffith's check compares with Gc: j, the J-integral (the membrane's Eshelby stress as a domain integral,
     the bending and the loads' shares as the virtual extension reads them), or g, G by virtual crack extension of the
     whole energy; both hold bending and pressure and agree to ~1e-5 (the membrane's two readings)"""
+    strength: PositiveOrInf = math.inf
+    """Pa: a free edge (the sheet's boundary or a hole's, not a crack's faces, a load or a support holding it in
+    plane) starts a crack where its membrane stress along the edge reaches this, running into the sheet normal to
+    the edge; the crack then grows by toughness (inf: no nucleation; needs a finite toughness)"""
     kink: Literal["mts", "merr"] = "mts"
     """the direction a growing tip turns to: mts, the maximum tangential stress (Erdogan-Sih: -70.5 deg in pure mode
     II), or merr, the maximum energy release rate of an infinitesimal kink (Hussain-Pu-Underwood, paper 002's
@@ -244,9 +248,12 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     fracture = scenario.fracture
     rings = fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
     growth = None
+    if math.isfinite(fracture.strength) and not math.isfinite(fracture.toughness):
+        raise ScenarioError("fracture.strength: a crack started at an edge grows by Griffith; give fracture.toughness "
+                            "(J/m^2) too, or remove fracture.strength")
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
-                           fracture.criterion, fracture.kink)
+                           fracture.criterion, fracture.kink, fracture.strength)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     sim.warnings.extend(seating)

@@ -10,7 +10,7 @@ import numpy as np
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
-from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, step_ahead
+from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_stresses, step_ahead
 from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
 from .jintegral import KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity
 from .kernels import advance
@@ -53,6 +53,8 @@ class ShellSimulation:
         self.shell, self.tools, self.load_factor, self.pressures = shell, tools, load_factor, pressures
         self._tool_names = list(tool_names)
         self.tips, self.rings = list(tips), [tuple(map(float, r)) for r in rings]
+        self._history_tips = len(self.tips)  # the history's columns are fixed: a nucleated tip is in the summary
+        self.nucleations: list[dict] = []  # cracks started at a free edge (fracture.strength)
         self.stable_dt = float(stable_dt)
         self.wave_transit = float(wave_transit)
         self.gravity = np.asarray(gravity, dtype=float)
@@ -91,7 +93,34 @@ class ShellSimulation:
             self.steps = stop
             self.time = self.steps * dt
             if self.growth is not None and self.steps % GROWTH_CHECK == 0:
+                self._nucleate(dt)
                 self._grow(dt)
+
+    def _nucleate(self, dt: float) -> None:
+        """Start a crack at the free-edge vertex whose stress along the edge is the largest, if it
+        reached the strength (growth.edge_stresses): the vertex opens, the edge inward (turned
+        onto the edge's normal first) is cut, its far end a new tip. One per check: the new
+        crack relieves its neighbours before the next."""
+        if not np.isfinite(self.growth.strength):
+            return
+        vertices, stress, inward = edge_stresses(self.shell, self.nodes.x)
+        if not len(vertices) or stress.max() < self.growth.strength:
+            return
+        k = int(np.argmax(stress))
+        mouth, heading = int(vertices[k]), inward[k]
+        self._replace_shell(align_ahead(self.shell, mouth, heading, self._thinnest), dt)
+        ahead = step_ahead(self.shell, mouth, heading)
+        if ahead is None:
+            return
+        tip_vertex = ahead[0]
+        through = self._cut(mouth, tip_vertex, dt)
+        X = self.shell.mesh.X
+        direction = X[tip_vertex] - X[mouth]
+        length = float(np.linalg.norm(direction))
+        self.tips.append(CrackTip(tip_vertex, direction / length, extension=length, active=not through, aim=heading))
+        self._tip_starts.append(X[mouth].copy())
+        self.advances.append(Advance(self.time, X[tip_vertex].copy(), len(self.tips) - 1, failure_mode(0.0)))
+        self.nucleations.append({"time": self.time, "position": X[mouth].tolist(), "stress": float(stress[k])})
 
     def _grow(self, dt: float) -> None:
         """Griffith's check and the speed law at each running tip; cut the edges it has passed."""
@@ -284,11 +313,10 @@ class ShellSimulation:
     def sample(self, dt: float) -> dict[str, float]:
         row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
                "broken": self.broken, **self.edge_load_columns()}
-        for k, values in enumerate(self.j_values()):
-            row[f"j.tip{k}"] = float(np.mean(values))
-        for k, values in enumerate(self.g_values()):
-            row[f"g.tip{k}"] = float(np.mean(values))
-        for k, tip in enumerate(self.tips):
+        tips = self.tips[:self._history_tips]
+        for k, tip in enumerate(tips):
+            row[f"j.tip{k}"] = float(np.mean(self._tip_j(tip)))
+            row[f"g.tip{k}"] = float(np.mean(self._tip_g(tip)))
             row[f"crack.tip{k}"] = tip.extension
         return row
 
@@ -357,6 +385,8 @@ class ShellSimulation:
             out["kinetic_to_strain"] = ratio
             out["j_static"] = not ratio > STATIC_KINETIC
             out["warnings"] += static_warning(ratio)
+        if self.growth is not None and np.isfinite(self.growth.strength):
+            out["nucleations"] = list(self.nucleations)
         if self.growth is not None:
             thickness = float(np.median(self.shell.mesh.thickness))
             out["griffith_energy"] = self.growth.toughness * thickness * sum(tip.extension for tip in self.tips)
