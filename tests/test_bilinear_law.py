@@ -80,6 +80,37 @@ def test_stiffnesses_are_the_interface_penalties():
     assert stiff.model.stable_dt < cell.model.stable_dt
 
 
+def test_stiffness_per_element_scales_with_the_altitude():
+    """stiffness_per = "element" (issue 38's second reading of Table 1's kn): every face's kn and
+    ks are the given values times reference_size / h, h the smaller altitude of its two tets, to
+    1e-12: on the two-tet cell and on each of a structured box's faces (pn h and ps h the same
+    everywhere: the factor x E / h reading, factor = kn reference_size / E). Per area (the
+    default, Abaqus's traction elasticity with a constitutive thickness of 1 mm) the cell's pn is
+    kn itself; one of the two keys without the other is refused."""
+    import warnings
+
+    from crackle.fdem.model import build_fdem_model
+    from crackle.geometry import structured_box
+
+    reference = 0.00095
+    cell = Cell(shell(stiffness_per="element", reference_size=reference))
+    altitude = float(np.min(3.0 * cell.model.tets.vol / cell.A))  # each tet's altitude onto the shared face
+    assert cell.pn == pytest.approx(KN * reference / altitude, rel=1e-12)
+    assert cell.ps == pytest.approx(KS * reference / altitude, rel=1e-12)
+    assert Cell(shell()).pn == KN
+    mesh = structured_box((0.02, 0.02, 0.02), 0.004)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = build_fdem_model(mesh, shell(stiffness_per="element", reference_size=reference))
+    pairs_h = KN * reference / model.ifs.pn
+    assert np.ptp(pairs_h) > 0.0  # the box's tets have two altitudes
+    assert np.allclose(model.ifs.ps * pairs_h, KS * reference, rtol=1e-12, atol=0.0)
+    with pytest.raises(ValueError, match="reference_size"):
+        shell(stiffness_per="element")
+    with pytest.raises(ValueError, match="reference_size"):
+        shell(reference_size=reference)
+
+
 @pytest.mark.parametrize("mode", ["I", "II"])
 def test_pure_mode_peak_and_energy(mode):
     """Pure mode I (dn only) and pure mode II (ds only), monotonic to 1.1 df.

@@ -69,9 +69,18 @@ class BilinearLaw:
     fracture_energy: Positive
     """J/m^2, GIc: dissipated by a unit area from intact to failed in pure mode I"""
     normal_stiffness: Positive
-    """N/m^3, kn per unit area (a value in N/mm^3 times 1e9); also the contact penalty once failed"""
+    """N/m^3, kn per unit area (a value in N/mm^3 times 1e9); also the contact penalty once failed. Abaqus's
+    traction-separation elasticity (*ELASTIC, TYPE=TRACTION) with its default constitutive thickness of 1 in the
+    model's length unit is this same number: E_nn = 636.36 MPa over 1 mm is 636.36 N/mm^3"""
     shear_stiffness: Positive
     """N/m^3, ks per unit area"""
+    stiffness_per: Literal["area", "element"] = "area"
+    """how kn and ks are read: "area", the same per-area stiffness on every face; "element", the values of an
+    element of reference_size, each face's scaled by reference_size / h (h the smaller altitude of its two tets:
+    kn = (kn_ref reference_size / E) E / h, the factor x E / h of intrinsic cohesive modelling), so that the
+    interfaces hold the same share of the compliance at any mesh"""
+    reference_size: Positive | None = None
+    """m, stiffness_per = "element": the element size the given kn and ks belong to"""
     fracture_energy_shear: Positive | None = None
     """J/m^2, GIIc in pure mode II; default GIc"""
     mixed_mode: Literal["bk", "power"] = "bk"
@@ -97,6 +106,9 @@ class BilinearLaw:
 
     @model_validator(mode="after")
     def _consistent(self):
+        if (self.stiffness_per == "element") != (self.reference_size is not None):
+            raise ValueError('stiffness_per = "element" and reference_size go together: give the element size (m) '
+                             'the stiffnesses belong to, or leave both out for stiffnesses per area')
         if self.mixed_mode == "bk" and self.power_exponent is not None:
             raise ValueError('power_exponent is for mixed_mode = "power" (this law uses "bk": set bk_exponent)')
         if self.mixed_mode == "power" and self.bk_exponent is not None:
@@ -127,9 +139,11 @@ class BilinearLaw:
         return row
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
-        """(kn, ks) for every interface, whatever the bulk and the mesh."""
-        ones = np.ones_like(np.asarray(altitude, dtype=float))
-        return self.normal_stiffness * ones, self.shear_stiffness * ones
+        """(kn, ks) for every interface: per area, whatever the bulk and the mesh, or scaled by
+        reference_size / altitude (stiffness_per = "element")."""
+        altitude = np.asarray(altitude, dtype=float)
+        scale = np.ones_like(altitude) if self.stiffness_per == "area" else self.reference_size / altitude
+        return self.normal_stiffness * scale, self.shear_stiffness * scale
 
 
 def snap_back(law) -> str | None:
