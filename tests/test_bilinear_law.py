@@ -82,9 +82,9 @@ def test_stiffnesses_are_the_interface_penalties():
 
 def test_stiffness_per_element_scales_with_the_altitude():
     """stiffness_per = "element" (issue 38's second reading of Table 1's kn): every face's kn and
-    ks are the given values times reference_size / h, h the smaller altitude of its two tets, to
+    ks are the given values times reference_altitude / h, h the smaller altitude of its two tets, to
     1e-12: on the two-tet cell and on each of a structured box's faces (pn h and ps h the same
-    everywhere: the factor x E / h reading, factor = kn reference_size / E). Per area (the
+    everywhere: the factor x E / h reading, factor = kn reference_altitude / E). Per area (the
     default, Abaqus's traction elasticity with a constitutive thickness of 1 mm) the cell's pn is
     kn itself; one of the two keys without the other is refused."""
     import warnings
@@ -93,7 +93,7 @@ def test_stiffness_per_element_scales_with_the_altitude():
     from crackle.geometry import structured_box
 
     reference = 0.00095
-    cell = Cell(shell(stiffness_per="element", reference_size=reference))
+    cell = Cell(shell(stiffness_per="element", reference_altitude=reference))
     altitude = float(np.min(3.0 * cell.model.tets.vol / cell.A))  # each tet's altitude onto the shared face
     assert cell.pn == pytest.approx(KN * reference / altitude, rel=1e-12)
     assert cell.ps == pytest.approx(KS * reference / altitude, rel=1e-12)
@@ -101,14 +101,14 @@ def test_stiffness_per_element_scales_with_the_altitude():
     mesh = structured_box((0.02, 0.02, 0.02), 0.004)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = build_fdem_model(mesh, shell(stiffness_per="element", reference_size=reference))
+        model = build_fdem_model(mesh, shell(stiffness_per="element", reference_altitude=reference))
     pairs_h = KN * reference / model.ifs.pn
     assert np.ptp(pairs_h) > 0.0  # the box's tets have two altitudes
     assert np.allclose(model.ifs.ps * pairs_h, KS * reference, rtol=1e-12, atol=0.0)
-    with pytest.raises(ValueError, match="reference_size"):
+    with pytest.raises(ValueError, match="reference_altitude"):
         shell(stiffness_per="element")
-    with pytest.raises(ValueError, match="reference_size"):
-        shell(reference_size=reference)
+    with pytest.raises(ValueError, match="reference_altitude"):
+        shell(reference_altitude=reference)
 
 
 @pytest.mark.parametrize("mode", ["I", "II"])
