@@ -1,9 +1,12 @@
 """Crack count and main-crack speed of a fractured shell (paper 004, section 3).
 
 Input: the failed interfaces (their centroids in the reference configuration, areas and failure
-times). Algorithm, at a length scale r (default: twice the element size):
+times, and where the mesh is known their corners' mesh points). Algorithm, at a length scale r
+(default: twice the element size):
 
-1. Networks. Failed interfaces closer than r belong to one crack network (single linkage). A
+1. Networks. Failed faces that share a mesh edge belong to one crack network: a crack is a
+   connected surface of failed faces, whatever the mesh size (no length in this rule). Without the
+   mesh (points alone), failed interfaces closer than r are linked instead (single linkage). A
    network whose extent (largest distance between two of its points) is below 2 r is a damage
    spot (crushing under a plate, an isolated failure), not a crack: counted apart.
 2. Topology by rings. For each point of a network, the points at distances r..2r from it, linked
@@ -92,6 +95,21 @@ def _components(points: np.ndarray, radius: float) -> tuple[int, np.ndarray]:
     return connected_components(graph, directed=False)
 
 
+def _face_components(faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """Groups of faces (k, 3 mesh points) connected through shared edges (two common points)."""
+    k = len(faces)
+    if k == 0:
+        return 0, np.zeros(0, dtype=np.int64)
+    ends = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [0, 2]]]), axis=1)
+    _, edge = np.unique(ends, axis=0, return_inverse=True)
+    edge = edge.ravel()
+    owner = np.tile(np.arange(k), 3)
+    graph = coo_matrix((np.ones(3 * k), (owner, k + edge)), shape=(k + edge.max() + 1,) * 2)
+    _, label = connected_components(graph, directed=False)
+    _, label = np.unique(label[:k], return_inverse=True)
+    return int(label.max()) + 1, label.ravel()
+
+
 def _ring_arms(points: np.ndarray, r: float) -> np.ndarray:
     """Per point, the groups of the points at distances r..2r from it, linked at r."""
     near_all = cKDTree(points).query_ball_point(points, 2.0 * r)
@@ -112,17 +130,20 @@ def analyse_cracks(
     wall: float,
     top_point: np.ndarray,
     intervals: int = 50,
+    faces: np.ndarray | None = None,
 ) -> CrackAnalysis:
     """Cracks of the failed interfaces at `centroids` (reference positions, m), with their
-    `areas` (m^2) and `fail_times` (s); `scale`: the linking length r (m); `wall`: the shell's
-    thickness (m); `top_point`: the specimen's extreme point along the top direction."""
+    `areas` (m^2) and `fail_times` (s); `scale`: the length r (m) of the ring rule and the damage
+    spots (and of the linking, without `faces`); `wall`: the shell's thickness (m); `top_point`:
+    the specimen's extreme point along the top direction; `faces` (k, 3): each failed face's
+    corners as mesh points, whose shared edges make the networks."""
     centroids = np.asarray(centroids, float).reshape(-1, 3)
     areas = np.asarray(areas, float)
     fail_times = np.asarray(fail_times, float)
     if scale <= 0 or wall <= 0:
         raise ValueError("crack analysis needs a positive scale and wall thickness")
     r = float(scale)
-    n_groups, label = _components(centroids, r)
+    n_groups, label = _components(centroids, r) if faces is None else _face_components(np.asarray(faces).reshape(-1, 3))
     top_point = np.asarray(top_point, float)
     networks: list[CrackNetwork] = []
     spots = 0

@@ -15,6 +15,7 @@ from ..analysis import (
     propagating_plastic_zone,
     tip_and_plastic_zone,
 )
+from ..analysis.energy_jumps import JUMP_SPEED, energy_jumps
 from ..analysis.strength import BrazilianTest, TensionTest
 from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
 from ..io.fields import STRESS_COMPONENTS
@@ -33,6 +34,9 @@ from .model import FdemModel
 CONTACT_REFRESH_STEPS = 100
 # Extrinsic insertion energy, as a fraction of the external work, above which the summary warns.
 INSERTION_WARNING = 0.1
+
+
+CRACK_SCALE_FACTORS = (0.75, 1.0, 1.5)
 
 
 class FdemSimulation:
@@ -63,6 +67,7 @@ class FdemSimulation:
         self.crack_settings: CrackSettings | None = None  # crack count and speed in the summary when set
         self.strength_test: TensionTest | BrazilianTest | None = None  # nominal strengths in the summary when set
         self._cracks: tuple[int, CrackAnalysis] | None = None  # (failures analysed, analysis)
+        self._dissipation: list[tuple[float, float]] = []  # (time, energy.damage) per history row, for the jumps
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -187,6 +192,8 @@ class FdemSimulation:
         row.update(energies)
         row["broken"] = self.broken
         row["fragments"] = self.fragments().count
+        if self.crack_settings is not None:
+            self._dissipation.append((self.time, energies["energy.damage"]))
         if self.fracture_plane is not None:
             ifs = m.ifs
             tip, zone = tip_and_plastic_zone(self.fracture_plane, m.iface_centroids(m.nodes.x), ifs.damage, ifs.state != INTACT)
@@ -247,20 +254,25 @@ class FdemSimulation:
         if cracks is not None and len(cracks.length_history):
             plot_crack_growth(cracks.length_history, cracks.speed_history, out_dir / "plots" / "crack_growth.png")
 
-    def cracks(self) -> CrackAnalysis | None:
-        """Crack count and main-crack speed of the failures so far (None unless crack_settings);
-        kept until new failures, as the summary and the plots both ask for it."""
+    def cracks(self, scale: float | None = None) -> CrackAnalysis | None:
+        """Crack count and main-crack speed of the failures so far (None unless crack_settings),
+        at the settings' scale or `scale` (m); the settings' analysis is kept until new failures,
+        as the summary and the plots both ask for it."""
         if self.crack_settings is None:
             return None
         m = self.model
         failed = np.flatnonzero((m.ifs.state != INTACT) & (m.ifs.state != PRECRACK))
-        if self._cracks is None or self._cracks[0] != len(failed):
-            c = self.crack_settings
+        c = self.crack_settings
+
+        def analyse(r):
             top_point = m.x0[np.argmax(m.x0 @ np.asarray(c.top, float))]
-            analysis = analyse_cracks(
-                m.iface_centroids(ids=failed), m.ifs.area[failed], m.ifs.fail_time[failed], c.scale, c.wall, top_point
-            )
-            self._cracks = (len(failed), analysis)
+            return analyse_cracks(m.iface_centroids(ids=failed), m.ifs.area[failed], m.ifs.fail_time[failed], r, c.wall,
+                                  top_point, faces=m.corner_point[m.ifs.na[failed]])
+
+        if scale is not None:
+            return analyse(scale)
+        if self._cracks is None or self._cracks[0] != len(failed):
+            self._cracks = (len(failed), analyse(c.scale))
         return self._cracks[1]
 
     def _crack_summary(self) -> dict:
@@ -268,8 +280,18 @@ class FdemSimulation:
         if cracks is None:
             return {}
         directions = np.array([t.direction for t in self.model.tool_specs], float).T
+        scale = self.crack_settings.scale
+        face = self.model.materials[0]
+        threshold = (min(m.interface.fracture_energy for m in self.model.materials) * self.crack_settings.wall
+                     * JUMP_SPEED * face.rayleigh_speed)
+        jumps = energy_jumps(*np.array(self._dissipation).reshape(-1, 2).T, threshold)
         return {
             **cracks.as_summary(),
+            # the ring rule's length moved by -25 % and +50 %: how much the count leans on it
+            "cracks_at_scales": [[factor * scale, self.cracks(factor * scale).cracks] for factor in CRACK_SCALE_FACTORS],
+            "energy_jumps": len(jumps),
+            "energy_jump_times": [start for start, _, _ in jumps],
+            "energy_jump_threshold": threshold,
             "loading_index": loading_index_of(directions) if directions.size else None,
         }
 

@@ -45,6 +45,12 @@ class Material:
         return math.sqrt(self.shear_modulus / self.density)
 
     @property
+    def rayleigh_speed(self) -> float:
+        """m/s, c_R ~ c_s (0.862 + 1.14 nu) / (1 + nu) (Viktorov's fit; 0.5 % for 0 <= nu <= 0.5)."""
+        nu = self.poissons_ratio
+        return self.s_wave_speed * (0.862 + 1.14 * nu) / (1.0 + nu)
+
+    @property
     def process_zone(self) -> "ProcessZone":
         """Process-zone lengths of its interface law (eqs 10-11 of paper 001, 4-5 of paper 004)."""
         law = self.interface

@@ -26,6 +26,7 @@ from ..loading import History
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
+from ..materials import Material
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, LoadFactor, Pressures
@@ -360,10 +361,8 @@ def folias_bracket(a: float, radius: float, thickness: float, pressure: float, y
 
 
 def rayleigh_speed(material: ElasticSpec) -> float:
-    """m/s, c_R ~ c_s (0.862 + 1.14 nu) / (1 + nu) (Viktorov's fit; 0.5 % for 0 <= nu <= 0.5)."""
-    nu = material.poissons_ratio
-    c_s = math.sqrt(material.youngs_modulus / (2.0 * (1.0 + nu) * material.density))
-    return c_s * (0.862 + 1.14 * nu) / (1.0 + nu)
+    """m/s, the Rayleigh speed of the shell's material (Material.rayleigh_speed)."""
+    return Material(material.density, material.youngs_modulus, material.poissons_ratio).rayleigh_speed
 
 
 def centre_crack_reference(scenario: Scenario, tips: list[np.ndarray], directions: list[np.ndarray]) -> float:
