@@ -60,3 +60,17 @@ def test_quick_multipoint_crushing(tmp_path):
     face = s["process_zones"][0]
     assert face["lower"] == pytest.approx(3 * math.pi * E * 770.0 / (32 * 7e6**2), rel=1e-12)
     assert face["minimal_discretisation"] == pytest.approx(2 * face["lower"] / s["element_size"], rel=1e-12)
+
+
+def test_plates_take_one_penalty_and_the_advice_names_it():
+    """The quick 4-plate walnut: its plates' default penalty sets the stable step, and the set-up's
+    advice names the key a user can set, plates.penalty (once, not tools.plateN.penalty, which
+    the [plates] section does not have); with plates.penalty = 6.4e12 Pa/m (the advised value)
+    every plate carries it and the advice is gone."""
+    scenario, base = load_scenario("walnut-multipoint", quick=True)
+    advice = [w for w in build_simulation(scenario, base)[0].model.warnings if "contact penalty" in w]
+    assert len(advice) == 1 and advice[0].count("plates.penalty = ") == 1 and "tools.plate" not in advice[0]
+    scenario, base = load_scenario("walnut-multipoint", quick=True, overrides=["plates.penalty=6.4e12"])
+    model = build_simulation(scenario, base)[0].model
+    assert not any("contact penalty" in w for w in model.warnings)
+    assert all(t.penalty == 6.4e12 for t in scenario.all_tools())

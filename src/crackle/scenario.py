@@ -281,6 +281,8 @@ class PlatesSpec(Strict):
     """m"""
     center: Vec3 = (0.0, 0.0, 0.0)
     """m, the point the plates move toward"""
+    penalty: Positive | None = None
+    """Pa/m, every plate's contact penalty; default the method's (a tool's own default)"""
 
     @model_validator(mode="after")
     def _pairs(self):
@@ -307,9 +309,13 @@ class PlatesSpec(Strict):
                 name=f"plate{k + 1}", shape="box", direction=tuple(-c for c in u), speed=self.speed,
                 ramp_time=self.ramp_time, friction=self.friction,
                 center=tuple(c + self.thickness * d for c, d in zip(self.center, u)),
-                size=(self.side, self.side, self.thickness), axes=(e1, e2), touch=True,
+                size=(self.side, self.side, self.thickness), axes=(e1, e2), touch=True, penalty=self.penalty,
             ))
         return out
+
+    def penalty_keys(self) -> dict[str, str]:
+        """{plate tool name: the key that sets its penalty}, for advice."""
+        return {f"plate{k + 1}": "plates.penalty" for k in range(len(self.polar))}
 
 
 class LoadingSpec(Strict):

@@ -108,6 +108,7 @@ def build_fdem_model(
     target_dt: float | None = None,
     safety: float = 1.0,
     max_added_mass: float = 0.01,
+    penalty_keys: dict[str, str] | None = None,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -121,6 +122,8 @@ def build_fdem_model(
     cannot bring any interface to its strength by then (_fracture_reachable).
     `target_dt` (s): mass scaling so that the run's step, `safety` times the stable one, reaches
     it (_scale_masses); refused (ValueError) when that adds more than `max_added_mass` of the mass.
+    `penalty_keys` ({tool name: scenario key}) names the key that sets a tool's penalty in the
+    advice when it is not tools.NAME.penalty (the [plates]: plates.penalty).
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -177,7 +180,8 @@ def build_fdem_model(
     surface_penalty = default_penalty if contact else 0.0
     time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     # The advice reads the unscaled masses: it comes before mass scaling changes them.
-    step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step)
+    step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step,
+                                       penalty_keys or {})
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     mass_scaling = MassScaling(target_dt)
@@ -555,9 +559,10 @@ TOOL_OVER_INTERFACE = 10.0
 
 
 def _tool_penalty_advice(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tools, penalties,
-                         step: TimeStepReport) -> list[str]:
+                         step: TimeStepReport, penalty_keys: dict[str, str]) -> list[str]:
     """Advice when a tool's contact penalty, far stiffer than the interfaces, sets the stable step
-    (before any mass scaling): the penalty that is stiff enough and the step it would give."""
+    (before any mass scaling): the penalty that is stiff enough and the step it would give, with
+    the key that sets it (tools.NAME.penalty, or what penalty_keys names)."""
     if step.kind != "tool penalty" or not len(pairs.pn):
         return []
     stiffest = float(np.max(np.maximum(pairs.pn, pairs.ps)))
@@ -574,7 +579,7 @@ def _tool_penalty_advice(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty
         f"the stable step {step.dt * 1e9:.3g} ns is set by the contact penalty of tool{'s' if len(stiff) > 1 else ''} {names} ({worst:.3g} Pa/m, "
         f"{worst / stiffest:.0f}x the stiffest interface, {stiffest:.3g} Pa/m); {TOOL_OVER_INTERFACE:g}x the "
         f"interfaces is stiff enough (it adds under a tenth of one interface layer's compliance): "
-        + ", ".join(f"tools.{name}.penalty = {enough:g}" for name, _ in stiff)
+        + ", ".join(dict.fromkeys(f"{penalty_keys.get(name, f'tools.{name}.penalty')} = {enough:g}" for name, _ in stiff))
         + f" gives a stable step of {softer.dt * 1e9:.3g} ns (set by the {softer.kind})"
     ]
 

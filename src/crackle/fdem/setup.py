@@ -152,6 +152,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 target_dt=scenario.run.target_dt,
                 safety=scenario.run.safety,
                 max_added_mass=scenario.run.max_added_mass,
+                penalty_keys=scenario.plates.penalty_keys() if scenario.plates is not None else None,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None
