@@ -1,7 +1,7 @@
 """The J-integral of a crack tip on the shell (paper 002 section 4.2): the configurational force
 of the membrane as a domain integral of the 2D Eshelby stress over a ring around the tip,
 
-    J_membrane = sum over triangles A [ (Hu^T P)_KJ - W delta_KJ ] dV_K/dX_J - P : n n^T grad V ) / t,
+    J_membrane = sum over triangles A ( [(Hu^T P)_KJ - W delta_KJ] dV_K/dX_J - P : n n^T grad V ) / t,
 
 with Hu the displacement gradient (3 x 2, in the triangle's reference frame), P = F N the first
 Piola-Kirchhoff membrane force (N/m), W the membrane strain energy per area and V = q d the
@@ -114,7 +114,7 @@ def stress_intensity(shell: Shell, x: np.ndarray, tip: int, direction, j: float,
         chord = X[tip] - X[upper]
         r = float(np.linalg.norm(chord))
         d = chord / r
-        n = _vertex_normal(mesh, upper) + _vertex_normal(mesh, lower)
+        n = vertex_normal(mesh, upper) + vertex_normal(mesh, lower)
         n -= (n @ d) * d
         n /= np.linalg.norm(n)
         m = np.cross(n, d)
@@ -178,7 +178,7 @@ def _flank_pairs(mesh, tip: int, count: int) -> list[tuple[int, int]]:
     return pairs
 
 
-def _vertex_normal(mesh, vertex: int) -> np.ndarray:
+def vertex_normal(mesh, vertex: int) -> np.ndarray:
     """The unit normal at a vertex: the sum of its triangles' area vectors, normalised."""
     tri = mesh.tri[np.any(mesh.tri == vertex, axis=1)]
     X = mesh.X

@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
+from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_stresses, step_ahead
-from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
-from .jintegral import KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity
+from .jintegral import (KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity,
+                        vertex_normal)
 from .kernels import advance
 from .mesh import altitudes
 from .model import Shell
@@ -161,10 +162,7 @@ class ShellSimulation:
         the path). Also the failure mode of that mixity (the shear modes' share, (K_II^2 +
         K_III^2) / K^2)."""
         k1, k2, k3 = stress_intensity(self.shell, self.nodes.x, tip.vertex, tip.direction, j)
-        X, tri = self.shell.mesh.X, self.shell.mesh.tri
-        around = tri[np.any(tri == tip.vertex, axis=1)]
-        normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
-        normal /= np.linalg.norm(normal)
+        normal = vertex_normal(self.shell.mesh, tip.vertex)
         mode = failure_mode((k2 * k2 + k3 * k3) / (k1 * k1 + k2 * k2 + k3 * k3))
         if tip.aim is not None and not branch_pairs(self.shell.mesh, tip.vertex, tip.direction):
             aim = tip.aim - (tip.aim @ normal) * normal
@@ -287,10 +285,7 @@ class ShellSimulation:
 
     def _across(self, tip: CrackTip) -> np.ndarray:
         """The unit vector m = n x d in the surface's tangent plane at the tip, across the crack."""
-        X, tri = self.shell.mesh.X, self.shell.mesh.tri
-        around = tri[np.any(tri == tip.vertex, axis=1)]
-        normal = np.cross(X[around[:, 1]] - X[around[:, 0]], X[around[:, 2]] - X[around[:, 0]]).sum(axis=0)
-        m = np.cross(normal, tip.direction)
+        m = np.cross(vertex_normal(self.shell.mesh, tip.vertex), tip.direction)
         return m / np.linalg.norm(m)
 
     def configurational_forces(self) -> np.ndarray:
