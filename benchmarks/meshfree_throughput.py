@@ -119,15 +119,15 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
     # The stress pass and the gather alone, on a copy of the state (the stress pass writes it).
     p = sim.particles._replace(**{k: getattr(sim.particles, k).copy() for k in
                                   ("plastic", "eq_plastic", "w_plastic", "stress", "deformation", "internal",
-                                   "stab_force")})
+                                   "bending", "stab_force", "thermal")})
     links = sim.links
     force = np.zeros_like(p.x)
-    internal_forces(dt, p, links, sim.law, force)
+    internal_forces(dt, p, links, sim.columns, sim.law, force)
     force_times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         for _ in range(steps):
-            internal_forces(dt, p, links, sim.law, force)
+            internal_forces(dt, p, links, sim.columns, sim.law, force)
         force_times.append((time.perf_counter() - t0) / steps)
     n = len(sim.particles.x)
     return {

@@ -58,12 +58,15 @@ def test_rigid_mass_on_a_bar_slows_as_the_bar_impedance_says(tmp_path):
     moves with it) until the wave reflected from the far end returns at 2 L / c, so
     v(t) = v0 exp(-Z t / M) (Saint-Venant's impact problem); with M the rod's mass, Z / M = c / L.
     The hammer's velocity (history tool.hammer.vx) at t = L / c and 1.8 L / c within 3 % of
-    v0 / e and v0 exp(-1.8) (the contact penalty and the discrete front smooth the first
-    microsecond; measured -0.7 % and -0.3 %); the summary's free_tools speed is the history's last;
-    the energy audit (the hammer's lost kinetic energy is its work on the rod) within 2 % at the
-    default step (measured -1.5 %: the bar's end particles chatter against the hammer, opening and
-    closing the penalty contact within steps) and within 0.5 % at half of it (measured -0.09 %):
-    an error in the free tool's work would not fall with the step."""
+    v0 / e and v0 exp(-1.8) at half the default step (the contact penalty and the discrete front
+    smooth the first microsecond; measured -0.2 % and +0.7 %) and within 4 % at the default step
+    (measured -3.3 % and -2.4 %: the bar's end particles chatter against the hammer, opening and
+    closing the penalty contact within steps; -0.7 % and -0.02 % before the two Gauss points
+    through the wall, meshfree/thickness.py, which the one-sided supports of the end cells give
+    a slope there); the summary's free_tools speed is the history's last; the energy audit (the
+    hammer's lost kinetic energy is its work on the rod) within 3 % at the default step
+    (measured -2.4 %, -1.5 % before) and within 0.5 % at half of it (measured -0.09 %): an error
+    in the free tool's work would not fall with the step."""
     path = tmp_path / "rod.toml"
     path.write_text(ROD)
     out = tmp_path / "out"
@@ -73,15 +76,19 @@ def test_rigid_mass_on_a_bar_slows_as_the_bar_impedance_says(tmp_path):
     c = math.sqrt(E / RHO)
     for t_over in (1.0, 1.8):
         v = np.interp(t_over * L / c, h["time"], h["tool.hammer.vx"])
-        assert v / V0 == pytest.approx(math.exp(-t_over), rel=0.03)
+        assert v / V0 == pytest.approx(math.exp(-t_over), rel=0.04)
     free = s["free_tools"]["hammer"]
     assert free["mass"] == pytest.approx(ROD_MASS, rel=1e-12)
     assert free["launch_speed"] == V0
     assert abs(free["speed"] - h["tool.hammer.vx"][-1]) < 1e-9 * V0
-    assert abs(s["energy_error"]) < 0.02
+    assert abs(s["energy_error"]) < 0.03
     half = tmp_path / "half-step"
     assert main(["run", str(path), "--out", str(half), "--set", "run.safety=0.35"]) == 0
     assert abs(json.loads((half / "summary.json").read_text())["energy_error"]) < 0.005
+    h = read_history_csv(half / "history.csv")
+    for t_over in (1.0, 1.8):
+        v = np.interp(t_over * L / c, h["time"], h["tool.hammer.vx"])
+        assert v / V0 == pytest.approx(math.exp(-t_over), rel=0.03)
 
 
 FREE_BLOCK = """

@@ -174,7 +174,9 @@ def test_uniform_tension_gives_uniform_stress():
 def test_stabilisation_stiffens_the_zero_energy_mode():
     """The checkerboard field u = d (-1)^(i+j+k) e_x is a zero-energy mode of nodal integration:
     at a particle whose support is symmetric its MLS gradient vanishes, so without stabilisation
-    it stores nothing there (< 1e-12 of E (d/a)^2 V / 2, a the spacing; measured ~3e-25). The
+    it stores almost nothing there (< 1e-3 of E (d/a)^2 V / 2, a the spacing: its cell's F is I;
+    its two Gauss points through the wall see the gradient of F along its line, from the cells
+    of the face particles, whose supports are one-sided: measured 5.4e-4, ~3e-25 at one point). The
     stabilisation (alpha = 0.1: each particle's displacement against the MLS approximation at
     it) gives it an energy of the order alpha E (d/a)^2 V / 2 (measured 0.69 x that; asserted
     between 0.5 and 3 x), while a uniform strain stores no stabilisation energy at all (< 1e-12
@@ -192,7 +194,7 @@ def test_stabilisation_stiffens_the_zero_energy_mode():
         symmetric = inside & (np.abs(p.X[:, 2] - 0.5 * (lo[2] + hi[2])) < 1e-9)
         assert symmetric.sum() == 5
         scale = 0.5 * E_AL * (d / a) ** 2 * p.volume[symmetric]
-        assert np.all(elastic[symmetric] < 1e-12 * scale)
+        assert np.all(elastic[symmetric] < 1e-3 * scale)
         if alpha == 0.0:
             assert np.all(stab == 0.0)
         else:
@@ -238,8 +240,9 @@ def test_rod_vibration_gives_the_bar_wave_speed():
 
 def _dense_stiffness(sim):
     """The linearised stiffness (3n x 3n) assembled from the links, independently of the kernels:
-    small strain sym(sum_J u_J (x) grad N_J) at each particle with Hooke's C, weight V, plus the
-    Hessian of the stabilisation sum_I k_I |u_I - sum_M N_M(X_I) u_M|^2 / 2."""
+    small strain B_I u = sym(sum_J u_J (x) grad N_J) at each particle, at its two Gauss points
+    through the wall B_I -+ a_I sum_J c_IJ B_J (thickness.py) with Hooke's C, weight V / 2 each,
+    plus the Hessian of the stabilisation sum_I k_I |u_I - sum_M N_M(X_I) u_M|^2 / 2."""
     p, links = sim.particles, sim.links
     n = len(p.mass)
     lam, mu = sim.law[0], sim.law[1]
@@ -248,16 +251,25 @@ def _dense_stiffness(sim):
     C[np.arange(3), np.arange(3)] += 2.0 * mu
     C[3:, 3:] = mu * np.eye(3)
     K = np.zeros((3 * n, 3 * n))
+    B = np.zeros((n, 6, 3 * n))
     for i in range(n):
         r = slice(links.start[i], links.start[i + 1])
         J, g = links.neighbour[r], links.grad[r]
-        B = np.zeros((6, 3 * n))
         for a in range(3):
-            B[a, 3 * J + a] = g[:, a]
+            B[i, a, 3 * J + a] = g[:, a]
         for v, (a, b) in zip((3, 4, 5), ((0, 1), (1, 2), (0, 2))):
-            B[v, 3 * J + a] = g[:, b]
-            B[v, 3 * J + b] = g[:, a]
-        K += p.volume[i] * B.T @ C @ B
+            B[i, v, 3 * J + a] = g[:, b]
+            B[i, v, 3 * J + b] = g[:, a]
+    columns = sim.columns
+    for i in range(n):
+        r = slice(columns.start[i], columns.start[i + 1])
+        slope = np.einsum("k,kab->ab", columns.coef[r], B[columns.member[r]])
+        for side in (-1.0, 1.0):
+            Bs = B[i] + side * columns.offset[i] * slope
+            K += 0.5 * p.volume[i] * Bs.T @ C @ Bs
+    for i in range(n):
+        r = slice(links.start[i], links.start[i + 1])
+        J = links.neighbour[r]
         D = -links.value[r]  # d eps_I / d u_M (the same for each component)
         D[np.searchsorted(J, i)] += 1.0
         S = p.stab_k[i] * np.outer(D, D)
@@ -271,8 +283,8 @@ def test_stable_step_matches_the_dense_eigenvalue():
     against the largest eigenvalue of M^-1/2 K M^-1/2 from numpy's dense eigvalsh, K assembled
     from the links (_dense_stiffness), on a 9 x 8 x 3 steel plate (216 particles): at or above
     it (the Ritz value plus its residual bound, which ends the iteration at 0.1 % of it) and
-    within 1 % (measured +0.09 % after 23 iterations; the Ritz value alone -2e-6). The step is
-    STEP_MARGIN x 2 / omega; Gershgorin's bound stays above the eigenvalue (measured 13 x)."""
+    within 1 % (measured +0.08 % after 22 iterations; the Ritz value alone -2e-6). The step is
+    STEP_MARGIN x 2 / omega; Gershgorin's bound stays above the eigenvalue (measured 11 x)."""
     plate = plate_particles((0.0, 0.0, 0.0), (0.016, 0.014, 0.004), 0.002, 3)
     sim = build_meshfree_simulation(plate, 7800.0, J2Law(200e9, 0.3))
     p, n = sim.particles, len(plate.X)
@@ -281,7 +293,7 @@ def test_stable_step_matches_the_dense_eigenvalue():
     K = _dense_stiffness(sim)
     assert np.max(np.abs(K - K.T)) < 1e-12 * np.max(np.abs(K))
     dense = np.linalg.eigvalsh(K / np.sqrt(np.outer(m, m)))[-1]
-    omega2, residual, _ = highest_frequency2(p, sim.links, sim.law, np.zeros(n), 0.002)
+    omega2, residual, _ = highest_frequency2(p, sim.links, sim.columns, sim.law, np.zeros(n), 0.002)
     assert 0.0 <= (omega2 - dense) / dense < 0.01
     assert sim.stable_dt == pytest.approx(STEP_MARGIN * 2.0 / np.sqrt(omega2), rel=1e-12)
     row = np.repeat(np.arange(n), np.diff(sim.links.start))
@@ -324,48 +336,68 @@ def test_stable_step_is_sharp(tmp_path):
 
 
 
-@pytest.mark.parametrize("spacing, t, L, measured", [(0.002, 0.002, 0.06, "-0.2 %"), (0.004, 0.002, 0.06, "-0.7 %"),
-                                                   (0.004, 0.0008, 0.03, "-1.8 %")])
-def test_cantilever_plate_bends_at_the_thin_plate_frequency(spacing, t, L, measured):
-    """Thin-wall bending, free of the in-plane spacing: a steel strip of length L, 5 spacings wide,
-    3 particles through its thickness t, clamped at x = 0 and held in cylindrical bending (rollers
-    across the width on every particle: plane strain), started in the shape of its first mode,
-    v_z = 0.1 (x / L)^2: the tip's period gives the first bending frequency of a thin plate,
-    f = 1.875^2 / (2 pi L^2) sqrt(E t^2 / (12 rho (1 - nu^2))), times the through-thickness
-    quadrature of nodal integration: each of the 3 cells (t/4, t/2, t/4 thick) sees its mean
-    strain, at its centroid, so the bending energy is 2 (t/4) (3t/8)^2 / (t^3/12) = 27/32 of the
-    continuum's and f is sqrt(27/32) (-8.1 %) of it. Within 3 % at spacing = t, 2 t and 5 t
-    (a 0.8 mm wall at 4 mm, only 8 spacings along: the mode's shape is coarse); measured in the
-    parameters. The stabilisation is zero for quadratic fields, so it hardly resists the bending:
-    its largest energy stays below 2 % of the largest elastic energy (measured 0.03 %, 0.1 %,
-    1.1 %; the link stabilisation it replaced gave +35 % at 2 t and x 2.6 at 6 t)."""
+# Clamped-free beam: beta L of the first two modes, and their shapes (x = position / L).
+CANTILEVER_BETA = {1: 1.875104, 2: 4.694091}
+
+
+def _cantilever_shape(beta, x):
+    s = beta * x
+    sigma = (np.cosh(beta) + np.cos(beta)) / (np.sinh(beta) + np.sin(beta))
+    return np.cosh(s) - np.cos(s) - sigma * (np.sinh(s) - np.sin(s))
+
+
+@pytest.mark.parametrize("spacing, t, L, width, bending, mode, tolerance, measured", [
+    (0.002, 0.002, 0.06, 5, "cylindrical", 1, 0.03, "-0.20 %"),
+    (0.004, 0.002, 0.06, 5, "cylindrical", 1, 0.03, "-0.64 %"),
+    (0.004, 0.0008, 0.03, 5, "cylindrical", 1, 0.03, "-1.94 %"),
+    (0.002, 0.002, 0.06, 2, "narrow", 1, 0.03, "-0.06 %"),
+    (0.002, 0.002, 0.06, 5, "cylindrical", 2, 0.05, "-1.13 %"),
+    (0.002, 0.002, 0.06, 2, "narrow", 2, 0.05, "-1.05 %"),
+])
+def test_cantilever_bends_at_the_thin_wall_frequency(spacing, t, L, width, bending, mode, tolerance, measured):
+    """Thin-wall bending with the paper's 3 particles through the thickness, free of the in-plane
+    spacing: a steel strip of length L, `width` spacings wide, clamped at x = 0, started in the
+    shape of its first or second mode (velocity along z): the tip's period gives the bending
+    frequency f = (beta L)^2 / (2 pi L^2) sqrt(E' t^2 / (12 rho)), beta L = 1.8751 and 4.6941,
+    E' = E / (1 - nu^2) in cylindrical bending (rollers across the width on every particle:
+    plane strain; a wide plate) and E' = E for a narrow strip (2 spacings = 2 t wide, free edges:
+    a beam). First mode within 3 %, second within 5 % (the issue's acceptance); measured in the
+    parameters (before the two Gauss points through the wall, thickness.py, each cell saw its mean
+    strain and the bending energy was 27/32 of the continuum's: -8.3 %, -8.8 %, -9.8 % in
+    cylindrical bending). The stabilisation is zero for quadratic fields, so it hardly resists
+    the bending: its largest energy stays below 2 % of the largest elastic energy (measured
+    0.03 %, 0.1 %, 1.1 % in the first three; the link stabilisation it replaced gave +35 % at 2 t
+    and x 2.6 at 6 t)."""
     from crackle.loading import Selection, Support
 
     E, nu, rho = 210e9, 0.3, 7800.0
-    plate = plate_particles((0.0, 0.0, 0.0), (L, 5 * spacing, t), spacing, 3)
+    plate = plate_particles((0.0, 0.0, 0.0), (L, width * spacing, t), spacing, 3)
     X = plate.X
+    beta = CANTILEVER_BETA[mode]
     velocity = np.zeros_like(X)
-    velocity[:, 2] = 0.1 * (X[:, 0] / L) ** 2
-    supports = [Support("roller", Selection(box_min=(-1.0, -1.0, -1.0), box_max=(1.0, 1.0, 1.0)), (0.0, 1.0, 0.0)),
-                Support("fixed", Selection(box_min=(-1e-9, -1.0, -1.0), box_max=(1e-9, 1.0, 1.0)))]
+    velocity[:, 2] = 0.05 * _cantilever_shape(beta, X[:, 0] / L)
+    supports = [Support("fixed", Selection(box_min=(-1e-9, -1.0, -1.0), box_max=(1e-9, 1.0, 1.0)))]
+    if bending == "cylindrical":
+        supports.append(Support("roller", Selection(box_min=(-1.0, -1.0, -1.0), box_max=(1.0, 1.0, 1.0)),
+                                (0.0, 1.0, 0.0)))
     sim = build_meshfree_simulation(plate, rho, J2Law(E, nu), supports=supports, velocity=velocity)
-    thin = 1.875**2 / (2.0 * np.pi * L**2) * np.sqrt(E * t**2 / (12.0 * rho * (1.0 - nu**2)))
-    expected = np.sqrt(27.0 / 32.0) * thin
+    modulus = E / (1.0 - nu**2) if bending == "cylindrical" else E
+    expected = beta**2 / (2.0 * np.pi * L**2) * np.sqrt(modulus * t**2 / (12.0 * rho))
     dt = 0.9 * sim.stable_dt
     tip = X[:, 0] > L - 1e-9
-    chunk = 20
+    chunk = 10
     deflection, energies = [], []
-    for _ in range(int(2.2 / expected / (chunk * dt))):
+    for _ in range(int(2.5 / expected / (chunk * dt))):
         sim.advance(chunk, dt)
         deflection.append(np.mean(sim.particles.x[tip, 2] - X[tip, 2]))
-        if len(deflection) % 10 == 0:
+        if len(deflection) % 20 == 0:
             energies.append([e.sum() for e in sim.strain_energies(sim.particles.x)])
     z = np.array(deflection)
     times = chunk * dt * (np.arange(len(z)) + 1)
     k = np.flatnonzero((z[:-1] > 0.0) & (z[1:] <= 0.0))  # downward zero crossings, one per period
     crossings = times[k] - z[k] * (times[k + 1] - times[k]) / (z[k + 1] - z[k])
     assert len(crossings) >= 2
-    assert 1.0 / (crossings[1] - crossings[0]) == pytest.approx(expected, rel=0.03)
+    assert 1.0 / np.mean(np.diff(crossings)) == pytest.approx(expected, rel=tolerance)
     elastic, stab = np.max(energies, axis=0)
     assert stab < 0.02 * elastic
 
@@ -603,7 +635,7 @@ def test_thermo_identical_for_1_and_2_threads(plate_file):
         "[h.update(np.ascontiguousarray(a).tobytes()) for a in (p.x, p.v, p.eq_plastic, p.w_plastic, p.thermal, "
         "b.failed, b.blocked, np.array([b.damage]))]; gone = np.flatnonzero(b.detached); "
         "print(h.hexdigest(), float(p.eq_plastic.max()), float(p.thermal[:, 0].max()), len(gone), "
-        "float(np.abs(sim.cauchy_stress()[gone]).max(initial=0.0)), float(p.thermal[gone, 0].max(initial=0.0)))"
+        "float(np.abs(sim.cauchy_stress()[gone]).max(initial=0.0)), float(p.thermal[2 * gone, 0].max(initial=0.0)))"
     ) % (os.path.dirname(__file__), str(plate_file))
     digests = outputs_with_1_and_2_threads(script)
     assert digests[0][0] == digests[1][0]
@@ -838,7 +870,7 @@ def test_ductile_criterion_fails_particles_at_the_plastic_strain_from_the_notch(
     eps_f = 0.01
 
     def none_left_above(sim):
-        b, ep = sim.breaking, sim.particles.eq_plastic
+        b, ep = sim.breaking, sim.per_particle(sim.particles.eq_plastic)
         assert np.all(ep[~b.failed & ~b.detached] < eps_f)
 
     def run(notched):  # chunks of 7 checks: each ends on a check
@@ -846,10 +878,10 @@ def test_ductile_criterion_fails_particles_at_the_plastic_strain_from_the_notch(
                                failure_plastic_strain=eps_f)
 
     sim, grown, _ = run(notched=False)
-    assert len(grown) == 0 and sim.particles.eq_plastic.max() > 0.5 * eps_f  # it did yield
+    assert len(grown) == 0 and sim.per_particle(sim.particles.eq_plastic).max() > 0.5 * eps_f  # it did yield
     sim, grown, history = run(notched=True)
     b, X = sim.breaking, sim.particles.X
-    assert np.all(sim.particles.eq_plastic[grown] >= eps_f)
+    assert np.all(sim.per_particle(sim.particles.eq_plastic)[grown] >= eps_f)
     grown = grown[np.lexsort((grown, b.fail_time[grown]))]
     assert len(grown) >= 12
     assert abs(X[grown[0], 0]) <= 0.002 and -0.010 < X[grown[0], 1] <= -0.005

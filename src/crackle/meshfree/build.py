@@ -14,9 +14,10 @@ from ..solver.integrator import support_constraints
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
 from .material import T_REF, YIELD, J2Law
-from .particles import WALL_SIDES, WallParticles
+from .particles import WALL_SIDES, WallParticles, wall_columns
 from .shape import MAX_CONDITION, basis_terms, csr_positions, nodal_values, smoothed_gradients
 from .simulation import MeshfreeSimulation
+from .thickness import thickness_columns
 
 
 class SetupError(ValueError):
@@ -68,25 +69,26 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         x=X.copy(), v=v, X=X, mass=mass, volume=plate.volume.copy(), area=plate.area.copy(), constraint=constraint,
         projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
-        plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
-        deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), stab_k=stab_k,
-        stab_force=np.zeros((n, 3)),
-        thermal=np.column_stack([np.full(n, table[T_REF]), np.zeros(n)]),
+        plastic=np.zeros((2 * n, 6)), eq_plastic=np.zeros(2 * n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
+        deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), bending=np.zeros((n, 9)),
+        stab_k=stab_k, stab_force=np.zeros((n, 3)),
+        thermal=np.column_stack([np.full(2 * n, table[T_REF]), np.zeros(2 * n)]),
     )
+    columns = thickness_columns(X, wall_columns(plate))
     h = float(np.min(plate.spacing))
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
                             "particles")
-    dt, step_ratio = stable_step(particles, links, row, table, tool_k, h)
+    dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
     c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
     breaking = None
     if math.isfinite(fracture_stress) or math.isfinite(failure_plastic_strain) or precracks:
         breaking = LinkBreaking(X, plate.volume, plate.cells, radius, terms,
                                 stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
                                 plate.wall_frame, tool_k, step_ratio, failure_plastic_strain)
-    sim = MeshfreeSimulation(particles, links, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
+    sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
                              gravity, damping, plate, breaking, loads)
     sim.warnings.extend(seating)
     if precracks:
@@ -95,7 +97,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         except ValueError as err:
             raise SetupError(str(err).split(":")[0], str(err)) from None
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
-        sim.stable_dt = min(dt, stable_step(particles, links, breaking.row, table, tool_k, h)[0])
+        sim.stable_dt = min(dt, stable_step(particles, links, columns, breaking.row, table, tool_k, h)[0])
     return sim
 
 
@@ -168,30 +170,31 @@ def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
     return Pressures(start, np.ascontiguousarray(area[order]), which[order], delay[order], times, values, counts)
 
 
-def stable_step(particles, links, row, law_table, tool_k, spacing) -> tuple[float, float]:
+def stable_step(particles, links, columns, row, law_table, tool_k, spacing) -> tuple[float, float]:
     """STEP_MARGIN x 2 / omega_max, omega_max^2 the largest eigenvalue of M^-1 K of the
     linearised step estimated by Lanczos (highest_frequency2), and its ratio to Gershgorin's
     bound (gershgorin_frequency2), which calibrates the cheap check after fracture rebuilds.
     row: as gershgorin_frequency2."""
-    omega2, _, _ = highest_frequency2(particles, links, law_table, tool_k, spacing)
+    omega2, _, _ = highest_frequency2(particles, links, columns, law_table, tool_k, spacing)
     ratio = omega2 / gershgorin_frequency2(particles, links, row, law_table, tool_k)
     return stability.STEP_MARGIN * 2.0 / math.sqrt(omega2), ratio
 
 
-def highest_frequency2(particles, links, law_table, tool_k, spacing) -> tuple[float, float, int]:
+def highest_frequency2(particles, links, columns, law_table, tool_k, spacing) -> tuple[float, float, int]:
     """omega_max^2 (1/s^2) of the linearised step about the reference state
     (solver.stability.highest_frequency2 on kernels.internal_forces, elastic: plasticity only
     softens), with the tool penalties tool_k (N/m, per particle) on every particle."""
     n = len(particles.mass)
     law = law_table.copy()
     law[YIELD] = math.inf
-    p = particles._replace(x=particles.X.copy(), plastic=np.zeros((n, 6)), eq_plastic=np.zeros(n),
+    p = particles._replace(x=particles.X.copy(), plastic=np.zeros((2 * n, 6)), eq_plastic=np.zeros(2 * n),
                            w_plastic=np.zeros(n), stress=np.zeros((n, 6)), deformation=np.zeros((n, 9)),
-                           internal=np.zeros((n, 9)), stab_force=np.zeros((n, 3)), thermal=particles.thermal.copy())
+                           internal=np.zeros((n, 9)), bending=np.zeros((n, 9)), stab_force=np.zeros((n, 3)),
+                           thermal=particles.thermal.copy())
 
     def forces(x, out):
         p.x[:] = x
-        internal_forces(0.0, p, links, law, out)
+        internal_forces(0.0, p, links, columns, law, out)
 
     return stability.highest_frequency2(particles.X, particles.mass, forces, spacing, tool_k)
 

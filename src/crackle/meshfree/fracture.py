@@ -45,9 +45,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..solver.stability import STEP_MARGIN
-from .kernels import stabilisation_stiffness
+from .kernels import gauss_strains, stabilisation_stiffness
 from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, csr_positions, nodal_values
+from .thickness import line_mates, single_point
 
 # A rebuilt moment matrix (a face centre or a particle next to a crack, with the quadratic or the
 # linear basis) whose condition number exceeds this counts as singular: on a tube run the set-up
@@ -216,7 +217,7 @@ class LinkBreaking:
         if not np.isfinite(cauchy).all():
             return False
         ids, normals = self.newly_failed(cauchy, sim.particles.deformation, sim.particles.stress,
-                                         sim.particles.eq_plastic)
+                                         sim.per_particle(sim.particles.eq_plastic))
         if len(ids) == 0:
             return False
         self.fail(sim, ids, normals, dt)
@@ -238,31 +239,39 @@ class LinkBreaking:
         new = np.concatenate(new)
         new = np.concatenate([new, (new % n) * n + new // n])  # both directions
         self._block(new)
-        # Each particle's strain and energy as the rebuild first reaches it (before it changes).
+        # Each particle's strains and energy as the rebuild first reaches it (before it changes):
+        # those of the rebuilt particles and of the others on their lines through the wall, whose
+        # Gauss points their F reaches (thickness.py).
         seen = np.zeros(n, dtype=bool)
-        touched, strain_before, energy_before = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 6))], [np.zeros(2)]
+        touched, strain_before, energy_before = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 2, 6))], [np.zeros(2)]
 
         def record(rows):
+            rows = line_mates(sim.columns, rows)
             fresh = rows[~seen[rows]]
             seen[fresh] = True
             touched.append(fresh)
-            strain_before.append(self._green_strains(p.x, links, fresh))
+            strain_before.append(self._gauss_strains(sim, p.x, fresh))
             energy_before.append(np.sum(sim.strain_energies(x_mid, fresh), axis=0))
 
+        was_detached = self.detached.copy()
         self._rebuild(sim, np.unique(self.row[self._link_positions(new)]), record)
+        # A free particle's F is I: one point a cell on its line through the wall.
+        single_point(sim.columns, np.flatnonzero(self.detached & ~was_detached))
         rows = np.concatenate(touched)
         # The rebuilt approximation changes F at the rebuilt particles although nothing moved:
         # that change is no deformation, so their elastic strain carries over (the plastic strain,
         # an eigenstrain for an elastic law, takes up the difference). Otherwise a yielded
         # particle's trial stress jumps and one radial return dissipates work no step did.
         before = np.concatenate(strain_before)
-        after = self._green_strains(p.x, links, rows)
-        changed = np.any(after != before, axis=1) & ~self.detached[rows]
-        p.plastic[rows[changed]] += after[changed] - before[changed]
+        after = self._gauss_strains(sim, p.x, rows)
+        changed = np.any(after != before, axis=(1, 2)) & ~self.detached[rows]
+        plastic = p.plastic.reshape(n, 2, 6)
+        plastic[rows[changed]] += after[changed] - before[changed]
         # A free particle carries no stress: its plastic strain takes up its thermal strain (thermo
         # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
-        p.plastic[self.detached] = 0.0
-        p.plastic[self.detached, :3] = 0.0 - thermal_strain(p.thermal[self.detached, 0], sim.law)[:, None]
+        free = np.repeat(self.detached, 2)
+        p.plastic[free] = 0.0
+        p.plastic[free, :3] = 0.0 - thermal_strain(p.thermal[free, 0], sim.law)[:, None]
         p.stress[self.detached] = 0.0
         released = float(np.sum(np.concatenate(energy_before)) - np.sum(sim.strain_energies(x_mid, rows)))
         self.damage += released
@@ -305,22 +314,13 @@ class LinkBreaking:
             sim.warnings.append(f"link breaking at t = {sim.time:.4g} s left an estimated stable step of "
                                 f"{estimate:.3g} s, below the step {dt:.3g} s: reduce run.safety if the run blows up")
 
-    def _green_strains(self, x, links, rows) -> np.ndarray:
-        """Per particle of `rows`, the Green-Lagrange strain (6, tensor components xx yy zz xy yz
-        xz) of the deformation gradient F = I + sum_J u_J (x) grad N_J that its links give at
-        positions x (summed in link order: the same numbers as over all particles at once)."""
-        pos, first = csr_positions(links.start, rows)
-        local = np.repeat(np.arange(len(rows)), np.diff(first))
-        J = links.neighbour[pos]
-        u = x[J] - self.X[J]
-        F = np.empty((len(rows), 3, 3))
-        for a in range(3):
-            for c in range(3):
-                F[:, a, c] = np.bincount(local, weights=u[:, a] * links.grad[pos, c], minlength=len(rows))
-        F += np.eye(3)
-        C = np.einsum("nab,nac->nbc", F, F)
-        return 0.5 * np.stack([C[:, 0, 0] - 1.0, C[:, 1, 1] - 1.0, C[:, 2, 2] - 1.0, C[:, 0, 1], C[:, 1, 2],
-                               C[:, 0, 2]], axis=1)
+    def _gauss_strains(self, sim, x, rows) -> np.ndarray:
+        """Per particle of `rows`, the Green-Lagrange strains (xx yy zz xy yz xz) at its two Gauss
+        points through the wall (len(rows), 2, 6) at positions x (kernels.gauss_strains)."""
+        strain = np.empty((len(rows), 2, 6))
+        gauss_strains(np.asarray(rows, dtype=np.int64), np.ascontiguousarray(x), self.X, sim.links.start,
+                      sim.links.neighbour, sim.links.grad, sim.columns, strain)
+        return strain
 
     def _block(self, keys):
         self.blocked = np.union1d(self.blocked, keys)

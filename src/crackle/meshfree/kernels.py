@@ -1,18 +1,20 @@
 """The compiled step of the meshfree (EFG) method: a pass over the particles that computes each
-one's deformation gradient from its links, its stress (material.stress_update) and its
-stabilisation, then a pass over the particles that gathers their forces from the links of their
-neighbours, adds the follower pressure on their wall faces (Nanson's formula with their own F,
+one's deformation gradient from its links and its stabilisation, a pass for the stress at its two
+Gauss points through the wall (material.stress_update; thickness.py) and one that adds what its
+F moves at its neighbours' on its line through the wall, then a pass over the particles that
+gathers their forces from the links of their neighbours, adds the follower pressure on their wall faces (Nanson's formula with their own F,
 behind a travelling front where one is given) and calls the shared tool contact (loading.tools)
 and node update (solver.integrator).
-No races: the first pass writes only the particle's own rows and the rows of its own links, the
-second reads them in the fixed CSR order.
+No races: each pass writes only the particle's own rows, the later ones read the earlier ones' in
+the fixed CSR orders.
 
 Nodal integration (the particles are the quadrature points, weight = nodal volume V), with the
 gradients smoothed over each particle's cell (stabilised conforming nodal integration, see
 shape.smoothed_gradients: it meets the integration constraint, so a uniform stress leaves
 every particle away from the boundary in equilibrium):
   F_I = I + sum_J u_J (x) grad N_J(I)                        (u = x - X, the nodal displacements)
-  f_L = - sum_{I ~ L} V_I P_I grad N_L(I)                    (P = F S, first Piola-Kirchhoff)
+  f_L = - sum_{I ~ L} T_I grad N_L(I)                        (T_I = V_I P_I, P = F S, first Piola-Kirchhoff,
+                                                               at two points through the wall: thickness.py)
 One point per particle still leaves zero-energy modes (a field oscillating from particle to
 particle that no particle's gradient sees). The stabilisation penalises each particle's
 displacement against the MLS approximation of the displacement field at it:
@@ -47,11 +49,14 @@ from .shape import quartic_spline_array
 Particles = namedtuple(
     "Particles",
     "x v X mass volume area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
-    "plastic eq_plastic w_plastic stress deformation internal stab_k stab_force thermal",
+    "plastic eq_plastic w_plastic stress deformation internal bending stab_k stab_force thermal",
 )
-# thermal: per particle the temperature (K) and the stored energy per reference volume the
-# temperature changes released (J/m^3, energy.thermal); the thermo law's state (material.py).
-# stab_k: k_I of the stabilisation (N/m); stab_force: k_I eps_I (N), written by the stress pass.
+# plastic, eq_plastic, thermal: the law's state at each particle's two Gauss points through the
+# wall (rows 2 I and 2 I + 1, thickness.py); thermal: the temperature (K) and the stored energy
+# per reference volume the temperature changes released (J/m^3, energy.thermal), the thermo law's
+# (material.py). stress: the mean of the two points' second Piola-Kirchhoff stress; internal:
+# T_I = V P of the gather; bending: a V (P+ - P-) / 2 (thickness.py).
+# stab_k: k_I of the stabilisation (N/m); stab_force: k_I eps_I (N), written by the gradient pass.
 # start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
 # I (smoothed over I's cell); value: N_J(X_I) (the MLS at the particle itself, 0 on a link the
 # crack removed); back_start, back_row: the transpose, for particle L every link (I, L) and its I,
@@ -69,8 +74,10 @@ BLOCK = 128  # particles per parallel task
 
 
 @block_kernel
-def _stress_block(lo, hi, dt, p, links, law):
+def _gradient_block(lo, hi, p, links):
+    """Each particle's smoothed F (into p.deformation) and its stabilisation force k eps."""
     x, X, start, neighbour, grad, value = p.x, p.X, links.start, links.neighbour, links.grad, links.value
+    d = p.deformation
     for i in range(lo, hi):
         f00 = 1.0
         f01 = 0.0
@@ -105,26 +112,6 @@ def _stress_block(lo, hi, dt, p, links, law):
             f20 += uz * g0
             f21 += uz * g1
             f22 += uz * g2
-        # Green-Lagrange strain E = (F^T F - I) / 2.
-        e0 = 0.5 * (f00 * f00 + f10 * f10 + f20 * f20 - 1.0)
-        e1 = 0.5 * (f01 * f01 + f11 * f11 + f21 * f21 - 1.0)
-        e2 = 0.5 * (f02 * f02 + f12 * f12 + f22 * f22 - 1.0)
-        e3 = 0.5 * (f00 * f01 + f10 * f11 + f20 * f21)
-        e4 = 0.5 * (f01 * f02 + f11 * f12 + f21 * f22)
-        e5 = 0.5 * (f00 * f02 + f10 * f12 + f20 * f22)
-        s0, s1, s2, s3, s4, s5, work = stress_update(i, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, p.thermal,
-                                                     dt, law)
-        vol = p.volume[i]
-        if work != 0.0:
-            p.w_plastic[i] += vol * work
-        st = p.stress
-        st[i, 0] = s0
-        st[i, 1] = s1
-        st[i, 2] = s2
-        st[i, 3] = s3
-        st[i, 4] = s4
-        st[i, 5] = s5
-        d = p.deformation
         d[i, 0] = f00
         d[i, 1] = f01
         d[i, 2] = f02
@@ -138,17 +125,116 @@ def _stress_block(lo, hi, dt, p, links, law):
         p.stab_force[i, 0] = k * (x[i, 0] - X[i, 0] - ax)
         p.stab_force[i, 1] = k * (x[i, 1] - X[i, 1] - ay)
         p.stab_force[i, 2] = k * (x[i, 2] - X[i, 2] - az)
-        # T = V P with P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2).
-        t = p.internal
-        t[i, 0] = vol * (f00 * s0 + f01 * s3 + f02 * s5)
-        t[i, 1] = vol * (f00 * s3 + f01 * s1 + f02 * s4)
-        t[i, 2] = vol * (f00 * s5 + f01 * s4 + f02 * s2)
-        t[i, 3] = vol * (f10 * s0 + f11 * s3 + f12 * s5)
-        t[i, 4] = vol * (f10 * s3 + f11 * s1 + f12 * s4)
-        t[i, 5] = vol * (f10 * s5 + f11 * s4 + f12 * s2)
-        t[i, 6] = vol * (f20 * s0 + f21 * s3 + f22 * s5)
-        t[i, 7] = vol * (f20 * s3 + f21 * s1 + f22 * s4)
-        t[i, 8] = vol * (f20 * s5 + f21 * s4 + f22 * s2)
+
+
+@njit(cache=True, inline="always")
+def _green(f00, f01, f02, f10, f11, f12, f20, f21, f22):
+    """Green-Lagrange strain E = (F^T F - I) / 2 (xx yy zz xy yz xz)."""
+    return (0.5 * (f00 * f00 + f10 * f10 + f20 * f20 - 1.0), 0.5 * (f01 * f01 + f11 * f11 + f21 * f21 - 1.0),
+            0.5 * (f02 * f02 + f12 * f12 + f22 * f22 - 1.0), 0.5 * (f00 * f01 + f10 * f11 + f20 * f21),
+            0.5 * (f01 * f02 + f11 * f12 + f21 * f22), 0.5 * (f00 * f02 + f10 * f12 + f20 * f22))
+
+
+@block_kernel
+def _stress_block(lo, hi, dt, p, columns, law):
+    """At each particle's two Gauss points through the wall (thickness.py), F = F_I -+ a_I dF/dzeta,
+    the stress (material.stress_update, state rows 2 I and 2 I + 1); stores the mean second
+    Piola-Kirchhoff stress, V (P- + P+) / 2 into p.internal and a V (P+ - P-) / 2 into p.bending."""
+    d, cstart, member, coef = p.deformation, columns.start, columns.member, columns.coef
+    for i in range(lo, hi):
+        z0 = 0.0
+        z1 = 0.0
+        z2 = 0.0
+        z3 = 0.0
+        z4 = 0.0
+        z5 = 0.0
+        z6 = 0.0
+        z7 = 0.0
+        z8 = 0.0
+        for r in range(cstart[i], cstart[i + 1]):
+            j = member[r]
+            c = coef[r]
+            z0 += c * d[j, 0]
+            z1 += c * d[j, 1]
+            z2 += c * d[j, 2]
+            z3 += c * d[j, 3]
+            z4 += c * d[j, 4]
+            z5 += c * d[j, 5]
+            z6 += c * d[j, 6]
+            z7 += c * d[j, 7]
+            z8 += c * d[j, 8]
+        a = columns.offset[i]
+        half = 0.5 * p.volume[i]
+        st, t, b = p.stress, p.internal, p.bending
+        for k in range(6):
+            st[i, k] = 0.0
+        for k in range(9):
+            t[i, k] = 0.0
+            b[i, k] = 0.0
+        for side in range(2):
+            sign = 2.0 * side - 1.0
+            h = sign * a
+            f00 = d[i, 0] + h * z0
+            f01 = d[i, 1] + h * z1
+            f02 = d[i, 2] + h * z2
+            f10 = d[i, 3] + h * z3
+            f11 = d[i, 4] + h * z4
+            f12 = d[i, 5] + h * z5
+            f20 = d[i, 6] + h * z6
+            f21 = d[i, 7] + h * z7
+            f22 = d[i, 8] + h * z8
+            e0, e1, e2, e3, e4, e5 = _green(f00, f01, f02, f10, f11, f12, f20, f21, f22)
+            s0, s1, s2, s3, s4, s5, work = stress_update(2 * i + side, e0, e1, e2, e3, e4, e5, p.plastic,
+                                                         p.eq_plastic, p.thermal, dt, law)
+            if work != 0.0:
+                p.w_plastic[i] += half * work
+            st[i, 0] += 0.5 * s0
+            st[i, 1] += 0.5 * s1
+            st[i, 2] += 0.5 * s2
+            st[i, 3] += 0.5 * s3
+            st[i, 4] += 0.5 * s4
+            st[i, 5] += 0.5 * s5
+            # P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2), weighted by V / 2.
+            q0 = half * (f00 * s0 + f01 * s3 + f02 * s5)
+            q1 = half * (f00 * s3 + f01 * s1 + f02 * s4)
+            q2 = half * (f00 * s5 + f01 * s4 + f02 * s2)
+            q3 = half * (f10 * s0 + f11 * s3 + f12 * s5)
+            q4 = half * (f10 * s3 + f11 * s1 + f12 * s4)
+            q5 = half * (f10 * s5 + f11 * s4 + f12 * s2)
+            q6 = half * (f20 * s0 + f21 * s3 + f22 * s5)
+            q7 = half * (f20 * s3 + f21 * s1 + f22 * s4)
+            q8 = half * (f20 * s5 + f21 * s4 + f22 * s2)
+            t[i, 0] += q0
+            t[i, 1] += q1
+            t[i, 2] += q2
+            t[i, 3] += q3
+            t[i, 4] += q4
+            t[i, 5] += q5
+            t[i, 6] += q6
+            t[i, 7] += q7
+            t[i, 8] += q8
+            b[i, 0] += h * q0
+            b[i, 1] += h * q1
+            b[i, 2] += h * q2
+            b[i, 3] += h * q3
+            b[i, 4] += h * q4
+            b[i, 5] += h * q5
+            b[i, 6] += h * q6
+            b[i, 7] += h * q7
+            b[i, 8] += h * q8
+
+
+@block_kernel
+def _through_wall_block(lo, hi, p, columns):
+    """T_J += sum_I c_IJ a_I V_I (P_I+ - P_I-) / 2 over the particles I whose dF/dzeta holds J
+    (thickness.py): what J's F moves through its neighbours' Gauss points."""
+    t, b, start, member, coef = p.internal, p.bending, columns.back_start, columns.back_member, columns.back_coef
+    for j in range(lo, hi):
+        for r in range(start[j], start[j + 1]):
+            i = member[r]
+            c = coef[r]
+            for k in range(9):
+                t[j, k] += c * b[i, k]
 
 
 @njit(cache=True, inline="always")
@@ -235,7 +321,7 @@ def _pressure_force(g, t, deformation, pressures):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, law, tools, pressures, radius, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, radius, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place."""
     n_tool = tools.kind.shape[0]
@@ -248,7 +334,13 @@ def advance(n_steps, first_step, dt, particles, links, law, tools, pressures, ra
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _stress_block(lo, min(lo + BLOCK, n), dt, particles, links, law)
+            _gradient_block(lo, min(lo + BLOCK, n), particles, links)
+        for blk in prange(n_block):
+            lo = blk * BLOCK
+            _stress_block(lo, min(lo + BLOCK, n), dt, particles, columns, law)
+        for blk in prange(n_block):
+            lo = blk * BLOCK
+            _through_wall_block(lo, min(lo + BLOCK, n), particles, columns)
         for blk in prange(n_block):
             lo = blk * BLOCK
             _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, tool_v_prev,
@@ -258,14 +350,20 @@ def advance(n_steps, first_step, dt, particles, links, law, tools, pressures, ra
 
 
 @njit(parallel=True, cache=True)
-def internal_forces(dt, particles, links, law, force):
-    """The internal forces (n, 3) at particles.x into `force`, by the step's own two passes (its
+def internal_forces(dt, particles, links, columns, law, force):
+    """The internal forces (n, 3) at particles.x into `force`, by the step's own passes (its
     stress pass updates the particles' stress state: call it on a copy); for the stable step."""
     n = particles.x.shape[0]
     n_block = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_block):
         lo = blk * BLOCK
-        _stress_block(lo, min(lo + BLOCK, n), dt, particles, links, law)
+        _gradient_block(lo, min(lo + BLOCK, n), particles, links)
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _stress_block(lo, min(lo + BLOCK, n), dt, particles, columns, law)
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _through_wall_block(lo, min(lo + BLOCK, n), particles, columns)
     for g in prange(n):
         fx, fy, fz = _link_force(g, particles, links)
         force[g, 0] = fx
@@ -273,31 +371,79 @@ def internal_forces(dt, particles, links, law, force):
         force[g, 2] = fz
 
 
+@njit(cache=True)
+def _smoothed_deformation(i, x, X, start, neighbour, grad, F):
+    """F_i = I + sum_J u_J (x) grad N_J(X_i) at positions x, into F (3, 3)."""
+    F[:] = 0.0
+    for c in range(3):
+        F[c, c] = 1.0
+    for r in range(start[i], start[i + 1]):
+        j = neighbour[r]
+        for c in range(3):
+            u = x[j, c] - X[j, c]
+            for b in range(3):
+                F[c, b] += u * grad[r, b]
+
+
+@njit(cache=True)
+def _gauss_deformations(i, x, X, start, neighbour, grad, columns, out):
+    """The deformation gradients at particle i's two Gauss points through the wall
+    (thickness.py) at positions x, into out (2, 3, 3)."""
+    F = np.empty((3, 3))
+    slope = np.zeros((3, 3))
+    for r in range(columns.start[i], columns.start[i + 1]):
+        _smoothed_deformation(columns.member[r], x, X, start, neighbour, grad, F)
+        slope += columns.coef[r] * F
+    _smoothed_deformation(i, x, X, start, neighbour, grad, F)
+    a = columns.offset[i]
+    out[0] = F - a * slope
+    out[1] = F + a * slope
+
+
 @njit(parallel=True, cache=True)
-def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, law, elastic,
-                    stabilisation):
-    """Per particle of `rows`, at positions x: the elastic energy V (E - Ep) : C : (E - Ep) / 2
-    with its current plastic strain (and temperature), and its stabilisation energy k |eps|^2 / 2
-    (J), into elastic[i] and stabilisation[i]."""
+def gauss_strains(rows, x, X, start, neighbour, grad, columns, strain):
+    """Per particle of `rows`, the Green-Lagrange strains (xx yy zz xy yz xz) at its two Gauss
+    points at positions x, into strain (len(rows), 2, 6)."""
+    for k in prange(rows.shape[0]):
+        F = np.empty((2, 3, 3))
+        _gauss_deformations(rows[k], x, X, start, neighbour, grad, columns, F)
+        for side in range(2):
+            C = F[side].T @ F[side]
+            strain[k, side, 0] = 0.5 * (C[0, 0] - 1.0)
+            strain[k, side, 1] = 0.5 * (C[1, 1] - 1.0)
+            strain[k, side, 2] = 0.5 * (C[2, 2] - 1.0)
+            strain[k, side, 3] = 0.5 * C[0, 1]
+            strain[k, side, 4] = 0.5 * C[1, 2]
+            strain[k, side, 5] = 0.5 * C[0, 2]
+
+
+@njit(parallel=True, cache=True)
+def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, columns, law,
+                    elastic, stabilisation):
+    """Per particle of `rows`, at positions x: the elastic energy sum over its two Gauss points of
+    V / 2 (E - Ep) : C : (E - Ep) / 2 with their current plastic strain (and temperature), and its
+    stabilisation energy k |eps|^2 / 2 (J), into elastic[i] and stabilisation[i]."""
     for k in prange(rows.shape[0]):
         i = rows[k]
-        F = np.eye(3)
+        F = np.empty((2, 3, 3))
+        _gauss_deformations(i, x, X, start, neighbour, grad, columns, F)
+        energy = 0.0
+        for side in range(2):
+            C = F[side].T @ F[side]
+            g = 2 * i + side
+            e0 = 0.5 * (C[0, 0] - 1.0) - plastic[g, 0]
+            e1 = 0.5 * (C[1, 1] - 1.0) - plastic[g, 1]
+            e2 = 0.5 * (C[2, 2] - 1.0) - plastic[g, 2]
+            e3 = 0.5 * C[0, 1] - plastic[g, 3]
+            e4 = 0.5 * C[1, 2] - plastic[g, 4]
+            e5 = 0.5 * C[0, 2] - plastic[g, 5]
+            energy += 0.5 * volume[i] * elastic_energy(g, e0, e1, e2, e3, e4, e5, thermal, law)
+        elastic[i] = energy
         a = np.zeros(3)
         for r in range(start[i], start[i + 1]):
             j = neighbour[r]
             for c in range(3):
-                u = x[j, c] - X[j, c]
-                a[c] += value[r] * u
-                for b in range(3):
-                    F[c, b] += u * grad[r, b]
-        C = F.T @ F
-        e0 = 0.5 * (C[0, 0] - 1.0) - plastic[i, 0]
-        e1 = 0.5 * (C[1, 1] - 1.0) - plastic[i, 1]
-        e2 = 0.5 * (C[2, 2] - 1.0) - plastic[i, 2]
-        e3 = 0.5 * C[0, 1] - plastic[i, 3]
-        e4 = 0.5 * C[1, 2] - plastic[i, 4]
-        e5 = 0.5 * C[0, 2] - plastic[i, 5]
-        elastic[i] = volume[i] * elastic_energy(i, e0, e1, e2, e3, e4, e5, thermal, law)
+                a[c] += value[r] * (x[j, c] - X[j, c])
         acc = 0.0
         for c in range(3):
             d = x[i, c] - X[i, c] - a[c]

@@ -326,6 +326,22 @@ def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(
                          particles.cells, _frame_of_normals(normal), faces)
 
 
+def wall_columns(wall: WallParticles) -> np.ndarray | None:
+    """(m, layers): the particles of each line through the wall, from the inner surface to the
+    outer (a plate: from its origin side along the thickness); None for a solid (no wall). A
+    plate's particles are grouped by their in-plane grid position; a tube's and a shell's lines
+    are consecutive (their layers are the fastest index)."""
+    if wall.layers < 2 or wall.shape == "mesh":
+        return None
+    n = len(wall.X)
+    if wall.shape != "plate":
+        return np.arange(n, dtype=np.int64).reshape(-1, wall.layers)
+    grid = np.rint((wall.X - wall.X.min(axis=0)) / wall.spacing).astype(np.int64)
+    in_plane = [a for a in range(3) if a != wall.thickness_axis]
+    order = np.lexsort((grid[:, wall.thickness_axis], grid[:, in_plane[1]], grid[:, in_plane[0]]))
+    return order.reshape(-1, wall.layers)
+
+
 def _frame_of_normals(normal: np.ndarray) -> np.ndarray:
     """(n, 3, 3): rows two unit tangents and the unit normal; the first tangent from the
     coordinate axis least aligned with the normal (as tube_frame)."""

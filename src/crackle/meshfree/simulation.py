@@ -15,9 +15,11 @@ from .material import MODEL, THERMO
 class MeshfreeSimulation:
     method = "meshfree"
 
-    def __init__(self, particles, links, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
+    def __init__(self, particles, links, columns, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
                  damping, plate, breaking, pressures):
         self.particles, self.links, self.law, self.tools = particles, links, law, tools
+        # The lines through the wall and each particle's Gauss points on them (thickness.py).
+        self.columns = columns
         self._tool_names = list(tool_names)
         self.support_radius = float(support_radius)
         self.stable_dt = float(stable_dt)
@@ -44,8 +46,8 @@ class MeshfreeSimulation:
 
     def advance(self, n_steps: int, dt: float) -> None:
         if self.breaking is None:
-            advance(n_steps, self.steps, dt, self.particles, self.links, self.law, self.tools, self.pressures,
-                    self.contact_radius, self.gravity, self.damping)
+            advance(n_steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
+                    self.pressures, self.contact_radius, self.gravity, self.damping)
             self.steps += n_steps
             self.time = self.steps * dt
             return
@@ -54,7 +56,7 @@ class MeshfreeSimulation:
         end = self.steps + n_steps
         while self.steps < end:
             stop = min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK)
-            advance(stop - self.steps, self.steps, dt, self.particles, self.links, self.law, self.tools,
+            advance(stop - self.steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
                     self.pressures, self.contact_radius, self.gravity, self.damping)
             self.steps = stop
             self.time = self.steps * dt
@@ -88,7 +90,7 @@ class MeshfreeSimulation:
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
         strain_energies(which, np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start,
-                        s.neighbour, s.grad, s.value, self.law, elastic, stab)
+                        s.neighbour, s.grad, s.value, self.columns, self.law, elastic, stab)
         return (elastic, stab) if rows is None else (elastic[which], stab[which])
 
     def energies(self, dt: float) -> dict[str, float]:
@@ -100,7 +102,7 @@ class MeshfreeSimulation:
             # The stored energy the temperature changes released at fixed strain (thermal
             # expansion against the stress, the moduli's softening): mechanical work that left
             # the elastic store, booked as its own term.
-            thermal = {"energy.thermal": float(np.sum(p.volume * p.thermal[:, 1]))}
+            thermal = {"energy.thermal": float(np.sum(p.volume * self.per_particle(p.thermal[:, 1])))}
         return {
             "energy.kinetic": self._kinetic(),
             "energy.elastic": float(np.sum(elastic)),
@@ -160,7 +162,7 @@ class MeshfreeSimulation:
         return {
             "points": p.x,
             "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
-                           "plastic_strain": p.eq_plastic.copy(), "failed": failed, "crack_normal": normal,
+                           "plastic_strain": self.per_particle(p.eq_plastic), "failed": failed, "crack_normal": normal,
                            "detached": detached, **self._temperature()},
             "component_names": {"stress": STRESS_COMPONENTS},
             "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
@@ -173,7 +175,12 @@ class MeshfreeSimulation:
 
     def _temperature(self) -> dict:
         """The VTU's `temperature` (K) for the thermo law; nothing for J2 (no temperature)."""
-        return {"temperature": self.particles.thermal[:, 0].copy()} if self.thermo else {}
+        return {"temperature": self.per_particle(self.particles.thermal[:, 0])} if self.thermo else {}
+
+    @staticmethod
+    def per_particle(values: np.ndarray) -> np.ndarray:
+        """The mean over each particle's two Gauss points of a state (rows 2 I, 2 I + 1)."""
+        return 0.5 * (values[0::2] + values[1::2])
 
     def describe(self) -> str:
         n = len(self.particles.x)
@@ -197,8 +204,8 @@ class MeshfreeSimulation:
             "detached_particles": 0 if self.breaking is None else int(self.breaking.detached.sum()),
             "layers": int(self.plate.layers),
             "support_radius": self.support_radius,
-            "max_plastic_strain": float(np.max(p.eq_plastic, initial=0.0)),
-            **({"max_temperature": float(np.max(p.thermal[:, 0]))} if self.thermo else {}),
+            "max_plastic_strain": float(np.max(self.per_particle(p.eq_plastic), initial=0.0)),
+            **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])))} if self.thermo else {}),
             "warnings": list(self.warnings),
         }
 
