@@ -135,12 +135,28 @@ def _green(f00, f01, f02, f10, f11, f12, f20, f21, f22):
             0.5 * (f01 * f02 + f11 * f12 + f21 * f22), 0.5 * (f00 * f02 + f10 * f12 + f20 * f22))
 
 
+@njit(cache=True, inline="always")
+def _gauss_point(g, f00, f01, f02, f10, f11, f12, f20, f21, f22, dt, p, law):
+    """The stress at one Gauss point (state row g) of deformation gradient F: its second
+    Piola-Kirchhoff stress S (6), P = F S (9) and the plastic work density of the update."""
+    e0, e1, e2, e3, e4, e5 = _green(f00, f01, f02, f10, f11, f12, f20, f21, f22)
+    s0, s1, s2, s3, s4, s5, work = stress_update(g, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, p.thermal,
+                                                 dt, law)
+    # P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2).
+    return (s0, s1, s2, s3, s4, s5,
+            f00 * s0 + f01 * s3 + f02 * s5, f00 * s3 + f01 * s1 + f02 * s4, f00 * s5 + f01 * s4 + f02 * s2,
+            f10 * s0 + f11 * s3 + f12 * s5, f10 * s3 + f11 * s1 + f12 * s4, f10 * s5 + f11 * s4 + f12 * s2,
+            f20 * s0 + f21 * s3 + f22 * s5, f20 * s3 + f21 * s1 + f22 * s4, f20 * s5 + f21 * s4 + f22 * s2,
+            work)
+
+
 @block_kernel
 def _stress_block(lo, hi, dt, p, columns, law):
     """At each particle's two Gauss points through the wall (thickness.py), F = F_I -+ a_I dF/dzeta,
     the stress (material.stress_update, state rows 2 I and 2 I + 1); stores the mean second
     Piola-Kirchhoff stress, V (P- + P+) / 2 into p.internal and a V (P+ - P-) / 2 into p.bending."""
     d, cstart, member, coef = p.deformation, columns.start, columns.member, columns.coef
+    st, t, b = p.stress, p.internal, p.bending
     for i in range(lo, hi):
         z0 = 0.0
         z1 = 0.0
@@ -164,64 +180,41 @@ def _stress_block(lo, hi, dt, p, columns, law):
             z7 += c * d[j, 7]
             z8 += c * d[j, 8]
         a = columns.offset[i]
+        f0, f1, f2, f3, f4, f5, f6, f7, f8 = d[i, 0], d[i, 1], d[i, 2], d[i, 3], d[i, 4], d[i, 5], d[i, 6], d[i, 7], d[i, 8]
+        (m0, m1, m2, m3, m4, m5, p0, p1, p2, p3, p4, p5, p6, p7, p8, w_minus) = _gauss_point(
+            2 * i, f0 - a * z0, f1 - a * z1, f2 - a * z2, f3 - a * z3, f4 - a * z4, f5 - a * z5, f6 - a * z6,
+            f7 - a * z7, f8 - a * z8, dt, p, law)
+        (n0, n1, n2, n3, n4, n5, q0, q1, q2, q3, q4, q5, q6, q7, q8, w_plus) = _gauss_point(
+            2 * i + 1, f0 + a * z0, f1 + a * z1, f2 + a * z2, f3 + a * z3, f4 + a * z4, f5 + a * z5, f6 + a * z6,
+            f7 + a * z7, f8 + a * z8, dt, p, law)
         half = 0.5 * p.volume[i]
-        st, t, b = p.stress, p.internal, p.bending
-        for k in range(6):
-            st[i, k] = 0.0
-        for k in range(9):
-            t[i, k] = 0.0
-            b[i, k] = 0.0
-        for side in range(2):
-            sign = 2.0 * side - 1.0
-            h = sign * a
-            f00 = d[i, 0] + h * z0
-            f01 = d[i, 1] + h * z1
-            f02 = d[i, 2] + h * z2
-            f10 = d[i, 3] + h * z3
-            f11 = d[i, 4] + h * z4
-            f12 = d[i, 5] + h * z5
-            f20 = d[i, 6] + h * z6
-            f21 = d[i, 7] + h * z7
-            f22 = d[i, 8] + h * z8
-            e0, e1, e2, e3, e4, e5 = _green(f00, f01, f02, f10, f11, f12, f20, f21, f22)
-            s0, s1, s2, s3, s4, s5, work = stress_update(2 * i + side, e0, e1, e2, e3, e4, e5, p.plastic,
-                                                         p.eq_plastic, p.thermal, dt, law)
-            if work != 0.0:
-                p.w_plastic[i] += half * work
-            st[i, 0] += 0.5 * s0
-            st[i, 1] += 0.5 * s1
-            st[i, 2] += 0.5 * s2
-            st[i, 3] += 0.5 * s3
-            st[i, 4] += 0.5 * s4
-            st[i, 5] += 0.5 * s5
-            # P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2), weighted by V / 2.
-            q0 = half * (f00 * s0 + f01 * s3 + f02 * s5)
-            q1 = half * (f00 * s3 + f01 * s1 + f02 * s4)
-            q2 = half * (f00 * s5 + f01 * s4 + f02 * s2)
-            q3 = half * (f10 * s0 + f11 * s3 + f12 * s5)
-            q4 = half * (f10 * s3 + f11 * s1 + f12 * s4)
-            q5 = half * (f10 * s5 + f11 * s4 + f12 * s2)
-            q6 = half * (f20 * s0 + f21 * s3 + f22 * s5)
-            q7 = half * (f20 * s3 + f21 * s1 + f22 * s4)
-            q8 = half * (f20 * s5 + f21 * s4 + f22 * s2)
-            t[i, 0] += q0
-            t[i, 1] += q1
-            t[i, 2] += q2
-            t[i, 3] += q3
-            t[i, 4] += q4
-            t[i, 5] += q5
-            t[i, 6] += q6
-            t[i, 7] += q7
-            t[i, 8] += q8
-            b[i, 0] += h * q0
-            b[i, 1] += h * q1
-            b[i, 2] += h * q2
-            b[i, 3] += h * q3
-            b[i, 4] += h * q4
-            b[i, 5] += h * q5
-            b[i, 6] += h * q6
-            b[i, 7] += h * q7
-            b[i, 8] += h * q8
+        if w_minus + w_plus != 0.0:
+            p.w_plastic[i] += half * (w_minus + w_plus)
+        st[i, 0] = 0.5 * (m0 + n0)
+        st[i, 1] = 0.5 * (m1 + n1)
+        st[i, 2] = 0.5 * (m2 + n2)
+        st[i, 3] = 0.5 * (m3 + n3)
+        st[i, 4] = 0.5 * (m4 + n4)
+        st[i, 5] = 0.5 * (m5 + n5)
+        t[i, 0] = half * (p0 + q0)
+        t[i, 1] = half * (p1 + q1)
+        t[i, 2] = half * (p2 + q2)
+        t[i, 3] = half * (p3 + q3)
+        t[i, 4] = half * (p4 + q4)
+        t[i, 5] = half * (p5 + q5)
+        t[i, 6] = half * (p6 + q6)
+        t[i, 7] = half * (p7 + q7)
+        t[i, 8] = half * (p8 + q8)
+        ha = half * a
+        b[i, 0] = ha * (q0 - p0)
+        b[i, 1] = ha * (q1 - p1)
+        b[i, 2] = ha * (q2 - p2)
+        b[i, 3] = ha * (q3 - p3)
+        b[i, 4] = ha * (q4 - p4)
+        b[i, 5] = ha * (q5 - p5)
+        b[i, 6] = ha * (q6 - p6)
+        b[i, 7] = ha * (q7 - p7)
+        b[i, 8] = ha * (q8 - p8)
 
 
 @block_kernel

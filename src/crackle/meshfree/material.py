@@ -217,6 +217,10 @@ def stress_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
     if law[YIELD] == math.inf:
         return s0, s1, s2, s3, s4, s5, 0.0
     d0, d1, d2, seq = deviator(s0, s1, s2, s3, s4, s5)
+    # Below the initial yield stress no flow stress is lower (hardening >= 0, the rate factor 1
+    # at dep = 0): elastic without its powers, most points of most steps.
+    if seq <= law[YIELD] and law[HARDENING] >= 0.0:
+        return s0, s1, s2, s3, s4, s5, 0.0
     ep = eq_plastic[g]
     g0, _ = flow_stress(ep, 0.0, dt, law)
     if seq <= g0:
