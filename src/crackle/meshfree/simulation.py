@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.fragments import find_fragments
+from ..analysis.perforation import measure_perforation
 from ..io.fields import STRESS_COMPONENTS
+from ..loading.tools import TOOL_SPHERE
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_TENSION, FailureRecorder
 from .fracture import FRACTURE_CHECK
@@ -206,8 +209,37 @@ class MeshfreeSimulation:
             "support_radius": self.support_radius,
             "max_plastic_strain": float(np.max(self.per_particle(p.eq_plastic), initial=0.0)),
             **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])))} if self.thermo else {}),
+            **self.perforation(),
             "warnings": list(self.warnings),
         }
+
+    def pieces(self) -> np.ndarray:
+        """Per particle, the piece it belongs to (particles joined by links that fracture has not
+        removed), 0 the heaviest (analysis.fragments)."""
+        p, b = self.particles, self.breaking
+        n = len(p.x)
+        if b is None:
+            return np.zeros(n, dtype=np.int64)
+        intact = (b.row != self.links.neighbour) & ~np.isin(b.key, b.blocked)
+        pairs = np.stack([b.row[intact], self.links.neighbour[intact]], axis=1)
+        return find_fragments(n, pairs, p.mass, p.v).labels
+
+    def perforation(self) -> dict:
+        """The hole's diameter and the petals (analysis.perforation) of a plate that can fracture,
+        struck along its normal by a sphere tool (the first such: its path is the impact axis);
+        nothing for other set-ups."""
+        plate, t = self.plate, self.tools
+        if plate.shape != "plate" or self.breaking is None:
+            return {}
+        normal = np.eye(3)[plate.thickness_axis]
+        strikers = [j for j in range(len(t.kind)) if t.kind[j] == TOOL_SPHERE and abs(t.direction[j] @ normal) > 0.9]
+        if not strikers:
+            return {}
+        p, b = self.particles, self.breaking
+        spacing = float(np.max(np.delete(plate.spacing, plate.thickness_axis)))
+        found = measure_perforation(p.X, p.x, self.pieces() == 0, b.failed, b.normal, t.geom[strikers[0], :3], normal,
+                                    spacing)
+        return found.summary()
 
     def extra_plots(self, out_dir) -> None:
         pass
