@@ -46,7 +46,7 @@ def _petalled(X, R, theta):
 @pytest.mark.parametrize("count", [3, 4, 6])
 def test_radial_cracks_past_the_rim_count_as_petals(count):
     X, R, theta = _plate()
-    failed, normal = _radial_cracks(X, R, theta, count, length=9.0)
+    failed, normal = _radial_cracks(X, R, theta, count, length=12.0)  # past the petal circle, 4.7 + 4.7
     found = measure_perforation(X, _petalled(X, R, theta), np.ones(len(X), dtype=bool), failed, normal,
                                 [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], spacing=1.0)
     assert found.petals == count
@@ -55,12 +55,13 @@ def test_radial_cracks_past_the_rim_count_as_petals(count):
     assert found.plug_particles == 0
 
 
-def test_cracks_that_stop_at_the_rim_open_no_petals():
+def test_cracks_shorter_than_the_hole_radius_past_the_rim_open_no_petals():
     X, R, theta = _plate()
-    failed, normal = _radial_cracks(X, R, theta, 4, length=HOLE)  # the petal circle is at 4.7 + 2
+    failed, normal = _radial_cracks(X, R, theta, 4, length=8.0)  # short of the petal circle, 4.7 + 4.7
     found = measure_perforation(X, _petalled(X, R, theta), np.ones(len(X), dtype=bool), failed, normal,
                                 [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], spacing=1.0)
     assert found.petals == 0
+    assert dict(found.petals_by_reach)[2] == 4  # they do cross the circle two spacings out
 
 
 def test_a_plug_is_a_hole_without_petals():

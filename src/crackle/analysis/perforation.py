@@ -15,7 +15,10 @@ The rules (one home, documented in docs/user-guide-meshfree.md):
   the radius and the normal); a ring of failed particles with radial normals is a plug's rim and
   opens no petal. The petals are the radial cracks that reach a circle `reach` beyond the hole's
   rim (reference positions): the failed particles within a spacing of that circle, split into
-  runs where two neighbours along it are more than two spacings apart.
+  runs where two neighbours along it are more than two spacings apart. The default reach is the
+  hole's radius (a petal's crack at least as long as the hole is wide at its half; not less than
+  PETAL_REACH spacings): a ragged rim, failures a spacing or two past the hole all round, is not
+  petals. `petals_by_reach` gives the count at 1 to 4 spacings beside it.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ import numpy as np
 
 RAYS = 36  # rays from the axis along which the hole's radius is measured (10 degrees apart)
 HOOP_COSINE = np.cos(np.pi / 4)  # a radial crack's normal within 45 degrees of the hoop direction
-PETAL_REACH = 2.0  # default reach beyond the hole's rim, in particle spacings
+PETAL_REACH = 2.0  # the least reach beyond the hole's rim, in particle spacings (the resolution)
 
 
 @dataclass(frozen=True)
@@ -37,11 +40,14 @@ class Perforation:
     petals: int  # radial cracks that cross the circle `reach` beyond the hole's rim
     petal_circle: float  # m, that circle's radius about the axis
     plug_particles: int  # particles no longer part of the plate (plug, fragments, free particles)
+    # The rule's sensitivity: (reach in spacings, petals) for 1 to 4 spacings beyond the rim
+    petals_by_reach: tuple = ()
 
     def summary(self) -> dict:
         return {"hole_diameter": self.hole_diameter, "hole_diameter_min": self.hole_diameter_min,
                 "hole_diameter_max": self.hole_diameter_max, "petals": self.petals,
-                "petal_circle_radius": self.petal_circle, "plug_particles": self.plug_particles}
+                "petal_circle_radius": self.petal_circle, "petals_by_reach": [list(r) for r in self.petals_by_reach],
+                "plug_particles": self.plug_particles}
 
 
 def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, spacing: float,
@@ -51,7 +57,7 @@ def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, 
     positions (n, 3), `in_plate` (n,) bool the particles of the plate's main piece, `failed` (n,)
     bool with `crack_normal` (n, 3) their material crack normals, `spacing` the in-plane particle
     spacing (m) and `reach` the distance beyond the hole's rim that a radial crack must reach
-    (m; default PETAL_REACH spacings)."""
+    (m; default the hole's radius, at least PETAL_REACH spacings)."""
     axis = np.asarray(axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
     e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -80,16 +86,20 @@ def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, 
     hole = float(np.median(radius))
 
     # The radial cracks crossing the petal circle.
-    reach = PETAL_REACH * spacing if reach is None else float(reach)
-    circle = hole + reach
     R, Theta = polar(X)
     hoop = np.stack([-np.sin(Theta), np.cos(Theta)], axis=1)
     n_plane = np.stack([np.asarray(crack_normal) @ e1, np.asarray(crack_normal) @ e2], axis=1)
     radial = np.abs(np.einsum("ij,ij->i", hoop, n_plane)) >= HOOP_COSINE * np.linalg.norm(crack_normal, axis=1)
-    on_circle = np.asarray(failed) & radial & (np.abs(R - circle) <= spacing)
-    petals = _runs(np.sort(Theta[on_circle]), circle, 2.0 * spacing)
-    return Perforation(2.0 * hole, 2.0 * float(radius.min()), 2.0 * float(radius.max()), petals, circle,
-                       int(np.count_nonzero(~np.asarray(in_plate))))
+    radial &= np.asarray(failed)
+
+    def petals_at(circle):
+        on_circle = radial & (np.abs(R - circle) <= spacing)
+        return _runs(np.sort(Theta[on_circle]), circle, 2.0 * spacing)
+
+    reach = max(PETAL_REACH * spacing, hole) if reach is None else float(reach)
+    by_reach = tuple((k, petals_at(hole + k * spacing)) for k in (1, 2, 3, 4))
+    return Perforation(2.0 * hole, 2.0 * float(radius.min()), 2.0 * float(radius.max()), petals_at(hole + reach),
+                       hole + reach, int(np.count_nonzero(~np.asarray(in_plate))), by_reach)
 
 
 def _runs(angles: np.ndarray, circle: float, gap: float) -> int:
