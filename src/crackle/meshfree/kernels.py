@@ -314,6 +314,23 @@ def _pressure_force(g, t, deformation, pressures):
 
 
 @njit(parallel=True, cache=True)
+def _stress_passes(dt, particles, links, columns, law):
+    """The step's three passes up to the internal forces: the deformation gradients, the stress at
+    both Gauss points through the wall, and the through-wall (bending) terms."""
+    n = particles.x.shape[0]
+    n_block = (n + BLOCK - 1) // BLOCK
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _gradient_block(lo, min(lo + BLOCK, n), particles, links)
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _stress_block(lo, min(lo + BLOCK, n), dt, particles, columns, law)
+    for blk in prange(n_block):
+        lo = blk * BLOCK
+        _through_wall_block(lo, min(lo + BLOCK, n), particles, columns)
+
+
+@njit(parallel=True, cache=True)
 def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, radius, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place."""
@@ -325,15 +342,7 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
     for step in range(n_steps):
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
-        for blk in prange(n_block):
-            lo = blk * BLOCK
-            _gradient_block(lo, min(lo + BLOCK, n), particles, links)
-        for blk in prange(n_block):
-            lo = blk * BLOCK
-            _stress_block(lo, min(lo + BLOCK, n), dt, particles, columns, law)
-        for blk in prange(n_block):
-            lo = blk * BLOCK
-            _through_wall_block(lo, min(lo + BLOCK, n), particles, columns)
+        _stress_passes(dt, particles, links, columns, law)
         for blk in prange(n_block):
             lo = blk * BLOCK
             _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, tool_v_prev,
@@ -347,16 +356,7 @@ def internal_forces(dt, particles, links, columns, law, force):
     """The internal forces (n, 3) at particles.x into `force`, by the step's own passes (its
     stress pass updates the particles' stress state: call it on a copy); for the stable step."""
     n = particles.x.shape[0]
-    n_block = (n + BLOCK - 1) // BLOCK
-    for blk in prange(n_block):
-        lo = blk * BLOCK
-        _gradient_block(lo, min(lo + BLOCK, n), particles, links)
-    for blk in prange(n_block):
-        lo = blk * BLOCK
-        _stress_block(lo, min(lo + BLOCK, n), dt, particles, columns, law)
-    for blk in prange(n_block):
-        lo = blk * BLOCK
-        _through_wall_block(lo, min(lo + BLOCK, n), particles, columns)
+    _stress_passes(dt, particles, links, columns, law)
     for g in prange(n):
         fx, fy, fz = _link_force(g, particles, links)
         force[g, 0] = fx
