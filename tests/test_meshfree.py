@@ -163,7 +163,7 @@ def test_uniform_tension_gives_uniform_stress():
     p.x[:] = p.X @ F.T
     sim.advance(1, 1e-12)  # the stress pass sees x before the step moves it (v = 0: x stays put but for rounding)
     Eg = 0.5 * (F.T @ F - np.eye(3))
-    lam, mu = sim.law[0], sim.law[1]
+    lam, mu = sim.law[0, 0], sim.law[0, 1]
     S = lam * np.trace(Eg) * np.eye(3) + 2.0 * mu * Eg
     expected = np.array([S[0, 0], S[1, 1], S[2, 2], S[0, 1], S[1, 2], S[0, 2]])
     scale = np.max(np.abs(expected))
@@ -246,7 +246,7 @@ def _dense_stiffness(sim):
     plus the Hessian of the stabilisation sum_I k_I |u_I - sum_M N_M(X_I) u_M|^2 / 2."""
     p, links = sim.particles, sim.links
     n = len(p.mass)
-    lam, mu = sim.law[0], sim.law[1]
+    lam, mu = sim.law[0, 0], sim.law[0, 1]
     C = np.zeros((6, 6))  # Voigt xx yy zz, engineering xy yz xz
     C[:3, :3] = lam
     C[np.arange(3), np.arange(3)] += 2.0 * mu
@@ -314,7 +314,7 @@ def test_forces_are_the_derivative_of_the_energy_at_two_gauss_points():
     bent = p.X.copy()
     bent[:, 0] -= kappa * p.X[:, 0] * zeta
     bent[:, 1] += 0.5 * kappa * p.X[:, 0] ** 2
-    lam, mu = sim.law[0], sim.law[1]
+    lam, mu = sim.law[0, 0], sim.law[0, 1]
     exact = 0.5 * (lam + 2.0 * mu) * kappa**2 * t**3 / 12.0 * 0.012 * 0.008
     assert energy(bent) == pytest.approx(exact, rel=1e-5)
 

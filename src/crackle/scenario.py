@@ -503,7 +503,9 @@ class RunSpec(Strict):
     damping: NonNegative = 0.0
     """1/s, mass-proportional: a force -damping m v on every node"""
     contact: bool = False
-    """contact between free surfaces (fragments, fracture faces); experimental"""
+    """contact between free surfaces (fragments, fracture faces): FDEM's failed faces (experimental); meshfree:
+    penalty contact between the specimen's particles that no link joins (crack faces closing, petals folding
+    back; a second body always meets the specimen so)"""
     gravity: Vec3 = (0.0, 0.0, 0.0)
     """m/s^2"""
     history_samples: Annotated[int, Field(ge=1)] = 400
@@ -552,7 +554,7 @@ class CracksSpec(Strict):
 FDEM_ONLY_KEYS = {
     "run.target_dt": "mass scaling is FDEM's (remove it; set run.safety or run.dt for the step)",
     "run.max_added_mass": "mass scaling is FDEM's (remove it)",
-    "run.contact": "contact between free surfaces is FDEM's (remove it)",
+    "run.contact": "contact between free surfaces is FDEM's and meshfree's (remove it)",
     "analysis.fracture_plane": "the fracture-plane tip is FDEM's (remove it)",
     "analysis.cracks": "crack counting is FDEM's (remove it)",
 }

@@ -4,6 +4,7 @@ and the tests both call."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -11,13 +12,14 @@ from scipy.spatial import cKDTree
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..solver import stability
 from ..solver.integrator import support_constraints
+from .contact import ParticleContact
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
 from .material import T_REF, YIELD, J2Law
-from .particles import WALL_SIDES, WallParticles, wall_columns
+from .particles import WALL_SIDES, Cells, WallParticles, wall_columns
 from .shape import MAX_CONDITION, basis_terms, csr_positions, nodal_values, smoothed_gradients
 from .simulation import MeshfreeSimulation
-from .thickness import thickness_columns
+from .thickness import Columns, thickness_columns
 
 
 class SetupError(ValueError):
@@ -28,11 +30,25 @@ class SetupError(ValueError):
         self.field = field
 
 
+@dataclass(frozen=True)
+class MeshfreeBody:
+    """A body of particles beside the specimen (a deformable projectile): its own material, initial
+    velocity and support dilation. It does not fracture; it meets the specimen (and any other
+    body) by the particle contact (contact.py)."""
+
+    particles: WallParticles
+    density: float  # kg/m^3
+    law: J2Law
+    velocity: tuple = (0.0, 0.0, 0.0)  # m/s
+    dilation: float = 2.5
+
+
 def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None,
                               fracture_stress: float = math.inf, precracks=(), pressures=(),
-                              failure_plastic_strain: float = math.inf) -> MeshfreeSimulation:
+                              failure_plastic_strain: float = math.inf, bodies=(),
+                              self_contact: bool = False) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the stabilisation alpha (kernels docstring), tools and
@@ -41,56 +57,78 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py), the
     equivalent plastic strain that fails one (failure_plastic_strain; inf: none) and
     the pre-cracks (loading.Precrack: the links across them removed at the start) and the pressures
-    on the wall faces (loading.Pressure, pressure_arrays)."""
-    X = np.ascontiguousarray(plate.X, dtype=float)
-    n = len(X)
-    radius = dilation * float(np.max(plate.spacing))
-    terms = basis_terms(plate.thickness_axis, plate.layers)
-    start, neighbour, grad, condition, first_bad = smoothed_gradients(X, plate.volume, plate.cells, radius, terms)
-    if first_bad is not None:
-        raise SetupError("particles.dilation", (
-            f"the moment matrix at {first_bad.round(6).tolist()} m (a quadrature point of a particle's cell) is "
-            f"singular: the support radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles for "
-            f"the quadratic basis; "
-            f"increase particles.dilation (2.5 or more)"))
+    on the wall faces (loading.Pressure, pressure_arrays). `bodies`: more bodies (MeshfreeBody,
+    after the specimen's particles in that order), met by the particle contact (contact.py), as
+    are the crack faces and fragments of the specimen with `self_contact`."""
+    shapes = [_Discretised.of(plate, dilation, stabilisation * law.youngs_modulus)]
+    shapes += [_Discretised.of(b.particles, b.dilation, stabilisation * b.law.youngs_modulus) for b in bodies]
+    sizes = [len(d.X) for d in shapes]
+    first = np.cumsum([0] + sizes)
+    n = int(first[-1])
+    X = np.concatenate([d.X for d in shapes])
+    material = np.repeat(np.arange(len(shapes), dtype=np.int64), sizes)
+    start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, _link_offsets(shapes))])
+    neighbour = np.concatenate([d.neighbour + o for d, o in zip(shapes, first)])
+    grad = np.concatenate([d.grad for d in shapes])
+    value = np.concatenate([d.value for d in shapes])
     row = np.repeat(np.arange(n), np.diff(start))
-    value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row,
-                                        stabilisation * law.youngs_modulus)
-    table = law.table()
     links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value))
+    columns = merge_columns([d.columns for d in shapes], first)
+    laws = [law] + [b.law for b in bodies]
+    table = np.stack([w.table() for w in laws])
+    volume = np.concatenate([d.plate.volume for d in shapes])
+    area = np.concatenate([d.plate.area for d in shapes])
+    mass = np.concatenate([rho * d.plate.volume for rho, d in zip([density] + [b.density for b in bodies], shapes)])
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection, support_tool = support_constraints(supports, X, scale)
-    loads = pressure_arrays(plate, pressures, scale)
-    mass = density * plate.volume
+    loads = pressure_arrays(plate, pressures, scale, n)
     v = np.zeros((n, 3))
     if velocity is not None:
-        v[:] = np.asarray(velocity, dtype=float)
+        v[:sizes[0]] = np.asarray(velocity, dtype=float)
+    for b, lo, hi in zip(bodies, first[1:], first[2:]):
+        v[lo:hi] = np.asarray(b.velocity, dtype=float)
     particles = Particles(
-        x=X.copy(), v=v, X=X, mass=mass, volume=plate.volume.copy(), area=plate.area.copy(), constraint=constraint,
+        x=X.copy(), v=v, X=X, mass=mass, volume=volume.copy(), area=area.copy(), constraint=constraint,
         projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
         friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
         plastic=np.zeros((2 * n, 6)), eq_plastic=np.zeros(2 * n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
         deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), bending=np.zeros((n, 9)),
-        stab_k=stab_k, stab_force=np.zeros((n, 3)),
-        thermal=np.column_stack([np.full(2 * n, table[T_REF]), np.zeros(2 * n)]),
+        stab_k=np.concatenate([d.stab_k for d in shapes]), stab_force=np.zeros((n, 3)),
+        thermal=np.column_stack([np.repeat(table[material, T_REF], 2), np.zeros(2 * n)]), material=material,
     )
-    columns = thickness_columns(X, wall_columns(plate))
     h = float(np.min(plate.spacing))
     penalty = TOOL_PENALTY_FACTOR * law.youngs_modulus / h
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    contact = None
+    if bodies or self_contact:
+        # Each particle's spring: its body's tool penalty (TOOL_PENALTY_FACTOR E / h) over its contact area.
+        spring = np.concatenate([TOOL_PENALTY_FACTOR * w.youngs_modulus / float(np.min(d.plate.spacing)) * d.plate.area
+                                 for w, d in zip(laws, shapes)])
+        contact = ParticleContact(X, material, np.concatenate([np.full(len(d.X), d.contact_radius) for d in shapes]),
+                                  spring, [d.radius for d in shapes], self_contact)
+        tool_k = np.maximum(tool_k, spring)
     seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
                             "particles")
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
-    c_p = math.sqrt((table[0] + 2.0 * table[1]) / density)
+    c_p = math.sqrt((table[0, 0] + 2.0 * table[0, 1]) / density)
     breaking = None
     if math.isfinite(fracture_stress) or math.isfinite(failure_plastic_strain) or precracks:
-        breaking = LinkBreaking(X, plate.volume, plate.cells, radius, terms,
-                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)), links,
-                                plate.wall_frame, tool_k, step_ratio, failure_plastic_strain)
-    sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools], radius, dt, h / c_p,
-                             gravity, damping, plate, breaking, loads)
+        cells = merge_cells([d.plate.cells for d in shapes])
+        frame = plate.wall_frame
+        if frame is not None and bodies:
+            frame = np.concatenate([frame, np.tile(np.eye(3), (n - sizes[0], 1, 1))])
+        breaking = LinkBreaking(X, volume, cells, shapes[0].radius, shapes[0].terms,
+                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)),
+                                links, frame, tool_k, step_ratio, failure_plastic_strain, fracturing=sizes[0])
+    sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools], shapes[0].radius,
+                             dt, h / c_p, gravity, damping, plate, breaking, loads, contact, first)
     sim.warnings.extend(seating)
+    if contact is not None:
+        overlapping = contact.overlaps_between_bodies(X)
+        if overlapping:
+            raise SetupError("bodies", f"{overlapping} particle pairs of different bodies overlap at the start (closer "
+                             "than their contact radii, half their spacings): move the bodies apart")
     if precracks:
         try:
             breaking.cut(sim, precracks, scale)
@@ -99,6 +137,87 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
         sim.stable_dt = min(dt, stable_step(particles, links, columns, breaking.row, table, tool_k, h)[0])
     return sim
+
+
+@dataclass
+class _Discretised:
+    """One body's particles with their links (CSR, local numbering), stabilisation and columns
+    through the wall."""
+
+    plate: WallParticles
+    X: np.ndarray
+    radius: float  # the support radius
+    terms: np.ndarray  # the basis terms (shape.basis_terms)
+    start: np.ndarray
+    neighbour: np.ndarray
+    grad: np.ndarray
+    value: np.ndarray
+    stab_k: np.ndarray
+    columns: object
+
+    @classmethod
+    def of(cls, plate: WallParticles, dilation: float, stab_scale: float) -> _Discretised:
+        X = np.ascontiguousarray(plate.X, dtype=float)
+        n = len(X)
+        radius = dilation * float(np.max(plate.spacing))
+        terms = basis_terms(plate.thickness_axis, plate.layers)
+        start, neighbour, grad, condition, first_bad = smoothed_gradients(X, plate.volume, plate.cells, radius, terms)
+        if first_bad is not None:
+            raise SetupError("particles.dilation", (
+                f"the moment matrix at {first_bad.round(6).tolist()} m (a quadrature point of a particle's cell) is "
+                f"singular: the support radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles "
+                f"for the quadratic basis; increase particles.dilation (2.5 or more)"))
+        row = np.repeat(np.arange(n), np.diff(start))
+        value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row, stab_scale)
+        return cls(plate, X, radius, terms, start, neighbour, grad, value, stab_k,
+                   thickness_columns(X, wall_columns(plate)))
+
+    @property
+    def contact_radius(self) -> float:
+        """Half the particles' spacing along the wall (a solid's median edge): contact.py."""
+        p = self.plate
+        if p.thickness_axis is not None:
+            return 0.5 * float(np.max(np.delete(p.spacing, p.thickness_axis)))
+        return 0.5 * float(p.spacing[0] if p.shape == "tube" else p.spacing[1])
+
+
+def _link_offsets(shapes) -> list[int]:
+    """The position of each body's first link in the merged CSR."""
+    return list(np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]]))
+
+
+def merge_columns(columns, first) -> Columns:
+    """The Columns (thickness.py) of bodies numbered from `first` (their first particles), as one."""
+    if len(columns) == 1:
+        return columns[0]
+    lines_first = np.cumsum([0] + [len(c.lines) for c in columns[:-1]])
+    width = max(c.lines.shape[1] if c.lines.size else 0 for c in columns)
+    lines = [c.lines + o if c.lines.size else np.zeros((0, width), dtype=np.int64) for c, o in zip(columns, first)]
+    if len({ln.shape[1] for ln in lines if len(ln)}) > 1:
+        raise SetupError("bodies", "two walled bodies with different particles through the wall")
+    member_first = np.cumsum([0] + [len(c.member) for c in columns[:-1]])
+    return Columns(
+        np.concatenate([[0]] + [c.start[1:] + o for c, o in zip(columns, member_first)]),
+        np.concatenate([c.member + o for c, o in zip(columns, first)]),
+        np.concatenate([c.coef for c in columns]),
+        np.concatenate([[0]] + [c.back_start[1:] + o for c, o in zip(columns, member_first)]),
+        np.concatenate([c.back_member + o for c, o in zip(columns, first)]),
+        np.concatenate([c.back_coef for c in columns]),
+        np.concatenate([c.offset for c in columns]),
+        np.concatenate([np.where(c.line >= 0, c.line + o, -1) for c, o in zip(columns, lines_first)]),
+        np.concatenate([ln.reshape(-1, width) if len(ln) else np.zeros((0, width), dtype=np.int64) for ln in lines]),
+    )
+
+
+def merge_cells(cells) -> Cells:
+    """The integration cells (particles.Cells) of bodies in order, as one."""
+    if len(cells) == 1:
+        return cells[0]
+    row_first = np.cumsum([0] + [len(c.point) for c in cells[:-1]])
+    point_first = np.cumsum([0] + [len(c.points) for c in cells[:-1]])
+    return Cells(np.concatenate([[0]] + [c.start[1:] + o for c, o in zip(cells, row_first)]),
+                 np.concatenate([c.point + o for c, o in zip(cells, point_first)]),
+                 np.concatenate([c.weight for c in cells]), np.concatenate([c.points for c in cells]))
 
 
 def transposed_links(n: int, row: np.ndarray, neighbour: np.ndarray, grad: np.ndarray, value: np.ndarray):
@@ -131,13 +250,15 @@ def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
     return value, stab_k
 
 
-def pressure_arrays(plate: WallParticles, pressures, scale: float) -> Pressures:
+def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None = None) -> Pressures:
     """The wall faces (particles.WallFaces) that each pressure loads, gathered per particle: the
     faces of the particles its `where` selects (on its `wall` only, when given), with the delay
     s / front_speed of a travelling front (s the distance of the face's reference centre from
     front_origin along front_direction, default the tube's axis). Raises SetupError naming the
-    pressure's key that selects nothing or asks for what this specimen does not have."""
-    surface, n = plate.surface, len(plate.X)
+    pressure's key that selects nothing or asks for what this specimen does not have. n: the
+    particles of all bodies (the specimen's first; default the specimen's)."""
+    surface = plate.surface
+    n = len(plate.X) if n is None else n
     rows = []
     for q, load in enumerate(pressures):
         if isinstance(load.faces, str):
@@ -186,7 +307,7 @@ def highest_frequency2(particles, links, columns, law_table, tool_k, spacing) ->
     softens), with the tool penalties tool_k (N/m, per particle) on every particle."""
     n = len(particles.mass)
     law = law_table.copy()
-    law[YIELD] = math.inf
+    law[..., YIELD] = math.inf
     p = particles._replace(x=particles.X.copy(), plastic=np.zeros((2 * n, 6)), eq_plastic=np.zeros(2 * n),
                            w_plastic=np.zeros(n), stress=np.zeros((n, 6)), deformation=np.zeros((n, 9)),
                            internal=np.zeros((n, 9)), bending=np.zeros((n, 9)), stab_force=np.zeros((n, 3)),
@@ -222,11 +343,12 @@ def gershgorin_bounds(particles, links, row, law_table, tool_k):
     # The per-link terms are formed in blocks of links (_per_link: whole-array temporaries were
     # the set-up's peak memory); each sum over the links is still one bincount, in link order.
     gn = _per_link(count, lambda r: np.linalg.norm(grad[r], axis=1))
-    c_norm = _stiffness_norm(law_table)
+    c_norm = _stiffness_norm(law_table)[particles.material]
     # G_I = sum_M |grad N_M(X_I)| / sqrt(m_M)
     G = np.bincount(row, weights=_per_link(count, lambda r: gn[r] * inv_sqrt_m[neighbour[r]]), minlength=n)
-    elastic = c_norm * np.bincount(
-        neighbour, weights=_per_link(count, lambda r: particles.volume[row[r]] * gn[r] * G[row[r]]), minlength=n)
+    elastic = np.bincount(
+        neighbour, weights=_per_link(count, lambda r: c_norm[row[r]] * particles.volume[row[r]] * gn[r] * G[row[r]]),
+        minlength=n)
     # Stabilisation: Hessian sum_J k_J D_JL D_JM with D_JM = d eps_J / d u_M = delta_JM - N_M(X_J):
     # row L bounded by sum_J k_J |D_JL| S_J, S_J = sum_M |D_JM| / sqrt(m_M).
     D = _per_link(count, lambda r: np.abs((row[r] == neighbour[r]) - value[r]))
@@ -256,15 +378,15 @@ def refresh_gershgorin_bounds(bounds, particles, links, law_table, tool_k, rows)
     I = links.back_row[pos]
     gn = np.linalg.norm(links.back_grad[pos], axis=1)
     D = np.abs((I == cols[local]) - links.back_value[pos])
-    elastic = _stiffness_norm(law_table) * np.bincount(
-        local, weights=particles.volume[I] * gn * G[I], minlength=len(cols))
+    c_norm = _stiffness_norm(law_table)[particles.material]
+    elastic = np.bincount(local, weights=c_norm[I] * particles.volume[I] * gn * G[I], minlength=len(cols))
     stab = np.bincount(local, weights=particles.stab_k[I] * D * S[I], minlength=len(cols))
     omega2[cols] = (elastic + stab) * inv_sqrt_m[cols] + tool_k[cols] / particles.mass[cols]
 
 
 def _stiffness_norm(law_table) -> float:
-    """|C| <= 3 lambda + 2 mu: the material's share of Gershgorin's bound."""
-    return 3.0 * law_table[0] + 2.0 * law_table[1]
+    """|C| <= 3 lambda + 2 mu: each material's (row's) share of Gershgorin's bound."""
+    return 3.0 * law_table[..., 0] + 2.0 * law_table[..., 1]
 
 
 def _per_link(count: int, term, block: int = 1 << 18) -> np.ndarray:

@@ -75,8 +75,11 @@ class LinkBreaking:
     """The crack state of a MeshfreeSimulation and the check that extends it."""
 
     def __init__(self, X, volume, cells, radius, terms, stab_scale, fracture_stress, crack_radius, links,
-                 wall_frame, tool_k=0.0, step_ratio=1.0, failure_strain=np.inf):
+                 wall_frame, tool_k=0.0, step_ratio=1.0, failure_strain=np.inf, fracturing=None):
         n = len(X)
+        # The particles [0, fracturing) can fail: the specimen's (a projectile after them does not,
+        # build.MeshfreeBody); the tree holds them only, so no rebuild reaches another body.
+        self.fracturing = n if fracturing is None else int(fracturing)
         # Per particle: two unit tangents of the wall and its normal (particles.WallParticles).
         self.wall_frame = wall_frame
         self.X, self.volume, self.cells = X, volume, cells
@@ -84,7 +87,7 @@ class LinkBreaking:
         self.fracture_stress = float(fracture_stress)
         self.failure_strain = float(failure_strain)  # equivalent plastic strain that fails a particle
         self.crack_radius = float(crack_radius)
-        self.tree = cKDTree(X)
+        self.tree = cKDTree(X[:self.fracturing])
         self.failed = np.zeros(n, dtype=bool)
         self.detached = np.zeros(n, dtype=bool)
         self.fail_time = np.zeros(n)
@@ -120,6 +123,7 @@ class LinkBreaking:
                                            axis=1), axis=1)
         strained = np.zeros(len(s), dtype=bool) if eq_plastic is None else eq_plastic >= self.failure_strain
         near = np.flatnonzero(((bound > self.fracture_stress) | strained) & ~self.failed & ~self.detached)
+        near = near[near < self.fracturing]
         s = s[near]
         sigma = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
         values, vectors = np.linalg.eigh(sigma)
@@ -180,7 +184,7 @@ class LinkBreaking:
         t = np.clip(np.where(across, dI / np.where(across, dI - dJ, 1.0), 0.0), 0.0, 1.0)
         hit = X[I] + t[:, None] * (X[J] - X[I])
         inside = np.all((hit >= np.asarray(crack.box_min) - tol) & (hit <= np.asarray(crack.box_max) + tol), axis=1)
-        return np.flatnonzero(across & inside)
+        return np.flatnonzero(across & inside & (I < self.fracturing))
 
     def cut(self, sim, precracks, scale: float) -> None:
         """Remove the links that cross the pre-cracks (a notch or a slit present from the start)
@@ -271,7 +275,7 @@ class LinkBreaking:
         # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
         free = np.repeat(self.detached, 2)
         p.plastic[free] = 0.0
-        p.plastic[free, :3] = 0.0 - thermal_strain(p.thermal[free, 0], sim.law)[:, None]
+        p.plastic[free, :3] = 0.0 - thermal_strain(p.thermal[free, 0], sim.law[0])[:, None]
         p.stress[self.detached] = 0.0
         released = float(np.sum(np.concatenate(energy_before)) - np.sum(sim.strain_energies(x_mid, rows)))
         self.damage += released

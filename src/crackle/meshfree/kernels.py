@@ -36,6 +36,7 @@ so the first pass stores each particle's k eps and the gather reads it with the 
 
 from __future__ import annotations
 
+import math
 from collections import namedtuple
 
 import numpy as np
@@ -49,12 +50,13 @@ from .shape import quartic_spline_array
 Particles = namedtuple(
     "Particles",
     "x v X mass volume area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
-    "plastic eq_plastic w_plastic stress deformation internal bending stab_k stab_force thermal",
+    "plastic eq_plastic w_plastic stress deformation internal bending stab_k stab_force thermal material",
 )
 # plastic, eq_plastic, thermal: the law's state at each particle's two Gauss points through the
 # wall (rows 2 I and 2 I + 1, thickness.py); thermal: the temperature (K) and the stored energy
 # per reference volume the temperature changes released (J/m^3, energy.thermal), the thermo law's
-# (material.py). stress: the mean of the two points' second Piola-Kirchhoff stress; internal:
+# (material.py). material: the particle's row of the law table (one row per body: a projectile is
+# another material than its target). stress: the mean of the two points' second Piola-Kirchhoff stress; internal:
 # T_I = V P of the gather; bending: a V (P+ - P-) / 2 (thickness.py).
 # stab_k: k_I of the stabilisation (N/m); stab_force: k_I eps_I (N), written by the gradient pass.
 # start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
@@ -69,6 +71,11 @@ Links = namedtuple("Links", "start neighbour grad value back_start to_back back_
 # the history tables (times, values, n: loading.arrays.history_tables); delay: s / front speed
 # (0 without a front), the time the front reaches the face.
 Pressures = namedtuple("Pressures", "start area load delay times values n")
+# The penalty contact between particles no link joins (contact.py): the pairs of particle g are
+# rows start[g]:start[g + 1] (each pair in both particles' rows, with the same numbers), the other
+# particle, the pair's spring (N/m) and its reach (m: the distance under which it pushes);
+# force: (n, 3), the contact force on each particle, written by the contact pass.
+PairContact = namedtuple("PairContact", "start other stiffness reach force")
 
 BLOCK = 128  # particles per parallel task
 
@@ -180,13 +187,14 @@ def _stress_block(lo, hi, dt, p, columns, law):
             z7 += c * d[j, 7]
             z8 += c * d[j, 8]
         a = columns.offset[i]
+        lw = law[p.material[i]]
         f0, f1, f2, f3, f4, f5, f6, f7, f8 = d[i, 0], d[i, 1], d[i, 2], d[i, 3], d[i, 4], d[i, 5], d[i, 6], d[i, 7], d[i, 8]
         (m0, m1, m2, m3, m4, m5, p0, p1, p2, p3, p4, p5, p6, p7, p8, w_minus) = _gauss_point(
             2 * i, f0 - a * z0, f1 - a * z1, f2 - a * z2, f3 - a * z3, f4 - a * z4, f5 - a * z5, f6 - a * z6,
-            f7 - a * z7, f8 - a * z8, dt, p, law)
+            f7 - a * z7, f8 - a * z8, dt, p, lw)
         (n0, n1, n2, n3, n4, n5, q0, q1, q2, q3, q4, q5, q6, q7, q8, w_plus) = _gauss_point(
             2 * i + 1, f0 + a * z0, f1 + a * z1, f2 + a * z2, f3 + a * z3, f4 + a * z4, f5 + a * z5, f6 + a * z6,
-            f7 + a * z7, f8 + a * z8, dt, p, law)
+            f7 + a * z7, f8 + a * z8, dt, p, lw)
         half = 0.5 * p.volume[i]
         if w_minus + w_plus != 0.0:
             p.w_plastic[i] += half * (w_minus + w_plus)
@@ -251,13 +259,45 @@ def _link_force(g, p, links):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, tool_v_prev, tool_v_next, radius, gravity,
-                    alpha):
+def _contact_block(lo, hi, x, contact):
+    """The contact force on each particle from its pairs: k (reach - d) along the line from the
+    other particle, d < reach (the pair's two rows give equal and opposite forces, bit for bit).
+    A pass of its own: it reads the positions before the particle pass moves them."""
+    start, other, stiffness, reach, force = contact.start, contact.other, contact.stiffness, contact.reach, contact.force
+    for g in range(lo, hi):
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
+        for r in range(start[g], start[g + 1]):
+            j = other[r]
+            dx = x[g, 0] - x[j, 0]
+            dy = x[g, 1] - x[j, 1]
+            dz = x[g, 2] - x[j, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            s = reach[r]
+            if d2 < s * s and d2 > 0.0:
+                d = math.sqrt(d2)
+                f = stiffness[r] * (s - d) / d
+                fx += f * dx
+                fy += f * dy
+                fz += f * dz
+        force[g, 0] = fx
+        force[g, 1] = fy
+        force[g, 2] = fz
+
+
+@block_kernel
+def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact, tool_v_prev, tool_v_next, radius,
+                    gravity, alpha):
     x, v, mass = p.x, p.v, p.mass
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
     for g in range(lo, hi):
         fx, fy, fz = _link_force(g, p, links)
+        if contact.start[g + 1] > contact.start[g]:
+            fx += contact.force[g, 0]
+            fy += contact.force[g, 1]
+            fz += contact.force[g, 2]
         m = mass[g]
         ex = m * gravity[0]
         ey = m * gravity[1]
@@ -331,9 +371,10 @@ def _stress_passes(dt, particles, links, columns, law):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, radius, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, contact, radius, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
-    same however a run is split into calls); arrays updated in place."""
+    same however a run is split into calls); arrays updated in place. contact: the pairs of the
+    particle contact (PairContact; none: no pass)."""
     n_tool = tools.kind.shape[0]
     n = particles.x.shape[0]
     n_block = (n + BLOCK - 1) // BLOCK
@@ -343,10 +384,14 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         _stress_passes(dt, particles, links, columns, law)
+        if contact.other.shape[0] > 0:
+            for blk in prange(n_block):
+                lo = blk * BLOCK
+                _contact_block(lo, min(lo + BLOCK, n), particles.x, contact)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, tool_v_prev,
-                            tool_v_next, radius, gravity, alpha)
+            _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, contact,
+                            tool_v_prev, tool_v_next, radius, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 
@@ -412,7 +457,7 @@ def gauss_strains(rows, x, X, start, neighbour, grad, columns, strain):
 
 @njit(parallel=True, cache=True)
 def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, columns, law,
-                    elastic, stabilisation):
+                    material, elastic, stabilisation):
     """Per particle of `rows`, at positions x: the elastic energy sum over its two Gauss points of
     V / 2 (E - Ep) : C : (E - Ep) / 2 with their current plastic strain (and temperature), and its
     stabilisation energy k |eps|^2 / 2 (J), into elastic[i] and stabilisation[i]."""
@@ -430,7 +475,7 @@ def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbo
             e3 = 0.5 * C[0, 1] - plastic[g, 3]
             e4 = 0.5 * C[1, 2] - plastic[g, 4]
             e5 = 0.5 * C[0, 2] - plastic[g, 5]
-            energy += 0.5 * volume[i] * elastic_energy(g, e0, e1, e2, e3, e4, e5, thermal, law)
+            energy += 0.5 * volume[i] * elastic_energy(g, e0, e1, e2, e3, e4, e5, thermal, law[material[i]])
         elastic[i] = energy
         a = np.zeros(3)
         for r in range(start[i], start[i + 1]):

@@ -23,9 +23,9 @@ from ..budget import ModelTooLarge, check_model_size
 from ..loading.build import build_loading, build_precracks
 from ..scenario import ElasticSpec, PrecrackSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, resolve_path
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
-from .build import SetupError, build_meshfree_simulation
+from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
-from ..geometry.meshes import MeshError, read_mesh
+from ..geometry.meshes import MeshError, gmsh_sphere, read_mesh
 from ..geometry.specimens import check_file_units
 from .particles import plate_particles, shell_particles, tet_node_particles, tube_particles
 from .simulation import MeshfreeSimulation
@@ -225,10 +225,63 @@ class MeshfreeMaterial(ElasticSpec):
                          density=self.density)
 
 
+class BodyMaterial(MeshfreeMaterial):
+    """[bodies.material]: a body's material, as [material] without fracture (a body does not break)."""
+
+    @model_validator(mode="after")
+    def _no_fracture(self):
+        for key in ("tensile_strength", "failure_plastic_strain", "fracture_factor"):
+            if key in self.model_fields_set:
+                raise ValueError(f"{key}: a body besides the specimen does not fracture (paper 000's sphere is "
+                                 "\"not allowed to fracture\"); remove it")
+        return self
+
+
+class BodySpec(Strict):
+    """[[bodies]]: a second body of particles beside the specimen (a deformable projectile): a solid
+    of its own material, a particle at each node of a tet mesh (a ball gmsh meshes, or a mesh file),
+    launched at initial_velocity. It does not fracture; it meets the specimen, and the other bodies,
+    by penalty contact between particles (meshfree/contact.py)."""
+
+    name: str = "body"
+    """names the body in summary.json (bodies)"""
+    shape: Literal["sphere", "mesh"]
+    """sphere: radius, center, element_size (gmsh); mesh: file, scale (any tet mesh meshio reads)"""
+    radius: Positive | None = None
+    """m, sphere"""
+    center: Vec3 = (0.0, 0.0, 0.0)
+    """m, sphere: its centre"""
+    element_size: Positive | None = None
+    """m, sphere: the tet edge gmsh aims at (the particles are its nodes)"""
+    file: str | None = None
+    """mesh: a tet mesh file, relative to the scenario file's folder"""
+    scale: Positive = 1.0
+    """mesh: the file's coordinates times this are metres"""
+    initial_velocity: Vec3 = (0.0, 0.0, 0.0)
+    """m/s, every particle's at t = 0"""
+    dilation: Positive = 2.5
+    """the body's support radius / its largest particle step (particles.dilation's meaning)"""
+    material: BodyMaterial
+    """density, elastic constants and the law (j2 or thermo), no fracture"""
+
+    @model_validator(mode="after")
+    def _keys_of_the_shape(self):
+        need = ("radius", "element_size") if self.shape == "sphere" else ("file",)
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        other = {"sphere": {"file", "scale"}, "mesh": {"radius", "center", "element_size"}}[self.shape]
+        given = sorted(other & self.model_fields_set)
+        if given:
+            raise ValueError(f"{', '.join(given)}: not used by shape = \"{self.shape}\"")
+        return self
+
+
 class Scenario(ScenarioBase):
     method: Literal["meshfree"]
     """picks this method"""
-    unread_keys = FDEM_ONLY_KEYS
+    # run.contact: the specimen's particles that no link joins meet by particle contact (contact.py).
+    unread_keys = {k: v for k, v in FDEM_ONLY_KEYS.items() if k != "run.contact"}
     specimen: MeshfreeSpecimen
     """the plate, tube, mesh or shell the particles fill"""
     particles: ParticlesSpec = ParticlesSpec()
@@ -238,6 +291,8 @@ class Scenario(ScenarioBase):
     precracks: list[PrecrackSpec] = []
     """notches and slits present from the start: the links between particles that cross the plane inside the
     box are removed (the same visibility rule as a grown crack, fracture.py)"""
+    bodies: list[BodySpec] = []
+    """more bodies of particles (a deformable projectile), met by particle contact"""
 
     @model_validator(mode="after")
     def _particles_of_the_shape(self):
@@ -296,15 +351,32 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         except ValueError as err:
             raise ScenarioError(str(err)) from None
     mat = scenario.material
+    bodies = [_body(body, f"bodies.{i}", base) for i, body in enumerate(scenario.bodies)]
     try:
         return build_meshfree_simulation(
             plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
             velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
             precracks=build_precracks(scenario.precracks), pressures=pressures,
-            failure_plastic_strain=mat.failure_plastic_strain,
+            failure_plastic_strain=mat.failure_plastic_strain, bodies=bodies, self_contact=scenario.run.contact,
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
+
+
+def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:
+    """The particles of a [[bodies]] entry (a particle at each node of its tet mesh)."""
+    try:
+        if spec.shape == "sphere":
+            mesh = gmsh_sphere(spec.radius, spec.element_size, spec.center)
+            points = mesh.points
+        else:
+            mesh = read_mesh(resolve_path(spec.file, base))
+            points = mesh.points * spec.scale
+        particles = tet_node_particles(points, mesh.tets)
+    except (MeshError, ValueError) as err:
+        raise ScenarioError(f"{key}.{'file' if spec.shape == 'mesh' else 'element_size'}: {err}") from None
+    mat = spec.material
+    return MeshfreeBody(particles, mat.density, mat.law(), spec.initial_velocity, spec.dilation)

@@ -11,7 +11,7 @@ from ..loading.tools import TOOL_SPHERE
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_TENSION, FailureRecorder
 from .fracture import FRACTURE_CHECK
-from .kernels import advance, strain_energies
+from .kernels import PairContact, advance, strain_energies
 from .material import MODEL, THERMO
 
 
@@ -19,7 +19,7 @@ class MeshfreeSimulation:
     method = "meshfree"
 
     def __init__(self, particles, links, columns, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate, breaking, pressures):
+                 damping, plate, breaking, pressures, contact=None, body_start=None):
         self.particles, self.links, self.law, self.tools = particles, links, law, tools
         # The lines through the wall and each particle's Gauss points on them (thickness.py).
         self.columns = columns
@@ -34,6 +34,12 @@ class MeshfreeSimulation:
         self.breaking = breaking
         # The pressures on the wall faces (kernels.Pressures; build.pressure_arrays, empty without).
         self.pressures = pressures
+        # The particle contact (contact.ParticleContact) between bodies and across cracks, or None.
+        self.contact = contact
+        # The first particle of each body (the specimen's 0, then build.MeshfreeBody's) and the end.
+        self.body_start = np.array([0, len(particles.x)] if body_start is None else body_start, dtype=np.int64)
+        self._no_pairs = PairContact(np.zeros(len(particles.x) + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                                     np.zeros(0), np.zeros(0), np.zeros((0, 3)))
         # The particles on the faces are on the specimen's surface: they meet the tools there.
         self.contact_radius = 0.0
         self.time = 0.0
@@ -48,23 +54,27 @@ class MeshfreeSimulation:
         self._initial_energy = self._kinetic()
 
     def advance(self, n_steps: int, dt: float) -> None:
-        if self.breaking is None:
-            advance(n_steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
-                    self.pressures, self.contact_radius, self.gravity, self.damping)
-            self.steps += n_steps
-            self.time = self.steps * dt
+        if self.breaking is None and self.contact is None:
+            self._advance(n_steps, dt)
             return
-        # Fracture checks at the step numbers that are multiples of FRACTURE_CHECK, however the
-        # run is split into calls.
+        # Fracture checks and the contact pairs' refresh at the step numbers that are multiples of
+        # FRACTURE_CHECK, however the run is split into calls.
         end = self.steps + n_steps
         while self.steps < end:
-            stop = min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK)
-            advance(stop - self.steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
-                    self.pressures, self.contact_radius, self.gravity, self.damping)
-            self.steps = stop
-            self.time = self.steps * dt
-            if self.steps % FRACTURE_CHECK == 0:
-                self.breaking.check(self, dt)
+            if self.contact is not None and self.steps % FRACTURE_CHECK == 0:
+                self.contact.refresh(self.particles.x, self.particles.v, dt, FRACTURE_CHECK,
+                                     None if self.breaking is None else self.breaking.blocked)
+            self._advance(min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK) - self.steps, dt)
+            if self.breaking is not None and self.steps % FRACTURE_CHECK == 0:
+                if self.breaking.check(self, dt) and self.contact is not None:
+                    self.contact.stale = True
+
+    def _advance(self, n_steps: int, dt: float) -> None:
+        pairs = self._no_pairs if self.contact is None else self.contact.pairs
+        advance(n_steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
+                self.pressures, pairs, self.contact_radius, self.gravity, self.damping)
+        self.steps += n_steps
+        self.time = self.steps * dt
 
     def state_is_finite(self) -> bool:
         p = self.particles
@@ -93,13 +103,14 @@ class MeshfreeSimulation:
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
         strain_energies(which, np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start,
-                        s.neighbour, s.grad, s.value, self.columns, self.law, elastic, stab)
+                        s.neighbour, s.grad, s.value, self.columns, self.law, p.material, elastic, stab)
         return (elastic, stab) if rows is None else (elastic[which], stab[which])
 
     def energies(self, dt: float) -> dict[str, float]:
         p = self.particles
         # Potentials at the mid-step positions pair with the half-step velocities.
-        elastic, stab = self.strain_energies(p.x - 0.5 * dt * p.v)
+        x_mid = p.x - 0.5 * dt * p.v
+        elastic, stab = self.strain_energies(x_mid)
         thermal = {}
         if self.thermo:
             # The stored energy the temperature changes released at fixed strain (thermal
@@ -111,7 +122,8 @@ class MeshfreeSimulation:
             "energy.elastic": float(np.sum(elastic)),
             "energy.stabilisation": float(np.sum(stab)),
             "energy.plastic": float(np.sum(p.w_plastic)),
-            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
+            "energy.contact": float(np.sum(self._tool_springs(dt).energy))
+            + (0.0 if self.contact is None else self.contact.energy(x_mid)),
             "energy.friction": float(np.sum(p.d_friction)),
             "energy.damping": float(np.sum(p.w_damping)),
             "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,
@@ -174,7 +186,7 @@ class MeshfreeSimulation:
     @property
     def thermo(self) -> bool:
         """The thermo-visco-plastic law (material.py): particles carry a temperature."""
-        return bool(self.law[MODEL] == THERMO)
+        return bool(np.any(self.law[:, MODEL] == THERMO))
 
     def _temperature(self) -> dict:
         """The VTU's `temperature` (K) for the thermo law; nothing for J2 (no temperature)."""
@@ -210,6 +222,7 @@ class MeshfreeSimulation:
             "max_plastic_strain": float(np.max(self.per_particle(p.eq_plastic), initial=0.0)),
             **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])))} if self.thermo else {}),
             **self.perforation(),
+            **self.bodies(),
             "warnings": list(self.warnings),
         }
 
@@ -226,20 +239,40 @@ class MeshfreeSimulation:
 
     def perforation(self) -> dict:
         """The hole's diameter and the petals (analysis.perforation) of a plate that can fracture,
-        struck along its normal by a sphere tool (the first such: its path is the impact axis);
-        nothing for other set-ups."""
+        struck along its normal by a sphere tool (the first such: its path is the impact axis) or
+        by a second body (its centre of mass); nothing for other set-ups."""
         plate, t = self.plate, self.tools
         if plate.shape != "plate" or self.breaking is None:
             return {}
         normal = np.eye(3)[plate.thickness_axis]
         strikers = [j for j in range(len(t.kind)) if t.kind[j] == TOOL_SPHERE and abs(t.direction[j] @ normal) > 0.9]
-        if not strikers:
-            return {}
         p, b = self.particles, self.breaking
+        if len(self.body_start) > 2:
+            lo, hi = self.body_start[1], self.body_start[2]
+            axis_point = p.mass[lo:hi] @ p.x[lo:hi] / np.sum(p.mass[lo:hi])
+        elif strikers:
+            axis_point = t.geom[strikers[0], :3]
+        else:
+            return {}
         spacing = float(np.max(np.delete(plate.spacing, plate.thickness_axis)))
-        found = measure_perforation(p.X, p.x, self.pieces() == 0, b.failed, b.normal, t.geom[strikers[0], :3], normal,
-                                    spacing)
+        own = slice(0, self.body_start[1])
+        found = measure_perforation(p.X[own], p.x[own], (self.pieces() == 0)[own], b.failed[own], b.normal[own],
+                                    axis_point, normal, spacing)
         return found.summary()
+
+    def bodies(self) -> dict:
+        """The bodies after the specimen (build.MeshfreeBody): each one's particles, mass (kg) and
+        the velocity of its centre of mass (m/s); and the contact's pair-list builds."""
+        p, first = self.particles, self.body_start
+        if len(first) <= 2:
+            return {}
+        rows = []
+        for lo, hi in zip(first[1:-1], first[2:]):
+            m = float(np.sum(p.mass[lo:hi]))
+            v = p.mass[lo:hi] @ p.v[lo:hi] / m
+            rows.append({"particles": int(hi - lo), "mass": m, "velocity": v.tolist(),
+                         "speed": float(np.linalg.norm(v))})
+        return {"bodies": rows, "contact_list_builds": self.contact.builds}
 
     def extra_plots(self, out_dir) -> None:
         pass
