@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
 from ..solver import stability
 from ..solver.integrator import support_constraints
-from .contact import ParticleContact
+from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, internal_forces, stabilisation_stiffness
 from .material import T_REF, YIELD, J2Law
@@ -102,12 +102,11 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     contact = None
     if bodies or self_contact:
-        # Each particle's spring: its body's tool penalty (TOOL_PENALTY_FACTOR E / h) over its contact area.
-        spring = np.concatenate([TOOL_PENALTY_FACTOR * w.youngs_modulus / float(np.min(d.plate.spacing)) * d.plate.area
-                                 for w, d in zip(laws, shapes)])
-        contact = ParticleContact(X, material, np.concatenate([np.full(len(d.X), d.contact_radius) for d in shapes]),
-                                  spring, [d.radius for d in shapes], self_contact)
-        tool_k = np.maximum(tool_k, spring)
+        radius = np.concatenate([np.full(len(d.X), d.contact_radius) for d in shapes])
+        spring = CONTACT_STIFFNESS * np.array([w.youngs_modulus for w in laws])[material] * 2.0 * radius
+        contact = ParticleContact(X, material, radius, spring, [d.radius for d in shapes], self_contact)
+        # The step allows STEP_PAIRS pairs at once on a particle, each two equal springs in series.
+        tool_k = np.maximum(tool_k, 0.5 * STEP_PAIRS * spring)
     seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
                             "particles")
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
