@@ -164,6 +164,8 @@ def _stress_block(lo, hi, dt, p, columns, law):
     Piola-Kirchhoff stress, V (P- + P+) / 2 into p.internal and a V (P+ - P-) / 2 into p.bending."""
     d, cstart, member, coef = p.deformation, columns.start, columns.member, columns.coef
     st, t, b = p.stress, p.internal, p.bending
+    one_law = law.shape[0] == 1  # one body: no per-particle lookup of its law's row
+    law0 = law[0]
     for i in range(lo, hi):
         z0 = 0.0
         z1 = 0.0
@@ -187,7 +189,7 @@ def _stress_block(lo, hi, dt, p, columns, law):
             z7 += c * d[j, 7]
             z8 += c * d[j, 8]
         a = columns.offset[i]
-        lw = law[p.material[i]]
+        lw = law0 if one_law else law[p.material[i]]
         f0, f1, f2, f3, f4, f5, f6, f7, f8 = d[i, 0], d[i, 1], d[i, 2], d[i, 3], d[i, 4], d[i, 5], d[i, 6], d[i, 7], d[i, 8]
         (m0, m1, m2, m3, m4, m5, p0, p1, p2, p3, p4, p5, p6, p7, p8, w_minus) = _gauss_point(
             2 * i, f0 - a * z0, f1 - a * z1, f2 - a * z2, f3 - a * z3, f4 - a * z4, f5 - a * z5, f6 - a * z6,
@@ -292,9 +294,10 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact
     x, v, mass = p.x, p.v, p.mass
     force_slots = tools.force_slots
     n_tool = tools.kind.shape[0]
+    pairs = contact.other.shape[0] > 0
     for g in range(lo, hi):
         fx, fy, fz = _link_force(g, p, links)
-        if contact.start[g + 1] > contact.start[g]:
+        if pairs and contact.start[g + 1] > contact.start[g]:
             fx += contact.force[g, 0]
             fy += contact.force[g, 1]
             fz += contact.force[g, 2]
