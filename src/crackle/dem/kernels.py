@@ -303,7 +303,7 @@ def advance(n_steps, first_step, dt, particles, inter, tools, gravity, alpha):
             _interaction_block(lo, min(lo + BLOCK, n_inter), t, dt, particles, inter)
         for blk in prange((n + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), blk, dt, particles, inter, tools, tool_v_prev, tool_v_next,
+            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), dt, particles, inter, tools, tool_v_prev, tool_v_next,
                             gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

@@ -262,7 +262,7 @@ def contact_forces(dt, x, v, tets, ifs, c):
     """Narrow phase and forces for every surface node, then the reaction lists (tests use this;
     the step loop calls node_contact itself)."""
     for s in prange(c.counts[1]):
-        node_contact(s, dt, x, v, tets, ifs, c)
+        node_contact(np.int64(s), dt, x, v, tets, ifs, c)
     reaction_lists(c)
 
 

@@ -329,23 +329,23 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         for blk in prange(n_if_blocks):
             lo = blk * INTERFACE_BLOCK
-            _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), blk, t, dt, nodes.x, nodes.v, ifs, ties,
+            _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), np.int64(blk), t, dt, nodes.x, nodes.v, ifs, ties,
                              released_blocks)
         if clustered:
             regroup_released(ties, ifs.na, released_blocks, INTERFACE_BLOCK)
         if n_slot > 0:
             for s in prange(n_slot):
-                node_contact(s, dt, nodes.x, nodes.v, tets, ifs, contact)
+                node_contact(np.int64(s), dt, nodes.x, nodes.v, tets, ifs, contact)
             reaction_lists(contact)
         for blk in prange(n_tet_blocks):
             lo = blk * TET_BLOCK
-            _tet_block(lo, min(lo + TET_BLOCK, n_tet), blk, dt, nodes, tets, ifs, contact, tools, pressure_now,
+            _tet_block(lo, min(lo + TET_BLOCK, n_tet), np.int64(blk), dt, nodes, tets, ifs, contact, tools, pressure_now,
                        tool_v_prev, tool_v_next, ctrl, ties)
         if clustered:
             n_vertex = ties.vertex_ptr.shape[0] - 1
             for blk in prange(n_vertex_blocks):
                 lo = blk * VERTEX_BLOCK
-                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), blk, dt, nodes, ties, ctrl, tools, tool_v_next)
+                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), np.int64(blk), dt, nodes, ties, ctrl, tools, tool_v_next)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 
@@ -359,7 +359,7 @@ def interface_forces(t, dt, x, v, ifs, ties):
     released_blocks = np.zeros(n_blocks, dtype=np.uint8)
     for blk in prange(n_blocks):
         lo = blk * INTERFACE_BLOCK
-        _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), blk, t, dt, x, v, ifs, ties, released_blocks)
+        _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), np.int64(blk), t, dt, x, v, ifs, ties, released_blocks)
 
 
 # ---------------------------------------------------------------------------------------------

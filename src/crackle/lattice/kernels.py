@@ -112,7 +112,7 @@ def advance(n_steps, first_step, dt, nodes, springs, tools, radius, break_strain
             _spring_block(lo, min(lo + BLOCK, n_spring), t, dt, nodes.x, nodes.v, springs, break_strain)
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
-            _node_block(lo, min(lo + BLOCK, n_node), blk, dt, nodes, springs, tools, tool_v_prev, tool_v_next,
+            _node_block(lo, min(lo + BLOCK, n_node), np.int64(blk), dt, nodes, springs, tools, tool_v_prev, tool_v_next,
                         radius, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

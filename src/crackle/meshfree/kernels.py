@@ -393,7 +393,7 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
                 _contact_block(lo, min(lo + BLOCK, n), particles.x, contact)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), blk, t, dt, particles, links, tools, pressures, contact,
+            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, particles, links, tools, pressures, contact,
                             tool_v_prev, tool_v_next, radius, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

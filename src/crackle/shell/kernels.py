@@ -386,7 +386,7 @@ def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, pr
         element_passes(t, x, faces, edges, pressures, dt, alpha)
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
-            _node_block(lo, min(lo + BLOCK, n_node), blk, t, dt, nodes, faces, edges, tools, tool_v_prev,
+            _node_block(lo, min(lo + BLOCK, n_node), np.int64(blk), t, dt, nodes, faces, edges, tools, tool_v_prev,
                         tool_v_next, load_factor, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
