@@ -351,7 +351,7 @@ NO_PRESSURE = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.
 
 def element_forces(x, faces, edges):
     """The element passes' internal forces at positions x, pressures left out (external loads)."""
-    element_passes(-np.inf, x, faces, edges, NO_PRESSURE)
+    element_passes(-np.inf, x, faces, edges, NO_PRESSURE, 0.0, 0.0)  # dt, alpha given: one compiled signature
 
 
 @njit(parallel=True, cache=True)
