@@ -14,7 +14,8 @@ import pytest
 from crackle.cli import main
 from crackle.io import read_history_csv
 from crackle.meshfree import build_simulation
-from crackle.meshfree.build import build_meshfree_simulation, gershgorin_frequency2, highest_frequency2
+from crackle.meshfree.build import build_meshfree_simulation
+from crackle.meshfree.step import gershgorin_frequency2, highest_frequency2
 from crackle.meshfree.fracture import FRACTURE_CHECK
 from crackle.meshfree.kernels import internal_forces
 from crackle.meshfree.material import J2Law, ThermoLaw, material_point
@@ -320,7 +321,7 @@ def test_forces_are_the_derivative_of_the_energy_at_two_gauss_points():
 
 
 def test_stable_step_matches_the_dense_eigenvalue():
-    """The stable step's omega_max^2 (Lanczos on the step's own forces, build.highest_frequency2)
+    """The stable step's omega_max^2 (Lanczos on the step's own forces, step.highest_frequency2)
     against the largest eigenvalue of M^-1/2 K M^-1/2 from numpy's dense eigvalsh, K assembled
     from the links (_dense_stiffness), on a 9 x 8 x 3 steel plate (216 particles): at or above
     it (the Ritz value plus its residual bound, which ends the iteration at 0.1 % of it) and
@@ -822,7 +823,7 @@ def test_the_rebuild_touches_only_what_the_crack_changes():
     copies the gather reads, updated where the rebuild wrote, equal the links' gradients and
     values bit for bit, and the kept Gershgorin bounds of the step check equal a recomputation from all
     links bit for bit."""
-    from crackle.meshfree.build import gershgorin_bounds
+    from crackle.meshfree.step import gershgorin_bounds
 
     plate = plate_particles((0.0, 0.0, 0.0), (0.3, 0.2, 0.01), 0.015, 3)
     sim = build_meshfree_simulation(plate, RHO_AL, J2Law(E_AL, NU, yield_stress=150e6), fracture_stress=450e6)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..loading.arrays import TOOL_PENALTY_FACTOR, Tools, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import Tools, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
@@ -141,7 +141,7 @@ def build_fdem_model(
     face_pressure = _pressure_faces(pressures, mesh, pairs, precrack, scale)
 
     median_altitude = float(np.median(bulk.altitude))
-    default_penalty = TOOL_PENALTY_FACTOR * float(np.max(bulk.E)) / median_altitude
+    default_penalty = default_tool_penalty(float(np.max(bulk.E)), median_altitude)
     # Surface tools: a node deeper than the median tet altitude behind a triangle is not its
     # contact (penetrations stay ~1e-4 of it); each block of the tet pass writes its own slot of
     # the tool forces, and each block of the extrinsic node pass its own moving supports' reaction.

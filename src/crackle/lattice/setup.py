@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from ..budget import ModelTooLarge, check_model_size
-from ..loading.arrays import TOOL_PENALTY_FACTOR, seat_on_tools, tool_arrays
+from ..loading.arrays import default_tool_penalty, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
@@ -107,7 +107,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
         force=np.zeros((n_spring, 3)), node_start=np.cumsum(start), node_spring=ids[order], node_sign=signs[order],
     )
     area = np.full(n, spec.spacing**2)
-    penalty = TOOL_PENALTY_FACTOR * scenario.material.youngs_modulus / spec.spacing
+    penalty = default_tool_penalty(scenario.material.youngs_modulus, spec.spacing)
     tool_table = tool_arrays(tools, penalty, spec.spacing, -(-n // BLOCK))
     nodes = Nodes(
         x=x, v=np.zeros((n, 3)), mass=mass, area=area, constraint=constraint,

@@ -37,6 +37,13 @@ Tools = namedtuple(
 # scale (FDEM: the median tet altitude; lattice: the spacing), the usual explicit-contact order.
 TOOL_PENALTY_FACTOR = 10.0
 
+
+def default_tool_penalty(youngs_modulus: float, length: float) -> float:
+    """Pa/m, a tool's penalty per unit contact area when the scenario gives none: TOOL_PENALTY_FACTOR
+    x E / h, h the method's length scale (FDEM: the median tet altitude; meshfree and shell: the
+    smallest particle step or element size; lattice: the spacing)."""
+    return TOOL_PENALTY_FACTOR * youngs_modulus / length
+
 # The longest load-cell window, in steps (the ring holds that many steps per tool).
 LOAD_CELL_RING = 4096
 

@@ -48,6 +48,7 @@ from ..solver.stability import STEP_MARGIN
 from .kernels import gauss_strains, stabilisation_stiffness
 from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, csr_positions, nodal_values
+from .step import gershgorin_bounds, refresh_gershgorin_bounds
 from .thickness import line_mates, single_point
 
 # A rebuilt moment matrix (a face centre or a particle next to a crack, with the quadratic or the
@@ -301,13 +302,11 @@ class LinkBreaking:
     def _check_step(self, sim, dt: float, rows) -> None:
         """Warn once if the stable step of the rebuilt links fell below the step in use: one-sided
         gradients at crack faces can be stiffer. The estimate is Gershgorin's bound (cheap, numpy)
-        times its set-up ratio to the Lanczos value (build.stable_step), the tools as at set-up:
+        times its set-up ratio to the Lanczos value (step.stable_step), the tools as at set-up:
         a Lanczos run per rebuild would cost ~100 force passes. The per-particle bounds are
         kept and refreshed where the rebuild of `rows` changed them, not recomputed."""
         if self._step_warned or self.detached.all():
             return
-        from .build import gershgorin_bounds, refresh_gershgorin_bounds  # build imports this module
-
         if self._bounds is None:
             self._bounds = gershgorin_bounds(sim.particles, sim.links, self.row, sim.law, self.tool_k)
         else:

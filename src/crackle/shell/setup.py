@@ -23,7 +23,7 @@ from ..budget import ModelTooLarge, check_model_size
 from ..geometry.meshes import MeshError, read_with_meshio
 from ..geometry.specimens import check_file_units
 from ..loading import History
-from ..loading.arrays import TOOL_PENALTY_FACTOR, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
 from ..materials import Material
@@ -237,7 +237,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
     h = mesh.element_size()
-    penalty = TOOL_PENALTY_FACTOR * mat.youngs_modulus / h
+    penalty = default_tool_penalty(mat.youngs_modulus, h)
     tool_table = tool_arrays(tools, penalty, h, -(-len(mesh.X) // BLOCK))
     shell.nodes = shell.nodes._replace(load=load, constraint=constraint, projection=projection,
                                        support_tool=support_tool)
