@@ -18,9 +18,15 @@ Output: one line per size, then one JSON object on the last line:
     {"sizes": [{"particles", "links", "steps", "seconds_per_step", "particle_steps_per_s",
                 "bytes_per_particle", "peak_rss_mb", "build_peak_rss_mb", "threads", "dt", "build_s",
                 "stable_step_s", "repeat_seconds", "cpu_utilisation", "cpu_seconds_per_step",
-                "idle_percent_before", "forces_seconds_per_step", "forces_fraction"}, ...]}
+                "idle_percent_before", "forces_seconds_per_step", "forces_fraction", "bandwidth_gb_s",
+                "bandwidth_fraction"}, ...]}
 
 bytes_per_particle: nbytes of every array of the particles and the links over the particle count.
+Each is streamed through at least once a step (the links by the gradient pass and again,
+transposed, by the gather), so it is also a lower bound on the bytes a particle-step moves:
+bandwidth_fraction = bytes_per_particle x particle_steps_per_s / this machine's triad bandwidth
+with the same threads (benchmarks/bandwidth.py: `bandwidth_gb_s`), the share of the memory
+system the step uses at the least.
 build_peak_rss_mb: maxrss when the build returns, the set-up's own peak (peak_rss_mb also counts
 the steps, and the copy of the state that the forces timing makes).
 cpu_seconds_per_step: process CPU time per step (all threads; median of the repeats): on a shared
@@ -130,6 +136,10 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
             internal_forces(dt, p, links, sim.columns, sim.law, force)
         force_times.append((time.perf_counter() - t0) / steps)
     n = len(sim.particles.x)
+    peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    from bandwidth import memory_bandwidth  # after the peak RSS: its arrays are 768 MB
+
+    bandwidth = memory_bandwidth()
     return {
         "particles": n,
         "links": int(len(sim.links.neighbour) - n),
@@ -137,7 +147,7 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
         "seconds_per_step": per_step,
         "particle_steps_per_s": n / per_step,
         "bytes_per_particle": model_bytes(sim) / n,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": peak_rss_mb,
         "build_peak_rss_mb": build_rss_mb,
         "threads": numba.get_num_threads(),
         "dt": dt,
@@ -150,6 +160,8 @@ def one_size(n_particles: int, seconds: float, repeats: int) -> dict:
         "forces_seconds_per_step": statistics.median(force_times),
         "forces_fraction": statistics.median(force_times) / per_step,
         "max_plastic_strain": float(np.max(sim.particles.eq_plastic)),
+        "bandwidth_gb_s": bandwidth / 1e9,
+        "bandwidth_fraction": model_bytes(sim) / per_step / bandwidth,
     }
 
 
@@ -184,7 +196,8 @@ def main() -> None:
               f"forces {100 * row['forces_fraction']:.0f} % of the step, peak RSS {row['peak_rss_mb']:.0f} MB "
               f"(build {row['build_peak_rss_mb']:.0f} MB), "
               f"{row['threads']} threads, build {row['build_s']:.1f} s (stable step {row['stable_step_s']:.1f} s), "
-              f"CPU utilisation {row['cpu_utilisation']:.2f} ({row['cpu_seconds_per_step'] * 1e3:.2f} CPU ms/step)")
+              f"CPU utilisation {row['cpu_utilisation']:.2f} ({row['cpu_seconds_per_step'] * 1e3:.2f} CPU ms/step), "
+              f"at least {100 * row['bandwidth_fraction']:.0f} % of the {row['bandwidth_gb_s']:.1f} GB/s triad bandwidth")
         if (row["idle_percent_before"] or 100.0) < 90.0 or row["cpu_utilisation"] < 0.85:
             print(f"warning: {row['particles']} particles: the machine looked busy (idle "
                   f"{row['idle_percent_before']}, utilisation {row['cpu_utilisation']:.2f}); timings are unreliable",
