@@ -15,10 +15,14 @@ in its own Python process, so that `peak_rss_mb` belongs to that size alone.
 Output: one line per size, then one JSON object on the last line:
 
     {"sizes": [{"particles", "bonds", "interactions", "packing_s", "seconds_per_step",
-                "particle_steps_per_s", "bytes_per_particle", "peak_rss_mb", "threads"}, ...]}
+                "particle_steps_per_s", "bytes_per_particle", "peak_rss_mb", "threads", "bandwidth_gb_s",
+                "bandwidth_fraction"}, ...]}
 
 bytes_per_particle: nbytes of every array of the particles and interactions (bonds and listed
-contacts) over the particle count.
+contacts) over the particle count: each is streamed through at least once a step, so it is also a
+lower bound on the bytes a particle-step moves. bandwidth_fraction: that times the
+particle-steps per second over this machine's triad bandwidth with the same threads
+(benchmarks/bandwidth.py, `bandwidth_gb_s`).
 
     python benchmarks/dem_throughput.py --threads 2                 # 10k and 100k particles
     python benchmarks/dem_throughput.py --sizes 10000 --repeats 3
@@ -76,6 +80,10 @@ def one_size(n_particles: int, steps: int, repeats: int, particle_density: float
     per_step = statistics.median(times)
     arrays = list(sim.particles) + list(sim.inter)
     nbytes = sum(a.nbytes for a in arrays if hasattr(a, "nbytes"))
+    peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    from bandwidth import memory_bandwidth  # after the peak RSS: its arrays are 768 MB
+
+    bandwidth = memory_bandwidth()
     return {
         "particles": len(packing.radii),
         "bonds": sim.n_bonds,
@@ -85,9 +93,11 @@ def one_size(n_particles: int, steps: int, repeats: int, particle_density: float
         "seconds_per_step": per_step,
         "particle_steps_per_s": len(packing.radii) / per_step,
         "bytes_per_particle": nbytes / len(packing.radii),
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": peak_rss_mb,
         "threads": numba.get_num_threads(),
         "repeat_seconds": times,
+        "bandwidth_gb_s": bandwidth / 1e9,
+        "bandwidth_fraction": nbytes / per_step / bandwidth,
     }
 
 
@@ -116,7 +126,8 @@ def main() -> None:
         rows.append(row)
         print(f"{row['particles']:>8,} particles {row['bonds']:>9,} bonds: {row['seconds_per_step'] * 1e3:8.2f} ms/step, "
               f"{row['particle_steps_per_s'] / 1e6:6.2f} M particle-steps/s, {row['bytes_per_particle']:6.0f} B/particle, "
-              f"packing {row['packing_s']:.1f} s, peak RSS {row['peak_rss_mb']:.0f} MB, {row['threads']} threads")
+              f"packing {row['packing_s']:.1f} s, peak RSS {row['peak_rss_mb']:.0f} MB, {row['threads']} threads, "
+              f"at least {100 * row['bandwidth_fraction']:.0f} % of the {row['bandwidth_gb_s']:.1f} GB/s triad bandwidth")
     print(json.dumps({"sizes": rows}))
 
 
