@@ -67,7 +67,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     n = int(first[-1])
     X = np.concatenate([d.X for d in shapes])
     material = np.repeat(np.arange(len(shapes), dtype=np.int64), sizes)
-    start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, _link_offsets(shapes))])
+    link_first = np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]])
+    start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, link_first)])
     neighbour = np.concatenate([d.neighbour + o for d, o in zip(shapes, first)])
     grad = np.concatenate([d.grad for d in shapes])
     value = np.concatenate([d.value for d in shapes])
@@ -178,11 +179,6 @@ class _Discretised:
         if p.thickness_axis is not None:
             return 0.5 * float(np.max(np.delete(p.spacing, p.thickness_axis)))
         return 0.5 * float(p.spacing[0] if p.shape == "tube" else p.spacing[1])
-
-
-def _link_offsets(shapes) -> list[int]:
-    """The position of each body's first link in the merged CSR."""
-    return list(np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]]))
 
 
 def merge_columns(columns, first) -> Columns:

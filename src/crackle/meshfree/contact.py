@@ -105,7 +105,7 @@ class ParticleContact:
         reach = r[I] + r[J]
         d = x[I] - x[J]
         near = np.einsum("ij,ij->i", d, d) < (reach + self.skin) ** 2
-        I, J, reach = I[near], J[near], reach[near]
+        I, J, reach, d = I[near], J[near], reach[near], d[near]
         same = self.body[I] == self.body[J]
         if not self.self_contact:
             I, J, reach = I[~same], J[~same], reach[~same]
@@ -121,7 +121,7 @@ class ParticleContact:
         reach = np.where(same, np.minimum(reach, apart), reach)
         if cut.any():
             reach[cut] = self._reach_of_cut(I[cut] * np.int64(len(x)) + J[cut], reach[cut],
-                                            np.sqrt(np.einsum("ij,ij->i", d[near][cut], d[near][cut])))
+                                            np.linalg.norm(d[cut], axis=1))
         keep = ~linked | cut
         return I[keep], J[keep], reach[keep]
 
@@ -151,8 +151,3 @@ class ParticleContact:
         I, J, reach = self.candidates(x)
         d = x[I] - x[J]
         return int(np.sum((self.body[I] != self.body[J]) & (np.einsum("ij,ij->i", d, d) < reach**2)))
-
-    @property
-    def active(self) -> int:
-        """The pairs now in the list."""
-        return len(self.pairs.other) // 2
