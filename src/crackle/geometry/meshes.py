@@ -302,6 +302,10 @@ _GMSH_OPTIONS = {
     "Mesh.Optimize": 1,
     "Mesh.ElementOrder": 1,
     "Mesh.MeshSizeMin": 0.0,
+    # gmsh's defaults, listed so that a call that changes them (a size field's) gets them back
+    "Mesh.MeshSizeExtendFromBoundary": 1,
+    "Mesh.MeshSizeFromPoints": 1,
+    "Mesh.MeshSizeFromCurvature": 0,
 }
 
 
@@ -423,6 +427,41 @@ def gmsh_sphere(
         gmsh.model.occ.synchronize()
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh)
+
+
+def gmsh_graded_rectangle(corner, size, element_size: float, fine_size: float, fine_center, fine_radius: float,
+                          transition: float) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles of the rectangle [corner, corner + size] in the plane (2D coordinates, m),
+    graded by gmsh: edges of fine_size within fine_radius of fine_center, growing linearly to
+    element_size over `transition` beyond it (a Distance and a Threshold field). Returns the
+    points (n, 2) and the triangles (k, 3), wound counter-clockwise."""
+    _check_h(element_size)
+    _check_h(fine_size)
+    x, y = (float(v) for v in corner)
+    lx, ly = (float(v) for v in size)
+    with _gmsh_model(element_size) as gmsh:
+        surface = gmsh.model.occ.addRectangle(x, y, 0.0, lx, ly)
+        centre = gmsh.model.occ.addPoint(float(fine_center[0]), float(fine_center[1]), 0.0)
+        gmsh.model.occ.synchronize()
+        distance = gmsh.model.mesh.field.add("Distance")
+        gmsh.model.mesh.field.setNumbers(distance, "PointsList", [centre])
+        threshold = gmsh.model.mesh.field.add("Threshold")
+        gmsh.model.mesh.field.setNumber(threshold, "InField", distance)
+        gmsh.model.mesh.field.setNumber(threshold, "SizeMin", float(fine_size))
+        gmsh.model.mesh.field.setNumber(threshold, "SizeMax", float(element_size))
+        gmsh.model.mesh.field.setNumber(threshold, "DistMin", float(fine_radius))
+        gmsh.model.mesh.field.setNumber(threshold, "DistMax", float(fine_radius + transition))
+        gmsh.model.mesh.field.setAsBackgroundMesh(threshold)
+        for option in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+            gmsh.option.setNumber(option, 0)
+        gmsh.model.mesh.generate(2)
+        _, tri_nodes = gmsh.model.mesh.getElementsByType(2, surface)
+        coords, lookup = _gmsh_nodes(gmsh)
+    points, tris = _compact(coords, lookup[np.asarray(tri_nodes, dtype=np.int64).reshape(-1, 3)])
+    e1, e2 = points[tris[:, 1]] - points[tris[:, 0]], points[tris[:, 2]] - points[tris[:, 0]]
+    clockwise = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0.0
+    tris[clockwise] = tris[clockwise][:, [0, 2, 1]]
+    return np.ascontiguousarray(points[:, :2]), tris
 
 
 def disc(

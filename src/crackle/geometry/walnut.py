@@ -184,6 +184,17 @@ def shell_from_surface(
     if element_size is not None:
         _check_h(element_size)
         pts, tris = _remesh_surface(pts, tris, element_size)
+    return shell_from_triangles(pts, tris, wall, suture_wall, suture_band, suture_normal, layers,
+                                f"the surface in {path}")
+
+
+def shell_from_triangles(pts, tris, wall: float = 1.11e-3, suture_wall: float | None = 1.34e-3,
+                         suture_band: float = 4e-3, suture_normal=(1.0, 0.0, 0.0), layers: int = 1,
+                         what: str = "the surface") -> tuple[TetMesh, np.ndarray]:
+    """shell_from_surface's walling of triangles already read (points (n, 3) m, triangles (m, 3)
+    wound consistently; the wall grows against their right-hand normals); `what` names the
+    surface in errors."""
+    suture_wall, layers = _check_shell_args(wall, suture_wall, suture_band, layers)
     used = np.unique(tris)
     renum = np.full(len(pts), -1, dtype=np.int64)
     renum[used] = np.arange(len(used))
@@ -213,7 +224,7 @@ def shell_from_surface(
     winding = np.sign(np.einsum("ij,ij->i", np.cross(pts[srt[:, 1]] - pts[srt[:, 0]], pts[srt[:, 2]] - pts[srt[:, 0]]), face_n))
     if np.any(vol * np.tile(winding, 3 * layers) >= 0.0):
         raise MeshError(
-            f"the wall ({max(wall, suture_wall)} m) is too thick for the curvature of the surface in {path} "
+            f"the wall ({max(wall, suture_wall)} m) is too thick for the curvature of {what} "
             "(inner nodes cross or prisms invert); use a thinner wall, a smoother surface or a coarser element_size"
         )
     tets = _fix_orientation(layered, tets)

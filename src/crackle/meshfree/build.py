@@ -16,7 +16,7 @@ from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, Pressures, stabilisation_stiffness
 from .material import T_REF, J2Law
 from .particles import WALL_SIDES, Cells, WallParticles, wall_columns
-from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients
+from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients, support_radii, within_supports
 from .simulation import MeshfreeSimulation
 from .step import stable_step
 from .thickness import Columns, thickness_columns
@@ -48,8 +48,10 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
                               gravity=(0.0, 0.0, 0.0), velocity=None,
                               fracture_stress: float = math.inf, precracks=(), pressures=(),
                               failure_plastic_strain: float = math.inf, bodies=(),
-                              self_contact: bool = False) -> MeshfreeSimulation:
-    """The particles of `plate` with support radius dilation x the largest grid step (gradients
+                              self_contact: bool = False, support: str = "uniform") -> MeshfreeSimulation:
+    """The particles of `plate` with support radius dilation x the largest grid step (`support`
+    "uniform"; "local": dilation x each particle's own spacing, WallParticles.local_spacing, for
+    a graded set) (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
     material (density kg/m^3, J2Law), the stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
@@ -60,7 +62,10 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     on the wall faces (loading.Pressure, pressure_arrays). `bodies`: more bodies (MeshfreeBody,
     after the specimen's particles in that order), met by the particle contact (contact.py), as
     are the crack faces and fragments of the specimen with `self_contact`."""
-    shapes = [_Discretised.of(plate, dilation, stabilisation * law.youngs_modulus)]
+    if support == "local" and plate.local_spacing is None:
+        raise SetupError("particles.support", f"\"local\" supports follow the spacing of a mesh or shell's particles; "
+                         f"a {plate.shape}'s grid is uniform: remove particles.support")
+    shapes = [_Discretised.of(plate, dilation, stabilisation * law.youngs_modulus, support == "local")]
     shapes += [_Discretised.of(b.particles, b.dilation, stabilisation * b.law.youngs_modulus) for b in bodies]
     sizes = [len(d.X) for d in shapes]
     first = np.cumsum([0] + sizes)
@@ -103,9 +108,9 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     contact = None
     if bodies or self_contact:
-        radius = np.concatenate([np.full(len(d.X), d.contact_radius) for d in shapes])
+        radius = np.concatenate([np.broadcast_to(d.contact_radius, (len(d.X),)) for d in shapes])
         spring = CONTACT_STIFFNESS * np.array([w.youngs_modulus for w in laws])[material] * 2.0 * radius
-        contact = ParticleContact(X, material, radius, spring, [d.radius for d in shapes], self_contact)
+        contact = ParticleContact(X, material, radius, spring, [np.max(d.radius) for d in shapes], self_contact)
         # The step allows STEP_PAIRS pairs at once on a particle, each two equal springs in series.
         tool_k = np.maximum(tool_k, 0.5 * STEP_PAIRS * spring)
     seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
@@ -119,9 +124,10 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         if frame is not None and bodies:
             frame = np.concatenate([frame, np.tile(np.eye(3), (n - sizes[0], 1, 1))])
         breaking = LinkBreaking(X, volume, cells, shapes[0].radius, shapes[0].terms,
-                                stabilisation * law.youngs_modulus, fracture_stress, float(np.max(plate.spacing)),
+                                stabilisation * law.youngs_modulus, fracture_stress, shapes[0].spacing,
                                 links, frame, tool_k, step_ratio, failure_plastic_strain, fracturing=sizes[0])
-    sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools], shapes[0].radius,
+    sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools],
+                             float(np.max(shapes[0].radius)),
                              dt, h / c_p, gravity, damping, plate, breaking, loads, contact, first)
     sim.warnings.extend(seating)
     if contact is not None:
@@ -146,7 +152,8 @@ class _Discretised:
 
     plate: WallParticles
     X: np.ndarray
-    radius: float  # the support radius
+    spacing: float | np.ndarray  # the largest particle step: one for all, or per particle (local supports)
+    radius: float | np.ndarray  # the support radius, dilation x spacing
     terms: np.ndarray  # the basis terms (shape.basis_terms)
     start: np.ndarray
     neighbour: np.ndarray
@@ -156,27 +163,31 @@ class _Discretised:
     columns: object
 
     @classmethod
-    def of(cls, plate: WallParticles, dilation: float, stab_scale: float) -> _Discretised:
+    def of(cls, plate: WallParticles, dilation: float, stab_scale: float, local: bool = False) -> _Discretised:
         X = np.ascontiguousarray(plate.X, dtype=float)
         n = len(X)
-        radius = dilation * float(np.max(plate.spacing))
+        spacing = plate.local_spacing[:, 0].copy() if local else float(np.max(plate.spacing))
+        radius = dilation * spacing
         terms = basis_terms(plate.thickness_axis, plate.layers)
         start, neighbour, grad, condition, first_bad = smoothed_gradients(X, plate.volume, plate.cells, radius, terms)
         if first_bad is not None:
             raise SetupError("particles.dilation", (
                 f"the moment matrix at {first_bad.round(6).tolist()} m (a quadrature point of a particle's cell) is "
-                f"singular: the support radius {dilation:g} x {np.max(plate.spacing):.3g} m holds too few particles "
+                f"singular: the support radius {dilation:g} x {np.max(spacing):.3g} m holds too few particles "
                 f"for the quadratic basis; increase particles.dilation (2.5 or more)"))
         row = np.repeat(np.arange(n), np.diff(start))
         value, stab_k = nodal_stabilisation(X, plate.volume, radius, terms, start, neighbour, row, stab_scale)
-        return cls(plate, X, radius, terms, start, neighbour, grad, value, stab_k,
+        return cls(plate, X, spacing, radius, terms, start, neighbour, grad, value, stab_k,
                    thickness_columns(X, wall_columns(plate)))
 
     @property
-    def contact_radius(self) -> float:
-        """Half the particles' spacing along the wall (a solid's median edge): contact.py."""
+    def contact_radius(self) -> float | np.ndarray:
+        """Half the particles' spacing along the wall (a solid's median edge; with local supports
+        each particle's median edge): contact.py."""
         p = self.plate
-        if p.thickness_axis is not None:
+        if np.ndim(self.spacing):
+            return 0.5 * p.local_spacing[:, 1]
+        if p.thickness_axis is not None and p.shape == "plate":
             return 0.5 * float(np.max(np.delete(p.spacing, p.thickness_axis)))
         return 0.5 * float(p.spacing[0] if p.shape == "tube" else p.spacing[1])
 
@@ -234,9 +245,10 @@ def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
     basis (no approximation to compare with)."""
     n = len(X)
     # The links of J must hold J's own support (shape.nodal_values): check, the cells are the caller's.
-    in_support = np.einsum("ij,ij->i", X[neighbour] - X[row], X[neighbour] - X[row]) < (radius * (1.0 - 1e-12)) ** 2
+    reach = support_radii(radius, n)[neighbour] * (1.0 - 1e-12)
+    in_support = np.einsum("ij,ij->i", X[neighbour] - X[row], X[neighbour] - X[row]) < reach ** 2
     if not np.array_equal(np.bincount(row, weights=in_support, minlength=n),
-                          cKDTree(X).query_ball_point(X, radius * (1.0 - 1e-12), return_length=True)):
+                          within_supports(cKDTree(X), X, X, radius)[0]):
         raise RuntimeError("a particle's links miss part of its own support: its cell's quadrature points lie too "
                            "far out")
     _, value, condition = nodal_values(X, volume, radius, terms, start, neighbour, np.arange(n))

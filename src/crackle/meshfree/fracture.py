@@ -16,7 +16,8 @@ direction less its component through the wall (for a principal direction through
 largest in-plane principal direction of the second Piola-Kirchhoff stress).
 
 Which links cross: the crack of a failed particle c is the disc of radius `crack_radius` (the
-largest grid step, so that the discs of adjacent failed particles overlap into one surface)
+largest grid step, or c's local spacing in a graded set, so that the discs of adjacent failed
+particles overlap into one surface)
 centred on X_c in the plane with normal N_c, in material coordinates (N_c = F^T n, n the
 principal direction in the current configuration). A link (I, J) crosses it when I and J lie
 on different sides of the plane and the segment X_I X_J meets the plane within the disc. A
@@ -84,10 +85,13 @@ class LinkBreaking:
         # Per particle: two unit tangents of the wall and its normal (particles.WallParticles).
         self.wall_frame = wall_frame
         self.X, self.volume, self.cells = X, volume, cells
-        self.radius, self.terms, self.stab_scale = float(radius), terms, float(stab_scale)
+        # The support radius and the crack discs' radius: numbers, or one per particle (a graded set).
+        self.radius, self.terms, self.stab_scale = radius, terms, float(stab_scale)
         self.fracture_stress = float(fracture_stress)
         self.failure_strain = float(failure_strain)  # equivalent plastic strain that fails a particle
-        self.crack_radius = float(crack_radius)
+        crack_radius = np.asarray(crack_radius, dtype=float)  # a number or one per fracturing particle
+        self.crack_radius = np.zeros(n)
+        self.crack_radius[:self.fracturing] = crack_radius
         self.tree = cKDTree(X[:self.fracturing])
         self.failed = np.zeros(n, dtype=bool)
         self.detached = np.zeros(n, dtype=bool)
@@ -155,18 +159,19 @@ class LinkBreaking:
     def crossing_links(self, c: int, normal: np.ndarray, start, neighbour) -> np.ndarray:
         """Positions of the links (I, J) that cross the crack disc of particle c."""
         X = self.X
-        near = np.sort(np.asarray(self.tree.query_ball_point(X[c], self.crack_radius + self.reach), dtype=np.int64))
+        crack_radius = self.crack_radius[c]
+        near = np.sort(np.asarray(self.tree.query_ball_point(X[c], crack_radius + self.reach), dtype=np.int64))
         counts = start[near + 1] - start[near]
         pos = np.repeat(start[near] - np.cumsum(np.r_[0, counts[:-1]]), counts) + np.arange(counts.sum())
         I, J = self.row[pos], neighbour[pos]
         dI = (X[I] - X[c]) @ normal
         dJ = (X[J] - X[c]) @ normal
-        tol = _ON_PLANE * self.radius
+        tol = _ON_PLANE * float(np.max(self.radius))
         across = (dI > tol) != (dJ > tol)
         t = np.where(across, dI / np.where(across, dI - dJ, 1.0), 0.0)
         t = np.clip(t, 0.0, 1.0)
         hit = X[I] + t[:, None] * (X[J] - X[I]) - X[c]
-        inside = np.einsum("ij,ij->i", hit, hit) <= (self.crack_radius * (1.0 + 1e-9)) ** 2
+        inside = np.einsum("ij,ij->i", hit, hit) <= (crack_radius * (1.0 + 1e-9)) ** 2
         return pos[across & inside]
 
     def precut_links(self, crack, scale: float, neighbour) -> np.ndarray:

@@ -492,15 +492,18 @@ def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbo
         stabilisation[i] = 0.5 * stab_k[i] * acc
 
 
-def stabilisation_stiffness(X, volume, row, neighbour, kept, radius: float, scale: float) -> np.ndarray:
+def stabilisation_stiffness(X, volume, row, neighbour, kept, radius, scale: float) -> np.ndarray:
     """k_I = scale V_I sum_K w_IK / sum_K w_IK |X_K - X_I|^2 over the `kept` links (I, K) (row,
-    neighbour: the two particles of each link given, every link of the particles wanted), scale =
-    alpha E (module docstring). Returns k for all particles (n,), 0 where none of the given links
-    but the particle's own is kept."""
+    neighbour: the two particles of each link given, every link of the particles wanted), w_IK
+    the weight of K's support (radius: one for all or per particle) at X_I, scale = alpha E
+    (module docstring). Returns k for all particles (n,), 0 where none of the given links but the
+    particle's own is kept."""
     n = len(X)
     dX = X[neighbour] - X[row]
     dist2 = np.einsum("ij,ij->i", dX, dX)
-    weight = np.where(kept, quartic_spline_array(np.sqrt(dist2) / radius), 0.0)
+    radius = np.asarray(radius, dtype=float)
+    weight = np.where(kept, quartic_spline_array(np.sqrt(dist2) / (radius if radius.ndim == 0 else radius[neighbour])),
+                      0.0)
     spread = np.bincount(row, weights=weight * dist2, minlength=n)
     total = np.bincount(row, weights=weight, minlength=n)
     return np.where(spread > 0.0, scale * volume * total / np.where(spread > 0.0, spread, 1.0), 0.0)

@@ -32,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 
 # Wall surfaces: the inner one (a tube's inside, a plate's face at its origin side along the
 # thickness) and the outer one.
@@ -80,8 +81,11 @@ class WallParticles:
     # wall: fracture keeps the principal direction as the crack normal)
     wall_frame: np.ndarray | None
     surface: WallFaces
-    thickness_axis: int | None = None  # plate: 0, 1 or 2, its thinnest side; tube: None
+    thickness_axis: int | None = None  # plate (and a graded plate, a shell): 0, 1 or 2, its thinnest side; tube: None
     axis: np.ndarray | None = None  # tube: the unit vector along it; plate: None
+    # (n, 2) m, mesh and shell: the 90th percentile and the median of the tet edges around each particle (its
+    # own and its edge neighbours'; local_edge_spacing): a graded set's local spacing; None on a grid
+    local_spacing: np.ndarray | None = None
 
 
 def plate_particles(origin, size, spacing: float, layers: int) -> WallParticles:
@@ -282,7 +286,7 @@ def _tet_node_particles(points, tets) -> tuple[WallParticles, tuple]:
     owner, centre, area, _ = boundary
     surface = WallFaces(owner, centre, area, np.full(len(owner), OUTER, dtype=np.int8))
     particles = WallParticles("mesh", X, volume, volume ** (2.0 / 3.0), mesh_spacing(X, tets), 0, cells, None,
-                              surface)
+                              surface, local_spacing=local_edge_spacing(X, tets))
     return particles, boundary
 
 
@@ -299,11 +303,49 @@ def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(
     line fastest. Raises ValueError (geometry.MeshError) naming what is wrong."""
     from ..geometry.walnut import shell_from_surface
 
+    _check_shell_layers(layers)
+    mesh, _ = shell_from_surface(path, element_size, wall=wall, suture_wall=None, layers=layers - 1, scale=scale,
+                                 offset=offset, allow_open=True)
+    return _walled_particles(mesh, wall, layers)
+
+
+def graded_plate_particles(origin, size, spacing: float, layers: int, fine_spacing: float, fine_center,
+                           fine_radius: float, transition: float) -> WallParticles:
+    """Particles through a plate (the box [origin, origin + size], its thinnest side the wall)
+    graded in its plane: a gmsh triangulation of its face (geometry.meshes.gmsh_graded_rectangle:
+    fine_spacing within fine_radius of fine_center's projection, growing to `spacing` over
+    `transition`) walled through the thickness as a shell (shell_particles: `layers` particles
+    on each node's line), with thickness_axis set as for a plate."""
+    from ..geometry.meshes import gmsh_graded_rectangle
+    from ..geometry.walnut import shell_from_triangles
+
+    _check_shell_layers(layers)
+    origin, size = np.asarray(origin, dtype=float), np.asarray(size, dtype=float)
+    axis = int(np.argmin(size))
+    a, b = [k for k in range(3) if k != axis]
+    uv, tris = gmsh_graded_rectangle(origin[[a, b]], size[[a, b]], spacing, fine_spacing,
+                                     np.asarray(fine_center, dtype=float)[[a, b]], fine_radius, transition)
+    # Counter-clockwise in (a, b): the triangles' normal is e_a x e_b, +-e_axis; the surface is
+    # the face it points out of, the wall grows from there into the plate.
+    outward = np.cross(np.eye(3)[a], np.eye(3)[b])[axis]
+    points = np.empty((len(uv), 3))
+    points[:, a], points[:, b] = uv[:, 0], uv[:, 1]
+    points[:, axis] = origin[axis] + (size[axis] if outward > 0 else 0.0)
+    mesh, _ = shell_from_triangles(points, tris, wall=size[axis], suture_wall=None, layers=layers - 1,
+                                   what="the graded plate")
+    particles = _walled_particles(mesh, size[axis], layers)
+    particles.thickness_axis = axis
+    return particles
+
+
+def _check_shell_layers(layers: int) -> None:
     if layers < 3:
         raise ValueError(f"layers = {layers}: a shell needs 3 or more particles through the wall (on two "
                          "surfaces the quadratic basis is nearly singular)")
-    mesh, _ = shell_from_surface(path, element_size, wall=wall, suture_wall=None, layers=layers - 1, scale=scale,
-                                 offset=offset, allow_open=True)
+
+
+def _walled_particles(mesh, wall: float, layers: int) -> WallParticles:
+    """shell_particles' particles of a walled surface mesh (geometry.walnut.shell_from_triangles)."""
     ns = mesh.n_points // layers
     # Node i of layer k (k ns + i in the walled mesh) becomes particle i layers + k.
     k, i = np.divmod(np.arange(mesh.n_points), ns)
@@ -323,7 +365,7 @@ def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(
     keep = outer | inner
     faces = WallFaces(owner[keep], centre[keep], area[keep], np.where(outer[keep], OUTER, INNER).astype(np.int8))
     return WallParticles("shell", X, particles.volume, particles.volume / extent, particles.spacing, layers,
-                         particles.cells, _frame_of_normals(normal), faces)
+                         particles.cells, _frame_of_normals(normal), faces, local_spacing=particles.local_spacing)
 
 
 def wall_columns(wall: WallParticles) -> np.ndarray | None:
@@ -387,6 +429,51 @@ def mesh_spacing(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
     edges = TetMesh(X, tets).edges()
     length = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
     return np.array([np.percentile(length, SUPPORT_EDGE_PERCENTILE), np.median(length), length.min()])
+
+
+def local_edge_spacing(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """(n, 2) m: per node the 90th percentile and the median of the lengths of the tet edges
+    around it, its own and its edge neighbours' (~100 edges inside a mesh): mesh_spacing's
+    measures taken locally, so that a graded mesh's supports follow its spacing (dilation x the
+    first: build.py with support "local") and on a uniform mesh come close to the global ones."""
+    from ..geometry.meshes import TetMesh
+
+    edges = TetMesh(X, tets).edges()
+    length = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    ends = np.concatenate([edges[:, 0], edges[:, 1]])
+    order = np.argsort(ends, kind="stable")
+    start = np.zeros(len(X) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(ends, minlength=len(X)), out=start[1:])
+    edge_of = order % len(edges)  # node a's edges, in CSR order
+    other = np.concatenate([edges[:, 1], edges[:, 0]])[order]  # the node at the edge's far end
+    return _around(start, edge_of, other, length)
+
+
+@njit(parallel=True, cache=True)
+def _around(start, edge_of, other, length):
+    """For each node, the 90th percentile and median (numpy's linear interpolation) of the
+    distinct edges at it and at its neighbours (CSR start / edge_of / other)."""
+    n = start.shape[0] - 1
+    out = np.empty((n, 2))
+    for a in prange(n):
+        count = start[a + 1] - start[a]
+        for r in range(start[a], start[a + 1]):
+            b = other[r]
+            count += start[b + 1] - start[b]
+        ids = np.empty(count, dtype=np.int64)
+        c = 0
+        for r in range(start[a], start[a + 1]):
+            ids[c] = edge_of[r]
+            c += 1
+            b = other[r]
+            for t in range(start[b], start[b + 1]):
+                ids[c] = edge_of[t]
+                c += 1
+        ids = np.unique(ids)
+        lengths = np.sort(length[ids])
+        out[a, 0] = np.percentile(lengths, 90.0)
+        out[a, 1] = np.median(lengths)
+    return out
 
 
 def median_dual_cells(X: np.ndarray, tets: np.ndarray):

@@ -27,7 +27,7 @@ from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
 from ..geometry.meshes import MeshError, gmsh_sphere, read_mesh
 from ..geometry.specimens import check_file_units
-from .particles import plate_particles, shell_particles, tet_node_particles, tube_particles
+from .particles import graded_plate_particles, plate_particles, shell_particles, tet_node_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
 
@@ -105,6 +105,22 @@ MESH_KEYS = {"mesh": {"shape", "file", "scale", "initial_velocity"},
              "shell": {"shape", "file", "wall", "scale", "center", "initial_velocity"}}
 
 
+class RefineSpec(Strict):
+    """[particles.refine]: a plate's particles graded finer about a point (the paper's unstructured plates refined
+    under the impact): gmsh triangulates the plate's face, `spacing` within `radius` of `center` growing to
+    particles.spacing over `transition`, with particles.layers through the wall on each node's line."""
+
+    center: Vec3
+    """m, the point the fine zone is centred on (its projection on the plate's plane)"""
+    radius: NonNegative
+    """m, the fine zone's radius"""
+    spacing: Positive
+    """m, the in-plane spacing in the fine zone (smaller than particles.spacing)"""
+    transition: Positive | None = None
+    """m, the distance beyond the fine zone over which the spacing grows to particles.spacing; default the larger
+    of radius and 5 x particles.spacing"""
+
+
 class ParticlesSpec(Strict):
     """[particles]: the EFG particles filling the specimen and their shape functions."""
 
@@ -119,6 +135,13 @@ class ParticlesSpec(Strict):
     dilation: Positive = 2.5
     """support radius / the largest particle step (in-plane or through the thickness): the quadratic basis needs
     2.5 or more (below that, edge and corner particles see too few neighbours: a singular moment matrix)"""
+    support: Literal["uniform", "local"] | None = None
+    """the support radius: "uniform", dilation x the largest step of the whole set (a mesh or shell's: the 90th
+    percentile of its tet edges); "local", dilation x each particle's own (the 90th percentile of the edges around
+    it, shape.py: the weight belongs to the particle), for a graded set (a mesh, a shell, a refined plate); default
+    uniform, local with refine"""
+    refine: RefineSpec | None = None
+    """box or beam: grade the plate's particles finer about a point (an unstructured set, [particles.refine])"""
     stabilisation: NonNegative = 0.1
     """alpha: the penalty on each particle's displacement against the MLS approximation at it (zero for quadratic
     fields: it stiffens the zero-energy modes of nodal integration, not bending), a stiffness alpha E V over the
@@ -304,6 +327,16 @@ class Scenario(ScenarioBase):
                                      "the mesh's nodes); remove it")
         elif shape != "shell" and particles.spacing is None:
             raise ValueError(f"particles.spacing: specimen.shape = \"{shape}\" needs the particle spacing (m)")
+        refine = particles.refine
+        if refine is not None:
+            if shape not in ("box", "beam"):
+                raise ValueError(f"particles.refine: grades a plate (specimen.shape \"box\"), not a {shape}; remove it")
+            if refine.spacing >= particles.spacing:
+                raise ValueError(f"particles.refine.spacing: {refine.spacing:g} m is not finer than particles.spacing "
+                                 f"({particles.spacing:g} m); make it smaller")
+        elif particles.support == "local" and shape not in ("mesh", "shell"):
+            raise ValueError(f"particles.support: \"local\" follows the spacing of a graded set (a mesh, a shell or "
+                             f"particles.refine); a {shape}'s grid is uniform: remove it")
         return self
 
 
@@ -311,7 +344,7 @@ def _planned_particles(spec, particles) -> float | None:
     """The particle count particles.spacing asks for on a box, beam or tube, before any is made
     (a mesh or surface file's is bounded by the file itself)."""
     a, layers = particles.spacing, particles.layers
-    if a is None or spec.shape in ("mesh", "shell"):
+    if a is None or spec.shape in ("mesh", "shell") or particles.refine is not None:
         return None
     if spec.shape == "tube":
         return 2.0 * math.pi * (spec.inner_radius + 0.5 * spec.thickness) * spec.length / a**2 * layers
@@ -338,10 +371,16 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         elif spec.shape == "tube":
             plate = tube_particles(spec.origin, spec.axis, spec.inner_radius, spec.thickness, spec.length,
                                    particles.spacing, particles.layers)
+        elif particles.refine is not None:
+            fine = particles.refine
+            transition = fine.transition or max(fine.radius, 5.0 * particles.spacing)
+            plate = graded_plate_particles(spec.origin, spec.size, particles.spacing, particles.layers, fine.spacing,
+                                           fine.center, fine.radius, transition)
         else:
             plate = plate_particles(spec.origin, spec.size, particles.spacing, particles.layers)
     except MeshError as err:
         key = "specimen.wall" if str(err).startswith("the wall") else "specimen.file"  # shell_from_surface's
+        key = "particles.refine" if particles.refine is not None else key
         raise ScenarioError(f"{key}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"particles.{err}") from None
@@ -359,6 +398,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
             precracks=build_precracks(scenario.precracks), pressures=pressures,
             failure_plastic_strain=mat.failure_plastic_strain, bodies=bodies, self_contact=scenario.run.contact,
+            support=particles.support or ("local" if particles.refine is not None else "uniform"),
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None

@@ -4,11 +4,14 @@ only gathers: at the particles themselves (`shape_functions`: values and derivat
 gradients the step uses, smoothed over each particle's cell (`smoothed_gradients`, stabilised
 conforming nodal integration).
 
-For the particle I at X_I and each neighbour J within the support radius R (the links of row I):
+For the particle I at X_I and each neighbour J whose support (radius R, or R_J: one per particle
+where the spacing is graded, `support_radii`) holds X_I (the links of row I):
   N_J(X_I) = V_J w_J p(xi_J) . A^-1 p(0)          A = sum_J V_J w_J p(xi_J) p(xi_J)^T
 where xi_J = (X_J - X_I) / R (the basis centred on X_I and scaled by R keeps A well conditioned),
-V_J the nodal volume (eq. 8 puts it in the weights), w the quartic spline of s = |X_J - X_I| / R
-(eq. 9; material coordinates: the links never change with the motion), and p the quadratic basis
+V_J the nodal volume (eq. 8 puts it in the weights), w the quartic spline of s = |X_J - X_I| / R_J
+(eq. 9; material coordinates: the links never change with the motion; the weight belongs to the
+particle J, so the approximation stays one smooth field however the supports vary, and a
+point's basis is scaled by the smallest support it sees), and p the quadratic basis
   1, xi_x, xi_y, xi_z, xi_x^2, xi_y^2, xi_z^2, xi_x xi_y, xi_y xi_z, xi_x xi_z
 (with two particles through a wall, the square of the through-thickness coordinate is dropped:
 it is not independent of 1 and that coordinate on two planes). The gradient at X_I follows from
@@ -194,17 +197,21 @@ def quartic_spline_array(s: np.ndarray) -> np.ndarray:
 @njit(parallel=True, cache=True)
 def _values_at(points, X, volume, start, neighbour, radius, terms, value, condition):
     """value[r] = N_J(points[q]) for every link r = (q, J) of evaluation point q (the same MLS
-    as _shape_functions, centred on the point); condition[q] as there."""
+    as _shape_functions, centred on the point and scaled by the smallest support radius[J] among
+    its links: with one radius for all, that radius); condition[q] as there."""
     m = terms.shape[0]
     for q in prange(points.shape[0]):
         A = np.zeros((m, m))
         p = np.zeros(m)
+        scale = np.inf
+        for r in range(start[q], start[q + 1]):
+            scale = min(scale, radius[neighbour[r]])
         for r in range(start[q], start[q + 1]):
             j = neighbour[r]
-            xi0 = (X[j, 0] - points[q, 0]) / radius
-            xi1 = (X[j, 1] - points[q, 1]) / radius
-            xi2 = (X[j, 2] - points[q, 2]) / radius
-            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2))
+            xi0 = (X[j, 0] - points[q, 0]) / scale
+            xi1 = (X[j, 1] - points[q, 1]) / scale
+            xi2 = (X[j, 2] - points[q, 2]) / scale
+            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2) * (scale / radius[j]))
             if w <= 0.0:
                 continue
             _basis(xi0, xi1, xi2, terms, p)
@@ -219,10 +226,10 @@ def _values_at(points, X, volume, start, neighbour, radius, terms, value, condit
         gamma = np.linalg.solve(A, np.eye(m)[:, 0].copy())
         for r in range(start[q], start[q + 1]):
             j = neighbour[r]
-            xi0 = (X[j, 0] - points[q, 0]) / radius
-            xi1 = (X[j, 1] - points[q, 1]) / radius
-            xi2 = (X[j, 2] - points[q, 2]) / radius
-            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2))
+            xi0 = (X[j, 0] - points[q, 0]) / scale
+            xi1 = (X[j, 1] - points[q, 1]) / scale
+            xi2 = (X[j, 2] - points[q, 2]) / scale
+            w, _ = quartic_spline(np.sqrt(xi0 * xi0 + xi1 * xi1 + xi2 * xi2) * (scale / radius[j]))
             _basis(xi0, xi1, xi2, terms, p)
             pg = 0.0
             for a in range(m):
@@ -230,25 +237,58 @@ def _values_at(points, X, volume, start, neighbour, radius, terms, value, condit
             value[r] = volume[j] * w * pg
 
 
+def support_radii(radius, n: int) -> np.ndarray:
+    """The support radius of each of n particles (n,): `radius` one for all (a number) or per
+    particle (an array, e.g. dilation x the local spacing of a graded particle set)."""
+    radius = np.asarray(radius, dtype=float)
+    return np.full(n, float(radius)) if radius.ndim == 0 else np.ascontiguousarray(radius)
+
+
+def within_supports(tree: cKDTree, X: np.ndarray, where: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray]:
+    """For each point of `where` the particles (the first tree.n of X, the tree's) whose support
+    holds it (|X_J - point| < R_J, to rounding), each list increasing: (counts, the lists
+    concatenated). `radius`: a number (one for all: a ball query about each point) or per
+    particle (the other way round: the points in each particle's ball, from a tree of the points,
+    for the particles near them; a ball at the largest radius would hold thousands where the
+    set is fine)."""
+    radius = np.asarray(radius, dtype=float)
+    if radius.ndim == 0 or np.all(radius == radius.flat[0]):
+        reach = float(radius.flat[0]) * (1.0 - 1e-12)
+        lists = tree.query_ball_point(where, reach, return_sorted=True, workers=get_num_threads())
+        counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+        return counts, np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
+    X, radius = X[:tree.n], radius[:tree.n]
+    reach = float(radius.max())
+    near = np.flatnonzero(np.all((X >= where.min(axis=0) - reach) & (X <= where.max(axis=0) + reach), axis=1))
+    lists = cKDTree(where).query_ball_point(X[near], radius[near] * (1.0 - 1e-12), workers=get_num_threads())
+    held = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    point = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(held.sum()))
+    particle = np.repeat(near, held)
+    order = np.lexsort((particle, point))
+    return np.bincount(point, minlength=len(where)), particle[order]
+
+
 def mls_values(points, X, volume, start, neighbour, radius, terms, linear_fallback=False, max_condition=MAX_CONDITION):
     """(value (links,), condition (points,)): N_J(points[q]) for the links (q, J) of the CSR
-    (start, neighbour), the MLS centred on each point (_values_at). With `linear_fallback`, a
+    (start, neighbour), the MLS centred on each point (_values_at); `radius`: the support radius,
+    one for all or per particle (support_radii). With `linear_fallback`, a
     point whose moment matrix is singular with the quadratic basis (near a crack face: the
     particles it still sees lie on too few planes) uses the linear basis 1, x, y, z instead (it
     still reproduces linear fields); its condition is then the linear one. `max_condition`: the
     condition number above which a moment matrix counts as singular (MAX_CONDITION or lower)."""
     X = np.ascontiguousarray(X, dtype=float)
     volume = np.asarray(volume, dtype=float)
+    radius = support_radii(radius, len(X))
     value = np.zeros(len(neighbour))
     condition = np.zeros(len(points))
-    _values_at(np.ascontiguousarray(points, dtype=float), X, volume, start, neighbour, float(radius), terms, value,
+    _values_at(np.ascontiguousarray(points, dtype=float), X, volume, start, neighbour, radius, terms, value,
                condition)
     bad = np.flatnonzero(~np.isfinite(condition) | (condition > max_condition))
     if linear_fallback and len(bad):
         pos, sub_start = csr_positions(start, bad)
         sub_value = np.zeros(len(pos))
         sub_condition = np.zeros(len(bad))
-        _values_at(np.ascontiguousarray(points[bad], dtype=float), X, volume, sub_start, neighbour[pos], float(radius),
+        _values_at(np.ascontiguousarray(points[bad], dtype=float), X, volume, sub_start, neighbour[pos], radius,
                    terms[terms < 4], sub_value, sub_condition)
         value[pos] = sub_value
         condition[bad] = sub_condition
@@ -276,7 +316,7 @@ def nodal_values(X, volume, radius, terms, start, neighbour, rows, hidden=None, 
     return pos, value, condition
 
 
-def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius: float, terms: np.ndarray):
+def smoothed_gradients(X: np.ndarray, volume: np.ndarray, cells, radius, terms: np.ndarray):
     """Stabilised conforming nodal integration (Chen et al. 2001): the gradient of N_J at the
     particle I is the mean over I's cell (a closed polyhedron of planar faces, particles.Cells,
     volume V_I) by the divergence theorem, grad N_J(I) = (1 / V_I) sum_rows w N_J(point), the
@@ -360,10 +400,7 @@ def _block_gradients(X, volume, points, point, owner, weight, radius, terms, tre
     else:  # a point shared by several cells (a median-dual vertex) is evaluated once for all
         at, of_row = np.unique(point, return_inverse=True)
     where = np.ascontiguousarray(points[at])
-    lists = tree.query_ball_point(where, radius * (1.0 - 1e-12), return_sorted=True, workers=get_num_threads())
-    counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
-    neighbour = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
-    del lists
+    counts, neighbour = within_supports(tree, X, where, radius)
     if blocking:
         point_of = np.repeat(np.arange(len(where)), counts)
         key = owner[point_of] * np.int64(n) + neighbour

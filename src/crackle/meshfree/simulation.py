@@ -15,6 +15,10 @@ from .kernels import PairContact, advance, strain_energies
 from .material import MODEL, THERMO
 
 
+# Particles nearest the impact axis whose local spacing a graded plate's perforation is measured in.
+PERFORATION_SPACING_SAMPLE = 30
+
+
 class MeshfreeSimulation:
     method = "meshfree"
 
@@ -242,7 +246,7 @@ class MeshfreeSimulation:
         struck along its normal by a sphere tool (the first such: its path is the impact axis) or
         by a second body (its centre of mass); nothing for other set-ups."""
         plate, t = self.plate, self.tools
-        if plate.shape != "plate" or self.breaking is None:
+        if plate.thickness_axis is None or self.breaking is None:
             return {}
         normal = np.eye(3)[plate.thickness_axis]
         strikers = [j for j in range(len(t.kind)) if t.kind[j] == TOOL_SPHERE and abs(t.direction[j] @ normal) > 0.9]
@@ -254,8 +258,14 @@ class MeshfreeSimulation:
             axis_point = t.geom[strikers[0], :3]
         else:
             return {}
-        spacing = float(np.max(np.delete(plate.spacing, plate.thickness_axis)))
         own = slice(0, self.body_start[1])
+        if plate.local_spacing is None:
+            spacing = float(np.max(np.delete(plate.spacing, plate.thickness_axis)))
+        else:  # a graded plate: the median edge around the particles nearest the impact axis
+            off_axis = p.X[own] - axis_point
+            off_axis -= np.outer(off_axis @ normal, normal)
+            nearest = np.argsort(np.einsum("ij,ij->i", off_axis, off_axis), kind="stable")[:PERFORATION_SPACING_SAMPLE]
+            spacing = float(np.median(plate.local_spacing[nearest, 1]))
         found = measure_perforation(p.X[own], p.x[own], (self.pieces() == 0)[own], b.failed[own], b.normal[own],
                                     axis_point, normal, spacing)
         return found.summary()
