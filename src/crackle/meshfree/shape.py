@@ -394,20 +394,29 @@ def _block_gradients(X, volume, points, point, owner, weight, radius, terms, tre
     points[point] of `owner` (with the weight / cell volume `weight`), writing their condition
     numbers into `condition`."""
     n = len(X)
-    blocking = blocked is not None and len(blocked) > 0
-    if blocking:  # the MLS at a point depends on the owner: once per row
-        at, of_row = point, np.arange(len(point))
-    else:  # a point shared by several cells (a median-dual vertex) is evaluated once for all
-        at, of_row = np.unique(point, return_inverse=True)
+    # A point shared by several cells (a median-dual vertex) is evaluated once for all of them,
+    at, of_row = np.unique(point, return_inverse=True)
     where = np.ascontiguousarray(points[at])
     counts, neighbour = within_supports(tree, X, where, radius)
-    if blocking:
-        point_of = np.repeat(np.arange(len(where)), counts)
-        key = owner[point_of] * np.int64(n) + neighbour
-        at_key = np.minimum(np.searchsorted(blocked, key), len(blocked) - 1)
-        keep = blocked[at_key] != key
-        neighbour = neighbour[keep]
-        counts = np.bincount(point_of[keep], minlength=len(where))
+    if blocked is not None and len(blocked) > 0:
+        # but where a crack hides some of its particles from a cell's owner, the MLS there is the
+        # owner's own: such a row gets an evaluation of its own, over the particles left.
+        pos, _ = csr_positions(np.r_[0, np.cumsum(counts)], of_row)
+        row_of = np.repeat(np.arange(len(point)), counts[of_row])
+        key = owner[row_of] * np.int64(n) + neighbour[pos]
+        hidden = blocked[np.minimum(np.searchsorted(blocked, key), len(blocked) - 1)] == key
+        cut = np.zeros(len(point), dtype=bool)
+        cut[row_of[hidden]] = True
+        cut_rows = np.flatnonzero(cut)
+        left = cut[row_of] & ~hidden
+        shared = np.zeros(len(at), dtype=bool)  # the points some intact row still uses
+        shared[of_row[~cut]] = True
+        kept, _ = csr_positions(np.r_[0, np.cumsum(counts)], np.flatnonzero(shared))
+        where = np.concatenate([where[shared], points[point[cut_rows]]])
+        neighbour = np.concatenate([neighbour[kept], neighbour[pos[left]]])
+        counts = np.concatenate([counts[shared], np.bincount(row_of[left], minlength=len(point))[cut_rows]])
+        of_row = np.cumsum(shared)[of_row] - 1
+        of_row[cut_rows] = np.count_nonzero(shared) + np.arange(len(cut_rows))
     start = np.zeros(len(where) + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
     value, point_condition = mls_values(where, X, volume, start, neighbour, radius, terms, linear_fallback,
