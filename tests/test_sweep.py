@@ -24,7 +24,7 @@ from crackle.scenario import ScenarioError
 from crackle.sweep import list_sweeps, make_plan
 from crackle.sweep.calibrate import curve_distance, quadratic_minimum, read_target
 from crackle.sweep.plan import parse_vary
-from crackle.sweep.runner import check_runs, finished_summary
+from crackle.sweep.runner import check_runs, finished_summary, run_one
 from crackle.sweep.table import summary_scalars
 
 pytestmark = pytest.mark.filterwarnings("ignore:element size")
@@ -226,6 +226,25 @@ def test_a_run_is_finished_when_its_summary_says_completed_stopped_or_unstable(t
         assert (finished_summary(tmp_path) is not None) == finished
     (tmp_path / "summary.json").write_text("{\"status\": ")  # cut short by a kill
     assert finished_summary(tmp_path) is None
+
+
+def test_an_interrupted_run_of_a_sweep_continues_from_its_checkpoint(tmp_path):
+    """A sweep's run that was interrupted with a checkpoint (here: one left at 10 us, its summary
+    not finished) continues from it when the sweep runs it again: its history is the one an
+    uninterrupted run writes, byte for byte, and the steps before the checkpoint are not run
+    again (summary.json: resumed_from the checkpoint's time)."""
+    folder = tmp_path / "run"
+    overrides = {"run.end_time": 2e-5}
+    assert run_one("three-point-bending", str(folder), {"run.end_time": 1e-5}, True, 1)["status"] == "completed"
+    (folder / "summary.json").write_text(json.dumps({"status": "interrupted"}))
+    before = (folder / "history.csv").read_text()
+    assert run_one("three-point-bending", str(folder), overrides, True, 1)["status"] == "completed"
+    straight = tmp_path / "straight"
+    assert run_one("three-point-bending", str(straight), overrides, True, 1)["status"] == "completed"
+    resumed = (folder / "history.csv").read_text()
+    assert resumed.startswith(before) and len(resumed) > len(before)
+    assert json.loads((folder / "summary.json").read_text())["resumed_from"] == pytest.approx(1e-5, rel=0.01)
+    assert resumed == (straight / "history.csv").read_text()
 
 
 def test_a_killed_sweep_finishes_only_its_missing_runs(tmp_path, capsys):

@@ -2,7 +2,8 @@
 
 Each run is an ordinary `crackle run` in its own folder (outputs of the output contract); a run
 whose folder holds a finished summary.json is not run again, so an interrupted sweep continues
-where it stopped. A run that fails (a value its scenario refuses, an unstable run, an error) is
+where it stopped, and a run interrupted mid-way continues from its last checkpoint (`crackle run
+--resume`; from the start when the checkpoint is of other settings). A run that fails (a value its scenario refuses, an unstable run, an error) is
 a row with its status and message; the others go on."""
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..scenario import ScenarioError
+from ..solver.checkpoint import CHECKPOINT_FILE
 from .plan import SweepPlan, SweepRun
 from .table import write_table
 
@@ -44,7 +46,12 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
-        result = run_scenario(scenario, folder, overrides, quick, progress=False, plots=plots)
+        try:
+            if not (Path(folder) / CHECKPOINT_FILE).is_file():
+                raise ScenarioError("no checkpoint")
+            result = run_scenario(scenario, None, overrides, quick, progress=False, plots=plots, resume=folder)
+        except ScenarioError:  # nothing to resume (or a checkpoint of other settings): from the start
+            result = run_scenario(scenario, folder, overrides, quick, progress=False, plots=plots)
     except ScenarioError as err:
         return {"status": "invalid", "message": str(err)}
     except UnstableRunError as err:
