@@ -18,7 +18,10 @@ Output: one human-readable line per size, then LAST one JSON object on one line:
                 "threads": ..., <extra keys>}, ...], "threads": N}
 
 bytes_per_tet: nbytes of every numpy array in the model's nodes/tets/ifs/tools/pressures/controls/ties
-tuples plus model.x0, over the tet count. Extra keys per size: contact_bytes_per_tet (arrays of
+tuples plus model.x0, over the tet count: the step reads them all, so it is also a lower bound on
+the bytes a tet-step moves; bandwidth_fraction = bytes_per_tet x tet_steps_per_s / this
+machine's triad bandwidth with the same threads (benchmarks/bandwidth.py: bandwidth_gb_s), the
+share of the memory system the step reaches at least. Extra keys per size: contact_bytes_per_tet (arrays of
 the simulation's node-to-surface contact state, not counted in bytes_per_tet), cells, dt,
 tool_contact_nodes (nodes touching a platen at the end: contact is exercised), build_s,
 repeat_seconds, cpu_utilisation (process CPU time / (wall x threads) over the
@@ -263,6 +266,16 @@ def run_size(target_tets: int, args) -> dict:
         row["interface_seconds_per_step"] = if_per_step
         row["interface_fraction"] = if_per_step / seconds_per_step
         row["peak_rss_mb"] = peak_rss_mb()
+
+    # The model's arrays are all read (and the state written) every step: at least this many
+    # bytes move per step; their rate against this machine's triad bandwidth with the same
+    # threads is the share of the memory system the step reaches (after the peak RSS: the
+    # triad's arrays are 768 MB).
+    from bandwidth import memory_bandwidth
+
+    bandwidth = memory_bandwidth()
+    row["bandwidth_gb_s"] = bandwidth / 1e9
+    row["bandwidth_fraction"] = model_bytes(model) / seconds_per_step / bandwidth
     return row
 
 
@@ -271,7 +284,8 @@ def human_line(r: dict) -> str:
         f"{r['tets']:>8d} tets {r['interfaces']:>8d} ifaces | {r['steps']:>5d} steps x{len(r['repeat_seconds'])} | "
         f"{r['seconds_per_step'] * 1e3:8.3f} ms/step | {r['tet_steps_per_s'] / 1e6:6.2f} M tet-steps/s | "
         f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
-        f"{r['tool_contact_nodes']} nodes on tools"
+        f"{r['tool_contact_nodes']} nodes on tools | at least {100 * r['bandwidth_fraction']:.0f} % of the "
+        f"{r['bandwidth_gb_s']:.1f} GB/s triad bandwidth"
     )
     if "interface_seconds_per_step" in r:
         line += (f" | interface pass {r['interface_seconds_per_step'] * 1e3:.3f} ms/step "

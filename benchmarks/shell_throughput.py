@@ -12,7 +12,12 @@ peak_rss_mb (maxrss) belongs to it.
 Output: one line per size, then one JSON object on the last line:
 
     {"sizes": [{"triangles", "nodes", "threads", "steps", "seconds_per_step", "triangle_steps_per_s",
-                "bytes_per_triangle", "peak_rss_mb", "build_s", "j_integral_s"}, ...]}
+                "bytes_per_triangle", "peak_rss_mb", "build_s", "j_integral_s", "bandwidth_gb_s",
+                "bandwidth_fraction"}, ...]}
+
+bytes_per_triangle: the nodes', faces' and edges' arrays over the triangle count, all read every
+step (a lower bound on the bytes a triangle-step moves); bandwidth_fraction = bytes_per_triangle x
+triangle_steps_per_s / this machine's triad bandwidth with the same threads (benchmarks/bandwidth.py).
 
     python benchmarks/shell_throughput.py --threads 2          # 100k and 1M triangles
     python benchmarks/shell_throughput.py --quick               # 10k triangles, a smoke test
@@ -77,12 +82,17 @@ def measure(n_triangles: int, seconds: float, repeats: int) -> dict:
     arrays = [*shell.nodes, *shell.faces, *shell.edges]
     nbytes = sum(x.nbytes for x in arrays if isinstance(x, np.ndarray))
     m = len(mesh.tri)
+    peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    from bandwidth import memory_bandwidth  # after the peak RSS: its arrays are 768 MB
+
+    bandwidth = memory_bandwidth()
     return {
         "triangles": m, "nodes": n, "threads": int(os.environ.get("NUMBA_NUM_THREADS", "0") or 0), "steps": steps,
         "seconds_per_step": seconds_per_step, "triangle_steps_per_s": m / seconds_per_step,
-        "bytes_per_triangle": nbytes / m, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "bytes_per_triangle": nbytes / m, "peak_rss_mb": peak_rss_mb,
         "build_s": build_s, "j_integral_s": statistics.median(j_times),
         "finite": bool(np.isfinite(shell.nodes.x).all()),
+        "bandwidth_gb_s": bandwidth / 1e9, "bandwidth_fraction": nbytes / seconds_per_step / bandwidth,
     }
 
 
@@ -109,7 +119,8 @@ def main() -> None:
         results.append(r)
         print(f"{r['triangles']:>9,} triangles, {r['threads']} threads: {r['triangle_steps_per_s'] / 1e6:6.2f} M "
               f"triangle-steps/s ({r['seconds_per_step'] * 1e3:.2f} ms/step), {r['bytes_per_triangle']:.0f} B/triangle, "
-              f"peak {r['peak_rss_mb']:.0f} MB, J-integral {r['j_integral_s'] * 1e3:.1f} ms, build {r['build_s']:.1f} s")
+              f"peak {r['peak_rss_mb']:.0f} MB, J-integral {r['j_integral_s'] * 1e3:.1f} ms, build {r['build_s']:.1f} s, "
+              f"at least {100 * r['bandwidth_fraction']:.0f} % of the {r['bandwidth_gb_s']:.1f} GB/s triad bandwidth")
     print(json.dumps({"sizes": results}))
 
 
