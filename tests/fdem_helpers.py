@@ -8,7 +8,7 @@ import numpy as np
 
 from crackle.fdem.laws import GuoMunjizaLaw
 from crackle.materials import Material
-from crackle.solver.energy import relative_imbalance
+from crackle.analysis.energy import relative_imbalance
 
 # Paper 001, Table 1: the rock of the FDEM validation examples.
 RHO = 2340.0

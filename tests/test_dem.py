@@ -14,7 +14,7 @@ from crackle.dem.kernels import BONDED, BROKEN, GONE
 from crackle.dem.model import BondLaw
 from crackle.loading import History, Selection, Support, Tool
 from crackle.scenario import ScenarioError, load_scenario
-from crackle.solver.energy import energy_error
+from crackle.analysis.energy import energy_error
 from crackle.solver.failures import MODE_SHEAR, MODE_TENSION
 
 R = 1e-3  # m

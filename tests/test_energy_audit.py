@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crackle.cli import main
-from crackle.solver.energy import created_fraction, energy_error
+from crackle.analysis.energy import created_fraction, energy_error
 
 
 def _history(external, kinetic, elastic):

@@ -24,7 +24,7 @@ from crackle.meshfree.shape import basis_terms, neighbour_links, shape_functions
 from crackle.scenario import load_scenario
 from crackle.solver import RunControl, UnstableRunError
 from crackle.solver import run as run_simulation
-from crackle.solver.energy import energy_error, relative_imbalance
+from crackle.analysis.energy import energy_error, relative_imbalance
 from crackle.solver.stability import STEP_MARGIN
 from meshfree_fields import LINEAR_A, LINEAR_B, approximated, gradient
 from threads import outputs_with_1_and_2_threads

@@ -22,7 +22,7 @@ from crackle.shell.jintegral import (bending_density, energy_release_rate, j_int
 from crackle.shell.mesh import SurfaceError, edge_path, rectangle, shell_mesh, split_along
 from crackle.shell.model import ShellMaterial, build_shell, edge_loads
 from crackle.shell.static import relax
-from crackle.solver.energy import relative_imbalance
+from crackle.analysis.energy import relative_imbalance
 from threads import outputs_with_1_and_2_threads
 
 STEEL = ShellMaterial(density=7800.0, youngs_modulus=2.0e11, poissons_ratio=0.3)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.energy import imbalance
 from ._units import time_unit
 from .outputs import read_events_csv, read_history_csv
 
@@ -153,8 +154,6 @@ def plot_energies(history, path) -> Path:
         for name in energy_names:
             ax.plot(time * scale, np.asarray(cols[name], float), label=name[7:])
         if "energy.external" in cols:
-            from ..solver.energy import imbalance  # here: solver imports io
-
             terms = {n: np.asarray(cols[n], float) for n in energy_names}
             ax.plot(time * scale, imbalance(terms), "k--", label="imbalance")
         ax.legend(fontsize="small", ncol=2)

@@ -24,7 +24,7 @@ import numpy as np
 from .. import __version__
 from ..loading.arrays import LOAD_CELL_RING, STARTS_INSIDE
 from .checkpoint import CHECKPOINT_FILE, Checkpoint, CheckpointError, load_checkpoint, save_checkpoint
-from .energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error
+from ..analysis.energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error
 from .simulation import Simulation
 from ..io._units import duration_text
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary

@@ -15,7 +15,7 @@ class Simulation(Protocol):
 
     Histories: `sample` returns one row of history.csv (without `time`): `tool.NAME.f*` (the
     force `load_cell` reads: the mean over its window of steps) and `tool.NAME.u*`, every
-    `energy.*` term of the audit (solver.energy), `broken`, and anything the method adds.
+    `energy.*` term of the audit (analysis.energy), `broken`, and anything the method adds.
     Events: `new_events` reports each failure once (solver.failures.FailureRecorder).
     """
 
