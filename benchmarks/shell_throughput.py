@@ -41,7 +41,7 @@ def measure(n_triangles: int, seconds: float, repeats: int) -> dict:
 
     from crackle.loading.arrays import tool_arrays
     from crackle.shell.jintegral import j_integral
-    from crackle.shell.kernels import BLOCK, LoadFactor, Pressures, advance
+    from crackle.shell.kernels import BLOCK, NO_PRESSURE, LoadFactor, advance
     from crackle.shell.mesh import edge_path, rectangle, split_along
     from crackle.shell.model import ShellMaterial, build_shell
 
@@ -59,8 +59,7 @@ def measure(n_triangles: int, seconds: float, repeats: int) -> dict:
     factor = LoadFactor(np.array([0.0]), np.array([1.0]), 1)
     dt = 0.7 * shell.stable_dt() / 0.95
     build_s = time.perf_counter() - started
-    no_pressure = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
-    args = (shell.nodes, shell.faces, shell.edges, tools, factor, no_pressure, np.zeros(3), 0.0)
+    args = (shell.nodes, shell.faces, shell.edges, tools, factor, NO_PRESSURE, np.zeros(3), 0.0)
     advance(10, 0, dt, *args)
     t0 = time.perf_counter()
     advance(10, 10, dt, *args)

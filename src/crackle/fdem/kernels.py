@@ -314,7 +314,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
     n_tet = tets.vol.shape[0]
     n_tool = tools.kind.shape[0]
-    n_press = pressures.n.shape[0]
+    n_press = pressures.counts.shape[0]
     n_slot = contact.counts[1]
     n_if_blocks = (n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK
     n_tet_blocks = (n_tet + TET_BLOCK - 1) // TET_BLOCK
@@ -325,7 +325,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     for step in range(n_steps):
         t = (first_step + step) * dt
         for q in range(n_press):
-            pressure_now[q] = interp_history(t, pressures.times[q], pressures.values[q], pressures.n[q])
+            pressure_now[q] = interp_history(t, pressures.times[q], pressures.values[q], pressures.counts[q])
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         for blk in prange(n_if_blocks):
             lo = blk * INTERFACE_BLOCK

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..loading.arrays import Tools, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import HistoryTable, Tools, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.integrator import support_constraints
 from ..materials import Material
@@ -39,7 +39,6 @@ Interfaces = namedtuple(
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic dn_shift "
     "e_damage e_friction e_inserted",
 )
-Pressures = namedtuple("Pressures", "times values n")
 Controls = namedtuple("Controls", "gravity damping")
 
 
@@ -55,7 +54,7 @@ class FdemModel:
     ifs: Interfaces
     ties: Ties  # extrinsic interfaces: which faces are tied and the clusters of node copies
     tools: Tools
-    pressures: Pressures
+    pressures: HistoryTable
     controls: Controls
     tool_specs: list[Tool]
     pressure_specs: list[Pressure]
@@ -205,7 +204,7 @@ def build_fdem_model(
         ifs=ifs,
         ties=ties,
         tools=tool_table,
-        pressures=Pressures(*history_tables([p.history for p in pressures])),
+        pressures=history_tables([p.history for p in pressures]),
         controls=Controls(np.asarray(gravity, dtype=float), np.array([float(damping)])),
         tool_specs=list(tools),
         pressure_specs=list(pressures),

@@ -10,6 +10,10 @@ import numpy as np
 from ..scenario import ScenarioError
 from .tools import BARY_TOL, SURF_TRI_COLUMNS, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
+# Piecewise-linear histories padded into tables, one row each (history_tables): the one layout of
+# every method's pressure histories (FDEM's and the shell's pressures, the last three fields of
+# the meshfree wall pressures).
+HistoryTable = namedtuple("HistoryTable", "times values counts")
 Tools = namedtuple(
     "Tools",
     "kind geom disp direction times speeds n mu penalty force_slots cell_ring cell_state cell_count "
@@ -211,7 +215,7 @@ def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
     }
 
 
-def history_tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def history_tables(histories) -> HistoryTable:
     """Piecewise-linear histories padded into (k, n) time and value tables plus point counts
     (what loading.tools.interp_history reads)."""
     k = len(histories)
@@ -226,4 +230,4 @@ def history_tables(histories) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         times[i, c:] = h.times[-1]
         values[i, c:] = h.values[-1]
         counts[i] = c
-    return times, values, counts
+    return HistoryTable(times, values, counts)

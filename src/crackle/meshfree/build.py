@@ -13,7 +13,7 @@ from ..loading.arrays import default_tool_penalty, history_tables, seat_on_tools
 from ..solver.integrator import support_constraints
 from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
-from .kernels import BLOCK, Links, Particles, Pressures, stabilisation_stiffness
+from .kernels import BLOCK, Links, Particles, WallPressures, stabilisation_stiffness
 from .material import T_REF, J2Law
 from .particles import WALL_SIDES, Cells, WallParticles, wall_columns
 from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients, support_radii, within_supports
@@ -257,7 +257,7 @@ def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
     return value, stab_k
 
 
-def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None = None) -> Pressures:
+def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None = None) -> WallPressures:
     """The wall faces (particles.WallFaces) that each pressure loads, gathered per particle: the
     faces of the particles its `where` selects (on its `wall` only, when given), with the delay
     s / front_speed of a travelling front (s the distance of the face's reference centre from
@@ -294,5 +294,5 @@ def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None
     order = np.lexsort((which, particle))  # by particle, then by pressure
     start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(particle, minlength=n), out=start[1:])
-    times, values, counts = history_tables([p.history for p in pressures])
-    return Pressures(start, np.ascontiguousarray(area[order]), which[order], delay[order], times, values, counts)
+    return WallPressures(start, np.ascontiguousarray(area[order]), which[order], delay[order],
+                         *history_tables([p.history for p in pressures]))

@@ -68,9 +68,10 @@ Particles = namedtuple(
 Links = namedtuple("Links", "start neighbour grad value back_start to_back back_row back_grad back_value")
 # Pressures on the wall faces of the surface particles: the faces of particle g are rows
 # start[g]:start[g + 1]; area: A0 N (reference area vector, out of the solid); load: the row of
-# the history tables (times, values, n: loading.arrays.history_tables); delay: s / front speed
-# (0 without a front), the time the front reaches the face.
-Pressures = namedtuple("Pressures", "start area load delay times values n")
+# the histories; delay: s / front speed (0 without a front), the time the front reaches the face;
+# then the histories' table as loading.arrays.HistoryTable lays it out (times, values, counts:
+# its fields, not the table itself, which a parallel kernel cannot take nested).
+WallPressures = namedtuple("WallPressures", "start area load delay times values counts")
 # The penalty contact between particles no link joins (contact.py): the pairs of particle g are
 # rows start[g]:start[g + 1] (each pair in both particles' rows, with the same numbers), the other
 # particle, the pair's spring (N/m) and its reach (m: the distance under which it pushes);
@@ -348,7 +349,7 @@ def _pressure_force(g, t, deformation, pressures):
         if tau < 0.0:
             continue
         q = pressures.load[r]
-        pr = interp_history(tau, pressures.times[q], pressures.values[q], pressures.n[q])
+        pr = interp_history(tau, pressures.times[q], pressures.values[q], pressures.counts[q])
         a0, a1, a2 = area[r, 0], area[r, 1], area[r, 2]
         fx -= pr * (c00 * a0 + c01 * a1 + c02 * a2)
         fy -= pr * (c10 * a0 + c11 * a1 + c12 * a2)

@@ -36,7 +36,7 @@ class MeshfreeSimulation:
         self.plate = plate
         # Link breaking (fracture.LinkBreaking), or None without a fracture stress.
         self.breaking = breaking
-        # The pressures on the wall faces (kernels.Pressures; build.pressure_arrays, empty without).
+        # The pressures on the wall faces (kernels.WallPressures; build.pressure_arrays, empty without).
         self.pressures = pressures
         # The particle contact (contact.ParticleContact) between bodies and across cracks, or None.
         self.contact = contact

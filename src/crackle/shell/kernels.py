@@ -33,6 +33,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
+from ..loading.arrays import HistoryTable
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 
@@ -51,7 +52,7 @@ Faces = namedtuple("Faces", "tri dm_inv area lam_t mu_t bend face_edge force mom
 # dm_inv: (m, 4) the inverse of the reference edge matrix in the face's own frame, row-major;
 # lam_t, mu_t: plane-stress Lame constants times thickness (N/m); bend: (m, 6) H's upper
 # triangle (00 01 02 11 12 22); force (m, 3, 3) per corner; moment (m, 3) dE/dtheta per local edge;
-# pressure (m,) the row of the face's pressure history in Pressures (-1: none), pressure_sign +1
+# pressure (m,) the row of the face's pressure history in the shell's pressures (a HistoryTable; -1: none), pressure_sign +1
 # where it pushes along the face's normal, -1 against; pressure_delay (m,) s, a travelling
 # front's arrival (nothing before it); pressure_force (m, 3) the force on each corner (external).
 Edges = namedtuple("Edges", "ends opposite face local theta theta0 force ghost xi xi_rate xi_inertia xi_force "
@@ -67,7 +68,6 @@ Edges = namedtuple("Edges", "ends opposite face local theta theta0 force ghost x
 FREE_EDGE = -1
 CLAMPED = -2
 LoadFactor = namedtuple("LoadFactor", "times values n")  # the history that scales Nodes.load
-Pressures = namedtuple("Pressures", "times values counts")  # one padded row per pressure history
 
 
 @njit(cache=True, inline="always")
@@ -346,7 +346,7 @@ def element_passes(t, x, faces, edges, pressures, dt=0.0, alpha=0.0):
 
 
 # Pressures before the time begins (t = -inf): none acts (the statics' and Lanczos' forces).
-NO_PRESSURE = Pressures(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
+NO_PRESSURE = HistoryTable(np.zeros((1, 1)), np.zeros((1, 1)), np.ones(1, dtype=np.int64))
 
 
 def element_forces(x, faces, edges):

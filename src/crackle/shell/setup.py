@@ -23,13 +23,13 @@ from ..budget import ModelTooLarge, check_model_size
 from ..geometry.meshes import MeshError, read_with_meshio
 from ..geometry.specimens import check_file_units
 from ..loading import History
-from ..loading.arrays import default_tool_penalty, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import HistoryTable, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
 from ..materials import Material
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
-from .kernels import BLOCK, LoadFactor, Pressures
+from .kernels import BLOCK, LoadFactor
 from .mesh import SurfaceError, cylinder, edge_path, rectangle, shell_mesh, split_along
 from .model import ShellMaterial, build_shell, edge_loads
 from .growth import GrowthLaw
@@ -294,7 +294,7 @@ def _regions(mesh, scenario: Scenario):
     return replace(mesh, thickness=thickness, region=region), material
 
 
-def _pressures(shell, pressures, scale) -> Pressures:
+def _pressures(shell, pressures, scale) -> HistoryTable:
     """Each pressure's triangles (all three corners selected) in Faces, with its side and a front's
     delays; the histories as a table."""
     mesh, faces = shell.mesh, shell.faces
@@ -309,8 +309,7 @@ def _pressures(shell, pressures, scale) -> Pressures:
             direction = np.asarray(pressure.front_direction or (0.0, 0.0, 1.0), float)
             along = (centroids[chosen] - np.asarray(pressure.front_origin, float)) @ (direction / np.linalg.norm(direction))
             faces.pressure_delay[chosen] = along / pressure.front_speed
-    times, values, counts = history_tables([p.history for p in pressures] or [History.constant(0.0)])
-    return Pressures(times, values, counts)
+    return history_tables([p.history for p in pressures] or [History.constant(0.0)])
 
 
 def _planned_triangles(spec: ShellSpec) -> float | None:
