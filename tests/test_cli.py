@@ -198,7 +198,8 @@ def test_tools_set_by_name():
 
 def test_rerun_clears_only_crackles_outputs(tmp_path):
     """A rerun into a folder that holds an earlier run leaves none of its frames (fewer frames
-    the second time) and keeps a file of the user's."""
+    the second time) nor a figure another method drew there (a DEM run's stress-strain curve
+    beside an FDEM run's figures), and keeps files of the user's, in plots/ too."""
     from crackle.io import read_pvd
 
     out = tmp_path / "out"
@@ -206,10 +207,13 @@ def test_rerun_clears_only_crackles_outputs(tmp_path):
     assert main(args + ["--set", "run.field_frames=6"]) == 0
     first = len(list((out / "fields").glob("*.vtu")))
     (out / "notes.txt").write_text("mine")
+    (out / "plots" / "stress_strain.png").write_bytes(b"a DEM run's figure")
+    (out / "plots" / "my_figure.png").write_bytes(b"mine")
     assert main(args + ["--set", "run.field_frames=2", "--set", "run.history_samples=20"]) == 0
     frames = sorted((out / "fields").glob("*.vtu"))
     assert len(frames) < first and frames == sorted(path for _, path in read_pvd(out / "fields.pvd"))
-    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "notes.txt").read_text() == "mine" and (out / "plots" / "my_figure.png").read_bytes() == b"mine"
+    assert not (out / "plots" / "stress_strain.png").exists()
 
 
 def test_ctrl_c_stops_consistently_with_exit_130(tmp_path):

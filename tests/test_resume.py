@@ -139,7 +139,7 @@ def test_periodic_checkpoint_carries_the_stop_clock(tmp_path, monkeypatch):
     same rows: the checkpoint holds the driver state of the row it follows."""
     import shutil
 
-    import crackle.solver as solver
+    import crackle.solver.driver as solver
 
     args = ["run", LATTICE, "--set", "run.end_time=6e-4", "--set", "run.history_samples=1200",
             "--set", "run.stop.force_drop=0.5", "--set", "run.stop.force_drop_hold=2e-5"]
@@ -171,7 +171,7 @@ def test_killed_after_a_checkpoint_resumes_exactly(tmp_path, monkeypatch, which)
     row's own time, so only the count of events written tells it apart)."""
     import shutil
 
-    import crackle.solver as solver
+    import crackle.solver.driver as solver
     from crackle.io import read_events_csv
     from crackle.solver import steps_to
 

@@ -255,7 +255,7 @@ def test_a_ctrl_c_that_stops_at_once_says_what_is_kept(tmp_path, capsys, monkeyp
     """A Ctrl-C while the plots are written (the driver's handler is gone then; a second Ctrl-C
     during a chunk is the same exception): exit 130 with one line saying the history is kept, not
     "no results written"; the history is there."""
-    import crackle.solver as solver
+    import crackle.solver.driver as solver
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt

@@ -10,7 +10,7 @@ import numpy as np
 from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
 from ..analysis.strength import TensionTest, platen_modulus
-from ..io import plot_stress_strain
+from ..io.plots import plot_stress_strain, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
@@ -334,7 +334,7 @@ class DemSimulation:
 
     def extra_plots(self, out_dir) -> None:
         if self.platen is not None and self.loaded_area:
-            plot_stress_strain(out_dir / "history.csv", out_dir / "plots" / "stress_strain.png")
+            plot_stress_strain(out_dir / "history.csv", run_plot_path(out_dir, "stress_strain"))
 
 
 def _grid_cells(lower, cell: float, shape) -> tuple[np.ndarray, np.ndarray]:

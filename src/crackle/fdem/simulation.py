@@ -17,7 +17,7 @@ from ..analysis import (
 )
 from ..analysis.energy_jumps import JUMP_SPEED, energy_jumps
 from ..analysis.strength import BrazilianTest, TensionTest
-from ..io import plot_crack_growth, plot_fragment_sizes, plot_time_steps
+from ..io.plots import plot_crack_growth, plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import MODE_NAMES, FailureRecorder
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
@@ -247,12 +247,12 @@ class FdemSimulation:
         return self.model.mesh.bounds()
 
     def extra_plots(self, out_dir) -> None:
-        plot_fragment_sizes(self.fragments().masses, out_dir / "plots" / "fragment_sizes.png")
+        plot_fragment_sizes(self.fragments().masses, run_plot_path(out_dir, "fragment_sizes"))
         step = self.model.time_step
-        plot_time_steps(step.element_dt, step.bulk_dt, step.as_summary(), out_dir / "plots" / "time_step.png")
+        plot_time_steps(step.element_dt, step.bulk_dt, step.as_summary(), run_plot_path(out_dir, "time_step"))
         cracks = self.cracks()
         if cracks is not None and len(cracks.length_history):
-            plot_crack_growth(cracks.length_history, cracks.speed_history, out_dir / "plots" / "crack_growth.png")
+            plot_crack_growth(cracks.length_history, cracks.speed_history, run_plot_path(out_dir, "crack_growth"))
 
     def cracks(self, scale: float | None = None) -> CrackAnalysis | None:
         """Crack count and main-crack speed of the failures so far (None unless crack_settings),

@@ -347,17 +347,40 @@ def plot_j_history(history, path, reference: float | None = None) -> Path | None
     return _save(fig, path)
 
 
+# Every figure a run writes into its plots/ folder, by file name (without .png), and where it comes
+# from: the three standard ones, then those a method draws in its extra_plots (through
+# run_plot_path). One list, so that a rerun into a folder removes the figures of an earlier run,
+# whichever method drew them.
+RUN_PLOTS = {
+    "load_displacement": "standard: tool force against displacement (when the run has tools or edge loads)",
+    "energies": "standard: the energy audit's terms over time",
+    "crack_pattern": "standard: the failures' positions (the shell redraws it with its crack paths)",
+    "fragment_sizes": "fdem: fragment masses",
+    "time_step": "fdem: the per-element stable steps and the step used",
+    "crack_growth": "fdem: the main crack's length and speed (with [analysis.cracks])",
+    "stress_strain": "dem: platen stress against strain (with platens)",
+    "j_history": "shell: J and G at each crack tip",
+}
+
+
+def run_plot_path(out_dir, name: str) -> Path:
+    """out_dir/plots/NAME.png for a figure of RUN_PLOTS (a name not listed is a programming error:
+    a rerun would leave it behind)."""
+    if name not in RUN_PLOTS:
+        raise KeyError(f"plot {name!r} is not in io.plots.RUN_PLOTS; add it there")
+    return Path(out_dir) / "plots" / f"{name}.png"
+
+
 def write_standard_plots(out_dir, history, events, bounds) -> list[Path]:
     """Write ``plots/{load_displacement,energies,crack_pattern}.png``.
 
     Load-displacement is skipped when the history has neither tool nor edge-load columns.
     Returns the paths written.
     """
-    plots_dir = Path(out_dir) / "plots"
     cols = _columns(history)
     paths = []
     if tool_names(cols) or EDGE_LOAD_FORCE in cols:
-        paths.append(plot_load_displacement(cols, plots_dir / "load_displacement.png"))
-    paths.append(plot_energies(cols, plots_dir / "energies.png"))
-    paths.append(plot_crack_pattern(events, bounds, plots_dir / "crack_pattern.png"))
+        paths.append(plot_load_displacement(cols, run_plot_path(out_dir, "load_displacement")))
+    paths.append(plot_energies(cols, run_plot_path(out_dir, "energies")))
+    paths.append(plot_crack_pattern(events, bounds, run_plot_path(out_dir, "crack_pattern")))
     return paths

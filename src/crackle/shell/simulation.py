@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
-from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE
+from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE, plot_crack_pattern, plot_j_history, run_plot_path
 from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_stresses, step_ahead
@@ -399,14 +399,11 @@ class ShellSimulation:
         """plots/crack_pattern.png redrawn with the pre-cracks and the paths the tips ran;
         plots/j_history.png: each tip's J and G over the run and the closed form."""
         from ..io import read_history_csv
-        from ..io.plots import plot_j_history
-
-        from ..io.plots import plot_crack_pattern
 
         out = Path(out_dir)
         grown = [np.array([start] + [a.position for a in self.advances if a.tip == k])
                  for k, start in enumerate(self._tip_starts)]
-        plot_crack_pattern(out / "events.csv", self.bounds(), out / "plots" / "crack_pattern.png",
+        plot_crack_pattern(out / "events.csv", self.bounds(), run_plot_path(out, "crack_pattern"),
                            paths=[("pre-crack", p) for p in self.pre_cracks] + [("grown", p) for p in grown if len(p) > 1])
         if self.tips:
-            plot_j_history(read_history_csv(out / "history.csv"), out / "plots" / "j_history.png", self.j_reference)
+            plot_j_history(read_history_csv(out / "history.csv"), run_plot_path(out, "j_history"), self.j_reference)
