@@ -18,6 +18,37 @@ PREFIX = "energy."
 UNSTABLE_CREATED = 0.25
 
 
+# Every energy term's role, in the order history.csv gives them (energy.NAME): the one
+# vocabulary of the five methods. Kinetic and stored energy come back; dissipated energy does not
+# (fracture: `damage`, in every method); the input is the work put in. The audit itself is
+# external - everything else, whatever the roles.
+KINETIC, STORED, DISSIPATED, INPUT = "kinetic", "stored", "dissipated", "input"
+ENERGY_ROLES = {
+    "kinetic": KINETIC,
+    "elastic": STORED,  # bulk strain energy (tets, bonds, springs, particles)
+    "membrane": STORED,  # the shell's in-plane strain energy
+    "bending": STORED,  # the shell's bending energy
+    "cohesive": STORED,  # FDEM interfaces before they fail
+    "stabilisation": STORED,  # the meshfree particles' stabilisation springs
+    "contact": STORED,  # penalty springs: tools, crack faces, bodies
+    "damage": DISSIPATED,  # fracture: interfaces, bonds, links, the shell's cuts
+    "plastic": DISSIPATED,
+    "thermal": DISSIPATED,  # the meshfree thermo law's release of stored energy by heating
+    "friction": DISSIPATED,
+    "damping": DISSIPATED,
+    "external": INPUT,
+}
+
+
+def energy_order(terms) -> list[str]:
+    """The names of `terms` (without the prefix) in ENERGY_ROLES's order; KeyError names a term
+    outside the vocabulary (add it there, with its role)."""
+    unknown = [name for name in terms if name not in ENERGY_ROLES]
+    if unknown:
+        raise KeyError(f"energy terms {unknown} are not in analysis.energy.ENERGY_ROLES; add them with their role")
+    return [name for name in ENERGY_ROLES if name in terms]
+
+
 def _accounted(terms):
     """The sum of every energy term but the external work."""
     return sum(v for k, v in terms.items() if k.startswith(PREFIX) and k != EXTERNAL)

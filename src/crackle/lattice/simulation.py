@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
+from ..solver.simulation import SimulationBase
 from .kernels import advance
 
 
-class LatticeSimulation:
+class LatticeSimulation(SimulationBase):
     method = "lattice"
 
     def __init__(self, nodes, springs, tools, tool_names, radius, break_strain, stable_dt, wave_transit, gravity,
                  damping):
-        self.nodes, self.springs, self.tools = nodes, springs, tools
-        self._tool_names = list(tool_names)
+        self._start_clock_and_tools(tools, tool_names)
+        self.nodes, self.springs = nodes, springs
         self.radius = float(radius)
         self.break_strain = float(break_strain)
         self.stable_dt = stable_dt
@@ -24,14 +24,13 @@ class LatticeSimulation:
         self.wave_transit = wave_transit
         self.gravity = gravity
         self.damping = float(damping)
-        self.time = 0.0
-        self.steps = 0
         self.x0 = nodes.x.copy()
-        self._radius = np.array([self.radius])
-        self._springs = ToolSprings(tools, tool_names)
-        self.load_cell = LoadCell(tools)
+        self.tool_radius = np.array([self.radius])
         self._failures = FailureRecorder(len(springs.a))
-        self.warnings: list[str] = []
+
+    @property
+    def body(self):
+        return self.nodes
 
     def advance(self, n_steps: int, dt: float) -> None:
         advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
@@ -39,41 +38,19 @@ class LatticeSimulation:
         self.steps += n_steps
         self.time = self.steps * dt
 
-    def state_is_finite(self) -> bool:
-        return bool(np.isfinite(self.nodes.x).all() and np.isfinite(self.nodes.v).all())
-
     @property
     def broken(self) -> int:
         return int(np.count_nonzero(~self.springs.intact))
-
-    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
-        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        n = self.nodes
-        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
-        return self._springs.measure(n.x, self._radius, n.area, n.tool, n.tool_offset, n.friction, **mid)
 
     def _spring_energy(self, x) -> float:
         s = self.springs
         stretch = np.linalg.norm(x[s.b] - x[s.a], axis=1) - s.rest
         return float(np.sum(np.where(s.intact, 0.5 * s.k * stretch**2, 0.0)))
 
-    def energies(self, dt: float) -> dict[str, float]:
-        n = self.nodes
+    def own_energies(self, dt: float) -> dict[str, float]:
         # Potentials at the mid-step positions pair with the half-step velocities.
-        x_mid = n.x - 0.5 * dt * n.v
-        return {
-            "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))),
-            "energy.elastic": self._spring_energy(x_mid),
-            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
-            "energy.damage": float(np.sum(self.springs.e_damage)),
-            "energy.friction": float(np.sum(n.d_friction)),
-            "energy.damping": float(np.sum(n.w_damping)),
-            "energy.external": float(np.sum(n.w_external)) + self._springs.free_work(),
-        }
-
-    def sample(self, dt: float) -> dict[str, float]:
-        energies = self.energies(dt)
-        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
+        return {"elastic": self._spring_energy(self.nodes.x - 0.5 * dt * self.nodes.v),
+                "damage": float(np.sum(self.springs.e_damage))}
 
     def new_events(self):
         s = self.springs
@@ -91,14 +68,8 @@ class LatticeSimulation:
     def describe(self) -> str:
         return f"{len(self.nodes.x):,} nodes, {len(self.springs.a):,} springs"
 
-    def tool_names(self) -> list[str]:
-        return list(self._tool_names)
-
     def bounds(self):
         return self.x0.min(axis=0), self.x0.max(axis=0)
 
     def summary(self) -> dict:
         return {"nodes": len(self.nodes.x), "springs": len(self.springs.a), "warnings": list(self.warnings)}
-
-    def extra_plots(self, out_dir) -> None:
-        pass

@@ -7,7 +7,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ..loading.loadcell import LoadCell
+from ..analysis.energy import PREFIX, energy_order
+from ..loading.loadcell import LoadCell, ToolSprings
 
 
 class Simulation(Protocol):
@@ -66,3 +67,79 @@ class Simulation(Protocol):
 
     def extra_plots(self, out_dir: Path) -> None:
         """Method-specific plots into out_dir / 'plots' (may do nothing)."""
+
+
+class SimulationBase:
+    """The part of the Simulation protocol every method shares, written once: the clock, the
+    tools (names, springs, load cell), the energy terms of the shared per-node arrays, the history
+    row around them, the set-up's warnings and the default extra plots (none).
+
+    A method's class derives from it, calls `_start_clock_and_tools(tools, tool_names)` in its
+    __init__, and gives:
+      `body`            the per-node (particle) arrays the shared compiled pieces take: x, v, mass,
+                        area, tool, tool_offset, friction, d_friction, w_damping, w_external
+      `tool_radius`     an array: one radius for every node, or one per node (m), with which a
+                        node touches the tools
+      `own_energies(dt)`  its stored and dissipated terms ({"elastic": J, "damage": J, ...};
+                        "contact" and "friction" add to the shared ones), at mid-step positions
+    and, as today, `advance`, `broken`, `new_events`, `fields`, `describe`, `summary`, `bounds`.
+    """
+
+    method: str = ""
+    _initial_energy: float = 0.0  # J: kinetic energy at t = 0 (initial velocities), counted as work put in
+
+    def _start_clock_and_tools(self, tools, tool_names) -> None:
+        self.tools = tools
+        self._tool_names = list(tool_names)
+        self.time = 0.0
+        self.steps = 0
+        self._springs = ToolSprings(tools, self._tool_names)
+        self.load_cell = LoadCell(tools)
+        self.warnings: list[str] = []
+
+    def tool_names(self) -> list[str]:
+        return list(self._tool_names)
+
+    def state_is_finite(self) -> bool:
+        b = self.body
+        return bool(np.isfinite(b.x).all() and np.isfinite(b.v).all())
+
+    def kinetic_energy(self) -> float:
+        """Of the nodes' translation (a method with rotations adds theirs)."""
+        b = self.body
+        return float(0.5 * np.sum(b.mass * np.einsum("ij,ij->i", b.v, b.v)))
+
+    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
+        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
+        b = self.body
+        mid = {} if dt is None else {"v": b.v, "time": self.time, "dt": dt}
+        return self._springs.measure(b.x, self.tool_radius, b.area, b.tool, b.tool_offset, b.friction, **mid)
+
+    def external_work(self) -> float:
+        """J put in: by the tools, supports, pressures and gravity on the nodes, the free tools, and
+        the kinetic energy at t = 0."""
+        return float(np.sum(self.body.w_external)) + self._initial_energy + self._springs.free_work()
+
+    def energies(self, dt: float) -> dict[str, float]:
+        """The energy.* columns in the order of their roles (analysis.energy.ENERGY_ROLES): kinetic,
+        the stored terms, the dissipated ones, the external work; the shared terms (tool springs,
+        node friction and damping) joined to the method's own."""
+        b = self.body
+        own = self.own_energies(dt)
+        terms = {"kinetic": self.kinetic_energy(), **own,
+                 "contact": own.get("contact", 0.0) + float(np.sum(self._tool_springs(dt).energy)),
+                 "friction": own.get("friction", 0.0) + float(np.sum(b.d_friction)),
+                 "damping": own.get("damping", 0.0) + float(np.sum(b.w_damping)),
+                 "external": self.external_work()}
+        return {f"{PREFIX}{name}": terms[name] for name in energy_order(terms)}
+
+    def history_columns(self, dt: float) -> dict[str, float]:
+        """A method's own history columns after `broken` (none by default)."""
+        return {}
+
+    def sample(self, dt: float) -> dict[str, float]:
+        row = self._springs.columns(self.load_cell, self._tool_springs)
+        return {**row, **self.energies(dt), "broken": self.broken, **self.history_columns(dt)}
+
+    def extra_plots(self, out_dir: Path) -> None:
+        pass
