@@ -12,8 +12,8 @@ from ..analysis.flaw import initiation_along_flaw
 from ..analysis.strength import TensionTest, platen_modulus
 from ..io.plots import plot_stress_strain, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
-from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import FailureRecorder
+from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, advance
 from .model import with_contacts
 
@@ -44,13 +44,13 @@ class Platen:
 CONTACT_CHECK = 20
 
 
-class DemSimulation:
+class DemSimulation(SimulationBase):
     method = "dem"
 
     def __init__(self, particles, inter, n_bonds, law, tools, tool_names, stable_dt, gravity, damping,
                  skin, loaded_area=None):
-        self.particles, self.inter, self.n_bonds, self.law, self.tools = particles, inter, n_bonds, law, tools
-        self._tool_names = list(tool_names)
+        self._start_clock_and_tools(tools, tool_names)
+        self.particles, self.inter, self.n_bonds, self.law = particles, inter, n_bonds, law
         self.stable_dt = stable_dt
         self.proven_dt = stable_dt  # the bound at set-up; build_dem_simulation sets it
         self.proven_dt_how = ("a Gershgorin bound over each particle's bonds, contacts and tools, translation and "
@@ -69,18 +69,21 @@ class DemSimulation:
         self.strength_test: TensionTest | None = None  # direct tension: nominal strengths in the summary
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
-        self.time = 0.0
-        self.steps = 0
         self.x0 = particles.x.copy()
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
-        self._springs = ToolSprings(tools, tool_names)
-        self.load_cell = LoadCell(tools)
         self._failures = FailureRecorder(n_bonds)
-        self.warnings: list[str] = []
         self._relist()
         # Energy present at t = 0 (initial velocities) counts as work put in.
-        self._initial_energy = self._kinetic()
+        self._initial_energy = self.kinetic_energy()
+
+    @property
+    def body(self):
+        return self.particles
+
+    @property
+    def tool_radius(self) -> np.ndarray:
+        return self.particles.radius
 
     # -- stepping ----------------------------------------------------------------------------
     def advance(self, n_steps: int, dt: float) -> None:
@@ -109,8 +112,7 @@ class DemSimulation:
         self._x_listed = self.particles.x.copy()
 
     def state_is_finite(self) -> bool:
-        p = self.particles
-        return bool(np.isfinite(p.x).all() and np.isfinite(p.v).all() and np.isfinite(p.spin).all())
+        return super().state_is_finite() and bool(np.isfinite(self.particles.spin).all())
 
     # -- results -------------------------------------------------------------------------------
     def _failed(self) -> np.ndarray:
@@ -126,12 +128,6 @@ class DemSimulation:
 
         modes = self.inter.fail_mode[: self.n_bonds][self._failed()]
         return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
-
-    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
-        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        p = self.particles
-        mid = {} if dt is None else {"v": p.v, "time": self.time, "dt": dt}
-        return self._springs.measure(p.x, p.radius, p.area, p.tool, p.tool_offset, p.friction, **mid)
 
     def interaction_energy(self, dt: float) -> float:
         """Elastic energy of the live interactions at the mid-step positions x - v dt/2 (which
@@ -165,29 +161,26 @@ class DemSimulation:
         tangential = np.where(acting, 0.5 * np.sum(shear**2, axis=1) / kt, 0.0)
         return float(np.sum(normal) + np.sum(tangential))
 
-    def _kinetic(self) -> float:
+    def kinetic_energy(self) -> float:
+        """Of translation and spin."""
         p = self.particles
         return float(0.5 * np.sum(p.mass * np.sum(p.v**2, axis=1)) + 0.5 * np.sum(p.inertia * np.sum(p.spin**2, axis=1)))
 
-    def energies(self, dt: float) -> dict[str, float]:
-        p = self.particles
+    def own_energies(self, dt: float) -> dict[str, float]:
         return {
-            "energy.kinetic": self._kinetic(),
-            "energy.elastic": self.interaction_energy(dt),
-            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
-            "energy.damage": float(np.sum(self.inter.e_damage)),
-            "energy.friction": float(np.sum(self.inter.e_friction) + self._dropped_friction + np.sum(p.d_friction)),
-            "energy.damping": float(np.sum(p.w_damping)),
-            "energy.external": float(np.sum(p.w_external)) + self._initial_energy + self._springs.free_work(),
+            "elastic": self.interaction_energy(dt),
+            "damage": float(np.sum(self.inter.e_damage)),
+            # Friction of the listed pairs and of those dropped from the list (particles' own on the tools: shared).
+            "friction": float(np.sum(self.inter.e_friction) + self._dropped_friction),
         }
 
     def sample(self, dt: float) -> dict[str, float]:
-        row = self._springs.columns(self.load_cell, self._tool_springs)
+        row = super().sample(dt)
         if self.platen is not None and self.loaded_area:
             stress, strain = self.platen.stress_strain(row, self.loaded_area)
             row["platen.stress"], row["platen.strain"] = stress, strain
             self._curve[self.time] = (strain, stress)
-        return {**row, **self.energies(dt), "broken": self.broken}
+        return row
 
     def new_events(self):
         s = self.inter
@@ -291,9 +284,6 @@ class DemSimulation:
 
     def describe(self) -> str:
         return f"{len(self.particles.radius):,} particles, {self.n_bonds:,} bonds"
-
-    def tool_names(self) -> list[str]:
-        return list(self._tool_names)
 
     def bounds(self):
         r = self.particles.radius[:, None]

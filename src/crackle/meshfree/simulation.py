@@ -8,8 +8,8 @@ from ..analysis.fragments import find_fragments
 from ..analysis.perforation import measure_perforation
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.tools import TOOL_SPHERE
-from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_TENSION, FailureRecorder
+from ..solver.simulation import SimulationBase
 from .fracture import FRACTURE_CHECK
 from .kernels import PairContact, advance, strain_energies
 from .material import MODEL, THERMO
@@ -19,15 +19,15 @@ from .material import MODEL, THERMO
 PERFORATION_SPACING_SAMPLE = 30
 
 
-class MeshfreeSimulation:
+class MeshfreeSimulation(SimulationBase):
     method = "meshfree"
 
     def __init__(self, particles, links, columns, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
                  damping, plate, breaking, pressures, contact=None, body_start=None):
-        self.particles, self.links, self.law, self.tools = particles, links, law, tools
+        self._start_clock_and_tools(tools, tool_names)
+        self.particles, self.links, self.law = particles, links, law
         # The lines through the wall and each particle's Gauss points on them (thickness.py).
         self.columns = columns
-        self._tool_names = list(tool_names)
         self.support_radius = float(support_radius)
         self.stable_dt = float(stable_dt)
         self.wave_transit = float(wave_transit)
@@ -46,16 +46,15 @@ class MeshfreeSimulation:
                                      np.zeros(0), np.zeros(0), np.zeros((0, 3)))
         # The particles on the faces are on the specimen's surface: they meet the tools there.
         self.contact_radius = 0.0
-        self.time = 0.0
-        self.steps = 0
-        self._radius = np.array([self.contact_radius])
-        self._springs = ToolSprings(tools, tool_names)
-        self.load_cell = LoadCell(tools)
+        self.tool_radius = np.array([self.contact_radius])
         # One failure per particle (the particle where a crack plane was put).
         self._failures = FailureRecorder(len(particles.x))
-        self.warnings: list[str] = []
         # Energy present at t = 0 (an initial velocity) counts as work put in.
-        self._initial_energy = self._kinetic()
+        self._initial_energy = self.kinetic_energy()
+
+    @property
+    def body(self):
+        return self.particles
 
     def advance(self, n_steps: int, dt: float) -> None:
         if self.breaking is None and self.contact is None:
@@ -80,24 +79,10 @@ class MeshfreeSimulation:
         self.steps += n_steps
         self.time = self.steps * dt
 
-    def state_is_finite(self) -> bool:
-        p = self.particles
-        return bool(np.isfinite(p.x).all() and np.isfinite(p.v).all())
-
     @property
     def broken(self) -> int:
         """Links removed by fracture (pairs {I, J} of distinct particles)."""
         return 0 if self.breaking is None else self.breaking.broken_links
-
-    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
-        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        p = self.particles
-        mid = {} if dt is None else {"v": p.v, "time": self.time, "dt": dt}
-        return self._springs.measure(p.x, self._radius, p.area, p.tool, p.tool_offset, p.friction, **mid)
-
-    def _kinetic(self) -> float:
-        p = self.particles
-        return float(0.5 * np.sum(p.mass * np.einsum("ij,ij->i", p.v, p.v)))
 
     def strain_energies(self, x, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """Per particle, the elastic and the stabilisation energy (J) at positions x; with `rows`,
@@ -110,7 +95,7 @@ class MeshfreeSimulation:
                         s.neighbour, s.grad, s.value, self.columns, self.law, p.material, elastic, stab)
         return (elastic, stab) if rows is None else (elastic[which], stab[which])
 
-    def energies(self, dt: float) -> dict[str, float]:
+    def own_energies(self, dt: float) -> dict[str, float]:
         p = self.particles
         # Potentials at the mid-step positions pair with the half-step velocities.
         x_mid = p.x - 0.5 * dt * p.v
@@ -120,24 +105,15 @@ class MeshfreeSimulation:
             # The stored energy the temperature changes released at fixed strain (thermal
             # expansion against the stress, the moduli's softening): mechanical work that left
             # the elastic store, booked as its own term.
-            thermal = {"energy.thermal": float(np.sum(p.volume * self.per_particle(p.thermal[:, 1])))}
+            thermal = {"thermal": float(np.sum(p.volume * self.per_particle(p.thermal[:, 1])))}
         return {
-            "energy.kinetic": self._kinetic(),
-            "energy.elastic": float(np.sum(elastic)),
-            "energy.stabilisation": float(np.sum(stab)),
-            "energy.plastic": float(np.sum(p.w_plastic)),
-            "energy.contact": float(np.sum(self._tool_springs(dt).energy))
-            + (0.0 if self.contact is None else self.contact.energy(x_mid)),
-            "energy.friction": float(np.sum(p.d_friction)),
-            "energy.damping": float(np.sum(p.w_damping)),
-            "energy.damage": 0.0 if self.breaking is None else self.breaking.damage,
+            "elastic": float(np.sum(elastic)),
+            "stabilisation": float(np.sum(stab)),
+            "plastic": float(np.sum(p.w_plastic)),
+            "contact": 0.0 if self.contact is None else self.contact.energy(x_mid),  # between bodies, across cracks
+            "damage": 0.0 if self.breaking is None else self.breaking.damage,
             **thermal,
-            "energy.external": float(np.sum(p.w_external)) + self._initial_energy + self._springs.free_work(),
         }
-
-    def sample(self, dt: float) -> dict[str, float]:
-        energies = self.energies(dt)
-        return {**self._springs.columns(self.load_cell, self._tool_springs), **energies, "broken": self.broken}
 
     def new_events(self):
         """Particle failures (a crack plane through the particle, mode tension) not reported yet."""
@@ -204,9 +180,6 @@ class MeshfreeSimulation:
     def describe(self) -> str:
         n = len(self.particles.x)
         return f"{n:,} particles, {len(self.links.neighbour) / n:.0f} links each"
-
-    def tool_names(self) -> list[str]:
-        return list(self._tool_names)
 
     def bounds(self):
         return self.particles.X.min(axis=0), self.particles.X.max(axis=0)
@@ -283,6 +256,3 @@ class MeshfreeSimulation:
             rows.append({"particles": int(hi - lo), "mass": m, "velocity": v.tolist(),
                          "speed": float(np.linalg.norm(v))})
         return {"bodies": rows, "contact_list_builds": self.contact.builds}
-
-    def extra_plots(self, out_dir) -> None:
-        pass
