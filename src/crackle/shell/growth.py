@@ -22,7 +22,7 @@ edge best aligned with the heading is cut.
 Energy: cutting an edge does not move anything, so no energy appears or vanishes at the cut
 except the bending energy of the triangles whose edge became free (their free-edge angle is
 condensed); moving vertices changes the strain and kinetic energy a little (their triangles'
-shapes, their masses, their interpolated state). `energy.fracture` books both jumps; the membrane energy near
+shapes, their masses, their interpolated state). `energy.damage` books both jumps; the membrane energy near
 the tip is then released by the motion (kinetic, then damping). The Griffith energy Gc x
 thickness x extension is in the summary, not the audit.
 

@@ -9,8 +9,8 @@ import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
 from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE, plot_crack_pattern, plot_j_history, run_plot_path
-from ..loading.loadcell import LoadCell, ToolSprings
 from ..solver.failures import MODE_NAMES, failure_mode
+from ..solver.simulation import SimulationBase
 from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_stresses, step_ahead
 from .jintegral import (KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity,
                         vertex_normal)
@@ -46,13 +46,13 @@ class CrackTip:
     aim: np.ndarray | None = None  # unit vector the kink criterion last chose (the cut follows the mesh's nearest edge)
 
 
-class ShellSimulation:
+class ShellSimulation(SimulationBase):
     method = "shell"
 
     def __init__(self, shell: Shell, tools, tool_names, load_factor, pressures, tips, rings, stable_dt, wave_transit,
                  gravity, damping, growth: GrowthLaw | None = None):
-        self.shell, self.tools, self.load_factor, self.pressures = shell, tools, load_factor, pressures
-        self._tool_names = list(tool_names)
+        self._start_clock_and_tools(tools, tool_names)
+        self.shell, self.load_factor, self.pressures = shell, load_factor, pressures
         self.tips, self.rings = list(tips), [tuple(map(float, r)) for r in rings]
         self._history_tips = len(self.tips)  # the history's columns are fixed: a nucleated tip is in the summary
         self.nucleations: list[dict] = []  # cracks started at a free edge (fracture.strength)
@@ -62,17 +62,12 @@ class ShellSimulation:
         self.damping = float(damping)
         self.j_reference: float | None = None  # a closed form of the case (fracture.reference)
         self.j_bracket: list[float] | None = None  # the range of several estimates, where there are
-        self.time = 0.0
-        self.steps = 0
-        self._springs = ToolSprings(tools, tool_names)
-        self.load_cell = LoadCell(tools)
         self.growth = growth
         self.advances: list[Advance] = []  # every cut, in order
         self.pre_cracks: list[np.ndarray] = []  # the [[cracks]] as cut, reference positions (set-up)
         self._tip_starts = [shell.mesh.X[tip.vertex].copy() for tip in self.tips]
         self._reported = 0  # advances already in events.csv
         self.fracture_energy = 0.0  # J: what the cuts and the moves at the tip changed at once (_replace_shell)
-        self.warnings: list[str] = []
         self._thinnest = float(np.min(altitudes(shell.mesh.X, shell.mesh.tri)))  # the step's length: moves keep to it
         self._extensions: dict = {}  # (tip vertex, direction, ring) -> VirtualExtension of the current shell
 
@@ -83,6 +78,12 @@ class ShellSimulation:
     @property
     def nodes(self):
         return self.shell.nodes
+
+    body = nodes
+
+    @property
+    def tool_radius(self) -> np.ndarray:
+        return self.nodes.radius
 
     def advance(self, n_steps: int, dt: float) -> None:
         end = self.steps + n_steps
@@ -179,7 +180,7 @@ class ShellSimulation:
 
     def _replace_shell(self, new: Shell | None, dt: float) -> None:
         """Continue with `new` (None: keep the shell) and book what the change did at once in
-        `energy.fracture`: the strain energy (a new free edge's condensed bending, a moved
+        `energy.damage` (the shell's fracture dissipation): the strain energy (a new free edge's condensed bending, a moved
         vertex's triangles) and the kinetic energy (a moved vertex's mass and interpolated
         velocity, the cut edge's mid-edge rotation)."""
         if new is None:
@@ -191,46 +192,30 @@ class ShellSimulation:
 
     def _jump_energy(self, dt: float) -> float:
         n, e = self.nodes, self.shell.edges
-        return (sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate))
-                + 0.5 * float(np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)))
-                + 0.5 * float(np.sum(e.xi_inertia * e.xi_rate**2)))
-
-    def state_is_finite(self) -> bool:
-        n = self.nodes
-        return bool(np.isfinite(n.x).all() and np.isfinite(n.v).all())
+        return sum(self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate)) + self.kinetic_energy()
 
     @property
     def broken(self) -> int:
         """Edges cut by crack growth."""
         return len(self.advances)
 
-    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
-        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        n = self.nodes
-        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
-        return self._springs.measure(n.x, n.radius, n.area, n.tool, n.tool_offset, n.friction, **mid)
+    def kinetic_energy(self) -> float:
+        """Of the vertices and of the mid-edge rotations."""
+        n, e = self.nodes, self.shell.edges
+        return float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)) + 0.5 * np.sum(e.xi_inertia * e.xi_rate**2))
 
-    def energies(self, dt: float) -> dict[str, float]:
+    def own_energies(self, dt: float) -> dict[str, float]:
         n = self.nodes
         e = self.shell.edges
         # Potentials at the mid-step positions (and rotations) pair with the half-step rates.
         membrane, bending = self.shell.strain_energies(n.x - 0.5 * dt * n.v, e.xi - 0.5 * dt * e.xi_rate)
-        return {
-            "energy.kinetic": float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v))
-                                    + 0.5 * np.sum(e.xi_inertia * e.xi_rate**2)),
-            "energy.membrane": membrane,
-            "energy.bending": bending,
-            "energy.contact": float(np.sum(self._tool_springs(dt).energy)),
-            "energy.friction": float(np.sum(n.d_friction)),
-            "energy.damping": float(np.sum(n.w_damping) + np.sum(e.xi_damping)),
-            "energy.fracture": self.fracture_energy,
-            "energy.external": float(np.sum(n.w_external)) + self._springs.free_work(),
-        }
+        return {"membrane": membrane, "bending": bending, "damping": float(np.sum(e.xi_damping)),
+                "damage": self.fracture_energy}
 
     def kinetic_to_strain(self) -> float:
         """Kinetic over strain energy now (inf with no strain energy): how static the sheet is."""
         n, e = self.nodes, self.shell.edges
-        kinetic = 0.5 * float(np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)) + np.sum(e.xi_inertia * e.xi_rate**2))
+        kinetic = self.kinetic_energy()
         strain = sum(self.shell.strain_energies(n.x, e.xi))
         return kinetic / strain if strain > 0.0 else (0.0 if kinetic == 0.0 else float("inf"))
 
@@ -305,11 +290,10 @@ class ShellSimulation:
         current positions: bending and pressure included (jintegral.energy_release_rate)."""
         return np.array([self._tip_g(tip) for tip in self.tips]).reshape(len(self.tips), len(self.rings))
 
-    def sample(self, dt: float) -> dict[str, float]:
-        row = {**self._springs.columns(self.load_cell, self._tool_springs), **self.energies(dt),
-               "broken": self.broken, **self.edge_load_columns()}
-        tips = self.tips[:self._history_tips]
-        for k, tip in enumerate(tips):
+    def history_columns(self, dt: float) -> dict[str, float]:
+        """The edge loads', and J, G and the extension of each tip of the set-up."""
+        row = self.edge_load_columns()
+        for k, tip in enumerate(self.tips[:self._history_tips]):
             row[f"j.tip{k}"] = float(np.mean(self._tip_j(tip)))
             row[f"g.tip{k}"] = float(np.mean(self._tip_g(tip)))
             row[f"crack.tip{k}"] = tip.extension
@@ -350,9 +334,6 @@ class ShellSimulation:
 
     def describe(self) -> str:
         return f"{len(self.shell.mesh.tri):,} triangles, {len(self.shell.mesh.X):,} vertices, {len(self.tips)} crack tips"
-
-    def tool_names(self) -> list[str]:
-        return list(self._tool_names)
 
     def bounds(self):
         X = self.shell.mesh.X
