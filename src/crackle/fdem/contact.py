@@ -70,7 +70,7 @@ def build_contact(model, previous: "Contact | None" = None) -> Contact:
     node_slot = np.full(4 * m, -1, dtype=np.int32)
     node_slot[slot_node] = np.arange(n_slot, dtype=np.int32)
     area = tets.face_area[tri_tet, tri_face]
-    slot_area = model.nodes.contact_area[slot_node]
+    slot_area = model.nodes.area[slot_node]
     tangential = np.zeros((n_slot, 3))
     d_friction = np.zeros(4 * m)
     if previous is not None:

@@ -208,7 +208,7 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
     on the tools into their `slot`), damping, gravity and the central-difference update of each
     tet's own 4 nodes. With tied faces (clusters, ties.ext not empty) the update is the node
     pass's (extrinsic.cluster_block): the forces are stored for it instead."""
-    x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.contact_area
+    x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.area
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state

@@ -31,7 +31,7 @@ from .topology import FACE_CORNERS, INTACT, PRECRACK
 
 Nodes = namedtuple(
     "Nodes",
-    "x v mass contact_area force constraint projection support_tool friction tool tool_offset w_external w_damping d_friction",
+    "x v mass area force constraint projection support_tool friction tool tool_offset w_external w_damping d_friction",
 )
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
@@ -395,7 +395,7 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
         x=bulk.x0.copy(),
         v=v,
         mass=bulk.mass,
-        contact_area=contact_area,
+        area=contact_area,
         force=np.zeros((n, 3)),
         constraint=constraint,
         projection=projection,

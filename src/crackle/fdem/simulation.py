@@ -20,8 +20,8 @@ from ..analysis.strength import BrazilianTest, TensionTest
 from ..io.plots import plot_crack_growth, plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import MODE_NAMES, FailureRecorder
+from ..solver.simulation import SimulationBase
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
-from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 from .kernels import advance, interface_energy, tet_energy_and_stress
 from .topology import INTACT, PRECRACK
 from .model import FdemModel
@@ -39,23 +39,20 @@ INSERTION_WARNING = 0.1
 CRACK_SCALE_FACTORS = (0.75, 1.0, 1.5)
 
 
-class FdemSimulation:
+class FdemSimulation(SimulationBase):
     """Steps an FdemModel and reports histories, events and fields."""
 
     method = "fdem"
 
     def __init__(self, model: FdemModel):
+        self._start_clock_and_tools(model.tools, [t.name for t in model.tool_specs], model.warnings)
         self.model = model
-        self.time = 0.0
-        self.steps = 0
         self._failures = FailureRecorder(model.n_interfaces)
         self._tet_energy = np.zeros(model.n_tets)
         self._stress = np.zeros((model.n_tets, 6))
         self._cohesive = np.zeros(model.n_interfaces)
         self._contact = np.zeros(model.n_interfaces)
-        self._springs = ToolSprings(model.tools, [t.name for t in model.tool_specs])
-        self.load_cell = LoadCell(model.tools)
-        self._no_radius = np.zeros(1)  # tet nodes touch tools with their centre
+        self.tool_radius = np.zeros(1)  # tet nodes touch tools with their centre
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1
@@ -71,7 +68,11 @@ class FdemSimulation:
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
-        self._initial_energy = self._kinetic()
+        self._initial_energy = self.kinetic_energy()
+
+    @property
+    def body(self):
+        return self.model.nodes
 
     # -- stepping ---------------------------------------------------------------------------
     @property
@@ -110,10 +111,6 @@ class FdemSimulation:
             return CONTACT_REFRESH_STEPS
         return min(CONTACT_REFRESH_STEPS, max(1, int(0.25 * m.contact_skin / (2.0 * vmax * dt))))
 
-    def state_is_finite(self) -> bool:
-        n = self.model.nodes
-        return bool(np.isfinite(n.x).all() and np.isfinite(n.v).all())
-
     def _refresh_contact(self) -> None:
         """Rebuild the surface after new failures, and the candidates once surface nodes moved
         half the skin since the last broad phase."""
@@ -131,38 +128,14 @@ class FdemSimulation:
         self.rebuilds += 1
 
     # -- diagnostics --------------------------------------------------------------------------
-    @property
-    def warnings(self) -> list[str]:
-        return self.model.warnings
-
     def describe(self) -> str:
         return f"{self.model.n_tets:,} tets, {self.model.n_interfaces:,} interfaces"
-
-    def _external_work(self) -> float:
-        return float(np.sum(self.model.nodes.w_external)) + self._initial_energy + self._springs.free_work()
-
-    def _kinetic(self) -> float:
-        n = self.model.nodes
-        return float(0.5 * np.sum(n.mass * np.einsum("ij,ij->i", n.v, n.v)))
 
     @property
     def broken(self) -> int:
         return int(np.count_nonzero((self.model.ifs.state != INTACT) & (self.model.ifs.state != PRECRACK)))
 
-    def tool_names(self) -> list[str]:
-        return [t.name for t in self.model.tool_specs]
-
-    def _tool_springs(self, dt: float | None = None) -> ToolSprings:
-        """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        n = self.model.nodes
-        mid = {} if dt is None else {"v": n.v, "time": self.time, "dt": dt}
-        return self._springs.measure(n.x, self._no_radius, n.contact_area, n.tool, n.tool_offset, n.friction, **mid)
-
-    def tool_forces(self) -> np.ndarray:
-        """Force of each tool on the specimen (N), through the load cell."""
-        return self.load_cell.forces(lambda: self._tool_springs().force.copy())
-
-    def energies(self, dt: float) -> dict[str, float]:
+    def own_energies(self, dt: float) -> dict[str, float]:
         m = self.model
         nodes = m.nodes
         # Potentials at the mid-step positions pair with the half-step velocities of the
@@ -170,30 +143,26 @@ class FdemSimulation:
         x_mid = nodes.x - 0.5 * dt * nodes.v
         tet_energy_and_stress(x_mid, m.tets, self._tet_energy, self._stress)
         interface_energy(x_mid, m.ifs, self._cohesive, self._contact)
-        tool_energy = self._tool_springs(dt).energy
         return {
-            "energy.kinetic": self._kinetic(),
-            "energy.elastic": float(np.sum(self._tet_energy)),
-            "energy.cohesive": float(np.sum(self._cohesive)),
-            "energy.contact": float(np.sum(self._contact) + np.sum(tool_energy)) + contact_energy(self.contact),
-            "energy.damage": float(np.sum(m.ifs.e_damage)),
-            "energy.friction": float(np.sum(m.ifs.e_friction) + np.sum(nodes.d_friction) + np.sum(self.contact.d_friction)),
-            "energy.damping": float(np.sum(nodes.w_damping)),
-            "energy.external": self._external_work(),
+            "elastic": float(np.sum(self._tet_energy)),
+            "cohesive": float(np.sum(self._cohesive)),
+            # Failed interfaces' paired contact and the crack-surface contact (the tools': shared).
+            "contact": float(np.sum(self._contact)) + contact_energy(self.contact),
+            "damage": float(np.sum(m.ifs.e_damage)),
+            "friction": float(np.sum(m.ifs.e_friction) + np.sum(self.contact.d_friction)),
         }
 
     def sample(self, dt: float) -> dict[str, float]:
         """One history row at the current time (the solver adds `time`)."""
-        row: dict[str, float] = {}
-        energies = self.energies(dt)
-        forces = self.tool_forces()
-        m = self.model
-        row.update(tool_columns(self.tool_names(), forces, m.tools))
-        row.update(energies)
-        row["broken"] = self.broken
-        row["fragments"] = self.fragments().count
+        row = super().sample(dt)
         if self.crack_settings is not None:
-            self._dissipation.append((self.time, energies["energy.damage"]))
+            self._dissipation.append((self.time, row["energy.damage"]))
+        return row
+
+    def history_columns(self, dt: float) -> dict[str, float]:
+        """The fragment count, and where a fracture plane is followed its tip and plastic zone."""
+        m = self.model
+        row = {"fragments": self.fragments().count}
         if self.fracture_plane is not None:
             ifs = m.ifs
             tip, zone = tip_and_plastic_zone(self.fracture_plane, m.iface_centroids(m.nodes.x), ifs.damage, ifs.state != INTACT)
@@ -367,7 +336,7 @@ class FdemSimulation:
         """The preload of faces inserted against a soft penalty can return to the body as motion
         (fdem.extrinsic): where it rivals the work done on the specimen, the run is not the
         quasi-static or energy-conserving one it looks like."""
-        external = self._external_work()
+        external = self.external_work()
         if insertion is None or not external or insertion <= INSERTION_WARNING * abs(external):
             return []
         return [

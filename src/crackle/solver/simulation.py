@@ -88,14 +88,16 @@ class SimulationBase:
     method: str = ""
     _initial_energy: float = 0.0  # J: kinetic energy at t = 0 (initial velocities), counted as work put in
 
-    def _start_clock_and_tools(self, tools, tool_names) -> None:
+    def _start_clock_and_tools(self, tools, tool_names, warnings: list[str] | None = None) -> None:
+        """Time 0, the tools and their springs and load cell, and the set-up's warnings (a list
+        the method's set-up may hold already, else a new one)."""
         self.tools = tools
         self._tool_names = list(tool_names)
         self.time = 0.0
         self.steps = 0
         self._springs = ToolSprings(tools, self._tool_names)
         self.load_cell = LoadCell(tools)
-        self.warnings: list[str] = []
+        self.warnings: list[str] = [] if warnings is None else warnings
 
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
