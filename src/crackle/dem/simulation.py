@@ -51,6 +51,7 @@ class DemSimulation(SimulationBase):
                  skin, loaded_area=None):
         self._start_clock_and_tools(tools, tool_names)
         self.particles, self.inter, self.n_bonds, self.law = particles, inter, n_bonds, law
+        self.body, self.tool_radius = particles, particles.radius
         self.stable_dt = stable_dt
         self.proven_dt = stable_dt  # the bound at set-up; build_dem_simulation sets it
         self.proven_dt_how = ("a Gershgorin bound over each particle's bonds, contacts and tools, translation and "
@@ -76,14 +77,6 @@ class DemSimulation(SimulationBase):
         self._relist()
         # Energy present at t = 0 (initial velocities) counts as work put in.
         self._initial_energy = self.kinetic_energy()
-
-    @property
-    def body(self):
-        return self.particles
-
-    @property
-    def tool_radius(self) -> np.ndarray:
-        return self.particles.radius
 
     # -- stepping ----------------------------------------------------------------------------
     def advance(self, n_steps: int, dt: float) -> None:

@@ -47,6 +47,7 @@ class FdemSimulation(SimulationBase):
     def __init__(self, model: FdemModel):
         self._start_clock_and_tools(model.tools, [t.name for t in model.tool_specs], model.warnings)
         self.model = model
+        self.body = model.nodes
         self._failures = FailureRecorder(model.n_interfaces)
         self._tet_energy = np.zeros(model.n_tets)
         self._stress = np.zeros((model.n_tets, 6))
@@ -69,10 +70,6 @@ class FdemSimulation(SimulationBase):
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
         self._initial_energy = self.kinetic_energy()
-
-    @property
-    def body(self):
-        return self.model.nodes
 
     # -- stepping ---------------------------------------------------------------------------
     @property

@@ -16,6 +16,7 @@ class LatticeSimulation(SimulationBase):
                  damping):
         self._start_clock_and_tools(tools, tool_names)
         self.nodes, self.springs = nodes, springs
+        self.body = nodes
         self.radius = float(radius)
         self.break_strain = float(break_strain)
         self.stable_dt = stable_dt
@@ -27,11 +28,6 @@ class LatticeSimulation(SimulationBase):
         self.x0 = nodes.x.copy()
         self.tool_radius = np.array([self.radius])
         self._failures = FailureRecorder(len(springs.a))
-
-    @property
-    def body(self):
-        return self.nodes
-
     def advance(self, n_steps: int, dt: float) -> None:
         advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
                 self.gravity, self.damping)

@@ -26,6 +26,7 @@ class MeshfreeSimulation(SimulationBase):
                  damping, plate, breaking, pressures, contact=None, body_start=None):
         self._start_clock_and_tools(tools, tool_names)
         self.particles, self.links, self.law = particles, links, law
+        self.body = particles
         # The lines through the wall and each particle's Gauss points on them (thickness.py).
         self.columns = columns
         self.support_radius = float(support_radius)
@@ -51,11 +52,6 @@ class MeshfreeSimulation(SimulationBase):
         self._failures = FailureRecorder(len(particles.x))
         # Energy present at t = 0 (an initial velocity) counts as work put in.
         self._initial_energy = self.kinetic_energy()
-
-    @property
-    def body(self):
-        return self.particles
-
     def advance(self, n_steps: int, dt: float) -> None:
         if self.breaking is None and self.contact is None:
             self._advance(n_steps, dt)

@@ -77,7 +77,8 @@ class SimulationBase:
     A method's class derives from it, calls `_start_clock_and_tools(tools, tool_names)` in its
     __init__, and gives:
       `body`            the per-node (particle) arrays the shared compiled pieces take: x, v, mass,
-                        area, tool, tool_offset, friction, d_friction, w_damping, w_external
+                        area, tool, tool_offset, friction, d_friction, w_damping, w_external (an
+                        attribute; a property where the method replaces them, the shell at a cut)
       `tool_radius`     an array: one radius for every node, or one per node (m), with which a
                         node touches the tools
       `own_energies(dt)`  its stored and dissipated terms ({"elastic": J, "damage": J, ...};
