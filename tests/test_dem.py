@@ -146,7 +146,7 @@ def test_energy_closes_through_oscillation_and_break():
     p.v[0] = (-0.6 * v_break, 0.05 * v_break, 0.0)
     p.v[1] = (0.6 * v_break, -0.02 * v_break, 0.01 * v_break)
     p.spin[0] = (0.0, 0.0, 3.0 * v_break / R)
-    sim._initial_energy = sim._kinetic()
+    sim._initial_energy = sim.kinetic_energy()
     dt = 0.05 * sim.stable_dt
     history = _history(sim, dt, 40_000, 400)
     assert sim.inter.state[0] == GONE and sim.inter.fail_mode[0] == MODE_TENSION
@@ -164,7 +164,7 @@ def _max_imbalance(fraction):
     p = sim.particles
     p.v[1] = (0.01, 0.02, -0.01)
     p.spin[1] = (5.0, -3.0, 8.0)
-    sim._initial_energy = sim._kinetic()
+    sim._initial_energy = sim.kinetic_energy()
     dt = fraction * sim.stable_dt
     h = _history(sim, dt, int(4000 / fraction), 200)
     assert sim.inter.state[0] == BONDED
@@ -190,7 +190,7 @@ def _shaken(seed=3):
     rng = np.random.default_rng(seed)
     sim = build_dem_simulation(packing.centers, packing.radii, RHO, LAW, bonds_per_particle=12)
     sim.particles.v[:] = rng.normal(0.0, 2.0, sim.particles.v.shape)
-    sim._initial_energy = sim._kinetic()
+    sim._initial_energy = sim.kinetic_energy()
     return sim
 
 

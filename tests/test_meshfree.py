@@ -220,7 +220,7 @@ def test_rod_vibration_gives_the_bar_wave_speed():
     sim = build_meshfree_simulation(plate, rho, J2Law(E, 0.3))
     p = sim.particles
     p.v[:, 0] = np.cos(np.pi * p.X[:, 0] / L)
-    sim._initial_energy = sim._kinetic()
+    sim._initial_energy = sim.kinetic_energy()
     c = np.sqrt(E / rho)
     dt = 0.7 * sim.stable_dt
     end = p.X[:, 0] < 1e-9
@@ -347,7 +347,7 @@ def _random_plate():
     plate = plate_particles((0.0, 0.0, 0.0), (0.03, 0.016, 0.004), 0.002, 3)
     sim = build_meshfree_simulation(plate, 7800.0, J2Law(200e9, 0.3))
     sim.particles.v[:] = np.random.default_rng(0).normal(size=sim.particles.v.shape) * 1e-3
-    sim._initial_energy = sim._kinetic()
+    sim._initial_energy = sim.kinetic_energy()
     return sim
 
 

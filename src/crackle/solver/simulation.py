@@ -103,6 +103,10 @@ class SimulationBase:
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
 
+    def tool_forces(self) -> np.ndarray:
+        """Force of each tool on the specimen (N), through the load cell."""
+        return self.load_cell.forces(lambda: self._tool_springs().force.copy())
+
     def state_is_finite(self) -> bool:
         b = self.body
         return bool(np.isfinite(b.x).all() and np.isfinite(b.v).all())
