@@ -13,7 +13,7 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 else:
     # crackle makes numba's OpenMP threads sleep between parallel loops (OMP_WAIT_POLICY=PASSIVE,
     # src/crackle/__init__.py): robust on a shared machine, but a single process's small models
-    # step ~1.5x slower that way on a machine of their own (tests/test_brazilian_disc.py +
+    # step ~1.5x slower that way on a machine of their own (tests/examples/test_brazilian_disc.py +
     # test_sphere_impact.py: 169 s against 118 s spinning), so it lets the threads spin; results
     # do not depend on the wait policy. test_cli.py checks crackle's own default.
     os.environ.setdefault("OMP_WAIT_POLICY", "ACTIVE")

@@ -1,4 +1,4 @@
-"""Shared set-up for the FDEM physics tests (tests/test_fdem_law.py, tests/test_fdem_elastic.py)."""
+"""Shared set-up for the FDEM physics tests (tests/fdem/test_fdem_law.py, tests/fdem/test_fdem_elastic.py)."""
 
 from __future__ import annotations
 

@@ -521,7 +521,7 @@ def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, t
     # hits a one-sided spring at a large omega dt rebounds faster than it came (up to 1.25x at
     # omega dt = 1.5, 2.6x at 1.9): counting it on each of the node's faces (about 3x on a
     # surface node) keeps omega dt below ~0.8 at safety 0.7; the exact k A / m let a rattling
-    # block create energy (tests/test_time_step.py).
+    # block create energy (tests/fdem/test_time_step.py).
     face_spring = np.zeros((4, m, 4))  # kind (as TIME_STEP_KINDS, bulk unused), tet, face
     interface = 2.0 * np.maximum(pairs.pn, pairs.ps)
     contact = 4.0 * surface_penalty

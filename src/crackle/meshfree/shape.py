@@ -19,7 +19,7 @@ differentiating with the basis centre held fixed: A grad(gamma) = grad p(0) - gr
 gamma = A^-1 p(0), so that
   grad N_J(X_I) = V_J (grad w_J (p_J . gamma) + w_J (p_J . grad gamma)).
 Both reproduce every field of the basis exactly: values and gradients of linear fields to
-rounding (tests/test_meshfree.py, the patch test).
+rounding (tests/meshfree/test_meshfree.py, the patch test).
 """
 
 from __future__ import annotations

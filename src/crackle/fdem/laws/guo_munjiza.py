@@ -55,7 +55,7 @@ DEFAULT_SOFTENING = (0.63, 1.8, 6.0)
 # Interface penalty: p_n = penalty_factor * E / h and p_s = penalty_factor * G / h, h the smaller
 # altitude of the two tets onto the shared face. Each interface then adds about 1/penalty_factor
 # of a tet's own compliance. Measured softening of the intact exploded mesh in uniaxial tension:
-# 2.7 % at 100, 1.4 % at 200, 0.3 % at 1000 (tests/test_fdem_elastic.py checks < 3 % at the
+# 2.7 % at 100, 1.4 % at 200, 0.3 % at 1000 (tests/fdem/test_fdem_elastic.py checks < 3 % at the
 # default). The price is the time step, which shrinks as 1/sqrt(penalty_factor) once the
 # interfaces are the stiffest part (the usual FDEM trade-off).
 DEFAULT_PENALTY_FACTOR = 200.0

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent / "golden"))
+sys.path.insert(0, str(Path(__file__).parents[1] / "golden"))
 from quick_examples import SHORT, STORE, platform_key, run_case, short_overrides  # noqa: E402
 
 STORED = json.loads(STORE.read_text())

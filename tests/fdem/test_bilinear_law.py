@@ -1,6 +1,6 @@
 """One-element tests of the bilinear cohesive law (paper 004; Camanho-Davila mixed mode).
 
-The two-tet `Cell` of tests/test_fdem_law.py: one interface, openings prescribed by moving the
+The two-tet `Cell` of tests/fdem/test_fdem_law.py: one interface, openings prescribed by moving the
 B face, the law evaluated by `interface_forces` (no time stepping). The expected numbers are
 written out here from the law's definition, independently of src:
 

@@ -276,7 +276,7 @@ def test_a_killed_sweep_finishes_only_its_missing_runs(tmp_path, capsys):
         assert [r["status"] for r in csv.DictReader(fh)] == ["completed"] * 6
 
 
-LATTICE = Path(__file__).parent / "data" / "lattice-platen.toml"
+LATTICE = Path(__file__).parents[1] / "data" / "lattice-platen.toml"
 
 
 def _lattice_elastic(tmp_path) -> Path:

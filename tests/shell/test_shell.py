@@ -968,7 +968,7 @@ def test_a_j_read_mid_oscillation_is_flagged(tmp_path):
     the closed form where the damped run settles at 0.85): summary j_static false, its
     kinetic_to_strain above STATIC_KINETIC (1e-4) and a warning that says so and what to do; the
     example as shipped (damped, 500 us) reads j_static true with no such warning
-    (tests/test_outputs.py runs it)."""
+    (tests/core/test_outputs.py runs it)."""
     from crackle.shell.simulation import STATIC_KINETIC
 
     out = tmp_path / "ringing"

@@ -333,7 +333,7 @@ def test_tube_detonation_example_quick(tmp_path):
 def test_pressurised_tube_identical_for_1_and_2_threads():
     """The detonation on the tube (follower pressure behind a travelling front, gathered per
     particle): its state after 200 steps (positions, velocities, external work per particle)
-    bit-identical with 1 and 2 numba threads (subprocesses, as tests/test_determinism.py)."""
+    bit-identical with 1 and 2 numba threads (subprocesses, as tests/core/test_determinism.py)."""
     script = (
         "import sys, hashlib, numpy as np; sys.path.insert(0, %r); import test_meshfree_tube as t; "
         "from crackle.loading import History, Pressure; "

@@ -296,7 +296,7 @@ def test_key_reference_is_current_and_complete():
     from crackle.keys import reference_document
 
     text = reference_document()
-    assert (Path(__file__).parents[1] / "docs" / "keys.md").read_text() == text
+    assert (Path(__file__).parents[2] / "docs" / "keys.md").read_text() == text
     rows = [line for line in text.splitlines() if line.startswith("| `")]
     assert len(rows) > 100
     undocumented = [row.split("|")[1] for row in rows if not row.rstrip(" |").split("|")[-1].strip()]

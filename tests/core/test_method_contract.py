@@ -18,7 +18,7 @@ import pytest
 from crackle.cli import main
 from crackle.io import read_events_csv, read_history_csv
 
-SCENARIO = Path(__file__).parent / "data" / "lattice-platen.toml"
+SCENARIO = Path(__file__).parents[1] / "data" / "lattice-platen.toml"
 
 
 @pytest.fixture(scope="module")

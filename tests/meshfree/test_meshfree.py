@@ -717,7 +717,7 @@ def test_plate_impact_example_quick(tmp_path):
 def test_identical_for_1_and_2_threads(plate_file):
     """The plastic impact with links breaking: its state after 600 steps (positions, velocities,
     plastic strain, tool force, failed particles, removed links, damage energy) bit-identical
-    with 1 and 2 numba threads (subprocesses, as tests/test_determinism.py); the compared run
+    with 1 and 2 numba threads (subprocesses, as tests/core/test_determinism.py); the compared run
     yields and breaks, and detaches particles (measured: 20 failed, 31 detached, 1,740 links
     removed)."""
     script = (

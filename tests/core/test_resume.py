@@ -18,7 +18,7 @@ import pytest
 from crackle.cli import main
 from crackle.io import read_history_csv, read_pvd
 
-LATTICE = str(Path(__file__).parent / "data" / "lattice-platen.toml")
+LATTICE = str(Path(__file__).parents[1] / "data" / "lattice-platen.toml")
 # Results that must match; wall time, status and message describe the session, not the physics.
 SAME = ("steps", "end_time", "broken", "peak_force", "peak_force_time", "peak_forces", "energy_error", "fragments")
 
