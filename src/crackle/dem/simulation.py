@@ -80,15 +80,14 @@ class DemSimulation(SimulationBase):
 
     # -- stepping ----------------------------------------------------------------------------
     def advance(self, n_steps: int, dt: float) -> None:
-        end = self.steps + n_steps
-        while self.steps < end:
-            if self.steps % CONTACT_CHECK == 0 and self._contacts_may_change(dt):
-                self._relist()
-            stop = min(end, (self.steps // CONTACT_CHECK + 1) * CONTACT_CHECK)
-            advance(stop - self.steps, self.steps, dt, self.particles, self.inter, self.tools, self.gravity,
-                    self.damping)
-            self.steps = stop
-        self.time = self.steps * dt
+        self._advance_on_grid(n_steps, dt, CONTACT_CHECK, self._compiled_steps, before=self._check_contacts)
+
+    def _compiled_steps(self, n: int, dt: float) -> None:
+        advance(n, self.steps, dt, self.particles, self.inter, self.tools, self.gravity, self.damping)
+
+    def _check_contacts(self, dt: float) -> None:
+        if self._contacts_may_change(dt):
+            self._relist()
 
     def _contacts_may_change(self, dt: float) -> bool:
         """Whether a pair not listed could touch before the next check: some particle has moved,

@@ -53,27 +53,23 @@ class MeshfreeSimulation(SimulationBase):
         # Energy present at t = 0 (an initial velocity) counts as work put in.
         self._initial_energy = self.kinetic_energy()
     def advance(self, n_steps: int, dt: float) -> None:
-        if self.breaking is None and self.contact is None:
-            self._advance(n_steps, dt)
-            return
-        # Fracture checks and the contact pairs' refresh at the step numbers that are multiples of
-        # FRACTURE_CHECK, however the run is split into calls.
-        end = self.steps + n_steps
-        while self.steps < end:
-            if self.contact is not None and self.steps % FRACTURE_CHECK == 0:
-                self.contact.refresh(self.particles.x, self.particles.v, dt, FRACTURE_CHECK,
-                                     None if self.breaking is None else self.breaking.blocked)
-            self._advance(min(end, (self.steps // FRACTURE_CHECK + 1) * FRACTURE_CHECK) - self.steps, dt)
-            if self.breaking is not None and self.steps % FRACTURE_CHECK == 0:
-                if self.breaking.check(self, dt) and self.contact is not None:
-                    self.contact.stale = True
+        # Fracture checks and the contact pairs' refresh at the step numbers that are multiples of FRACTURE_CHECK.
+        self._advance_on_grid(n_steps, dt, None if self.breaking is None and self.contact is None else FRACTURE_CHECK,
+                              self._compiled_steps, before=None if self.contact is None else self._refresh_contact,
+                              after=None if self.breaking is None else self._check_fracture)
 
-    def _advance(self, n_steps: int, dt: float) -> None:
+    def _compiled_steps(self, n: int, dt: float) -> None:
         pairs = self._no_pairs if self.contact is None else self.contact.pairs
-        advance(n_steps, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools,
-                self.pressures, pairs, self.contact_radius, self.gravity, self.damping)
-        self.steps += n_steps
-        self.time = self.steps * dt
+        advance(n, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools, self.pressures, pairs,
+                self.contact_radius, self.gravity, self.damping)
+
+    def _refresh_contact(self, dt: float) -> None:
+        self.contact.refresh(self.particles.x, self.particles.v, dt, FRACTURE_CHECK,
+                             None if self.breaking is None else self.breaking.blocked)
+
+    def _check_fracture(self, dt: float) -> None:
+        if self.breaking.check(self, dt) and self.contact is not None:
+            self.contact.stale = True
 
     @property
     def broken(self) -> int:

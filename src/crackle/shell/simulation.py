@@ -86,17 +86,19 @@ class ShellSimulation(SimulationBase):
         return self.nodes.radius
 
     def advance(self, n_steps: int, dt: float) -> None:
-        end = self.steps + n_steps
-        while self.steps < end:
-            stop = end if self.growth is None else min(end, (self.steps // GROWTH_CHECK + 1) * GROWTH_CHECK)
-            s = self.shell
-            advance(stop - self.steps, self.steps, dt, s.nodes, s.faces, s.edges, self.tools, self.load_factor,
-                    self.pressures, self.gravity, self.damping)
-            self.steps = stop
-            self.time = self.steps * dt
-            if self.growth is not None and self.steps % GROWTH_CHECK == 0:
-                self._nucleate(dt)
-                self._grow(dt)
+        if self.growth is None:
+            self._advance_on_grid(n_steps, dt, None, self._compiled_steps)
+        else:
+            self._advance_on_grid(n_steps, dt, GROWTH_CHECK, self._compiled_steps, after=self._nucleate_and_grow)
+
+    def _compiled_steps(self, n: int, dt: float) -> None:
+        s = self.shell
+        advance(n, self.steps, dt, s.nodes, s.faces, s.edges, self.tools, self.load_factor, self.pressures, self.gravity,
+                self.damping)
+
+    def _nucleate_and_grow(self, dt: float) -> None:
+        self._nucleate(dt)
+        self._grow(dt)
 
     def _nucleate(self, dt: float) -> None:
         """Start a crack at the free-edge vertex whose stress along the edge is the largest, if it

@@ -103,6 +103,22 @@ class SimulationBase:
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
 
+    def _advance_on_grid(self, n_steps: int, dt: float, every: int | None, compiled_steps, before=None, after=None):
+        """n_steps of `compiled_steps(n, dt)` in pieces that end on the multiples of `every` (None:
+        one piece), with `before(dt)` where a piece starts on a multiple and `after(dt)` where it
+        ends on one: the checks (contact lists, fracture, crack growth) fall on the same steps
+        however a run is split into advance calls, so its state does not depend on the split."""
+        end = self.steps + n_steps
+        while self.steps < end:
+            if before is not None and self.steps % every == 0:
+                before(dt)
+            stop = end if every is None else min(end, (self.steps // every + 1) * every)
+            compiled_steps(stop - self.steps, dt)
+            self.steps = stop
+            self.time = self.steps * dt  # the step count's time, not a sum of dt
+            if after is not None and self.steps % every == 0:
+                after(dt)
+
     def tool_forces(self) -> np.ndarray:
         """Force of each tool on the specimen (N), through the load cell."""
         return self.load_cell.forces(lambda: self._tool_springs().force.copy())
