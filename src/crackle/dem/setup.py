@@ -22,7 +22,8 @@ from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
-from .simulation import DemSimulation, Platen
+from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe, TensionProbe
+from .simulation import DemSimulation
 
 
 # The [specimen] keys each DEM shape reads (the packing domain's).
@@ -257,12 +258,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         sim.warnings.append(f"packing.particle_density = {scenario.packing.particle_density:g} sets the packing: "
                             "packing.porosity does not apply")
     sim.sample_volume = domain.volume
-    sim.flaw = flaw
-    sim.platen = platen
+    if flaw is not None:
+        sim.probes.append(FlawProbe(flaw))
+    if platen is not None and loaded_area:
+        sim.probes.append(PlatenProbe(platen, loaded_area))
+    if scenario.specimen.shape == "disc" and loaded_area:
+        sim.probes.append(BrazilianProbe(scenario.specimen.diameter, scenario.specimen.thickness))
     if grip is not None:
-        sim.strength_test = TensionTest(grip, loaded_area, mat.tensile_strength)
-    if scenario.specimen.shape == "disc":
-        sim.brazilian = (scenario.specimen.diameter, scenario.specimen.thickness)
+        sim.probes.append(TensionProbe(TensionTest(grip, loaded_area, mat.tensile_strength)))
     return sim
 
 

@@ -1,42 +1,16 @@
-"""The bonded-particle DEM behind the driver's Simulation protocol (solver.simulation)."""
+"""The bonded-particle DEM behind the driver's Simulation protocol (solver.simulation); its measurements are in probes.py."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis.brazilian import brazilian_strength
-from ..analysis.flaw import initiation_along_flaw
-from ..analysis.strength import TensionTest, platen_modulus
-from ..io.plots import plot_stress_strain, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, advance
 from .model import with_contacts
-
-
-@dataclass(frozen=True)
-class Platen:
-    """The first moving tool: its force on the sample along its travel over the loaded area is
-    the history's `platen.stress`; the platens' approach (its travel towards the opposite platen
-    less the opposite one's travel towards it, whether that one moves or not) over the sample's
-    extent along it is `platen.strain` (both positive in compression, as a UCS curve is read)."""
-
-    name: str
-    direction: np.ndarray  # unit, the tool's travel
-    length: float  # m, the sample's extent along it
-    opposite: str | None = None  # the tool facing it across the sample, if any
-
-    def stress_strain(self, row: dict, loaded_area: float) -> tuple[float, float]:
-        """(stress, strain) of a history row with the tools' force and travel columns."""
-        force = np.array([row[f"tool.{self.name}.f{c}"] for c in "xyz"])  # on the sample
-        approach = np.array([row[f"tool.{self.name}.u{c}"] for c in "xyz"])
-        if self.opposite is not None:
-            approach = approach - np.array([row[f"tool.{self.opposite}.u{c}"] for c in "xyz"])
-        return float(force @ self.direction) / loaded_area, float(approach @ self.direction) / self.length
 
 
 # Steps between two checks of whether the contact list must be rebuilt: a fixed grid of steps, so
@@ -63,11 +37,6 @@ class DemSimulation(SimulationBase):
         self.damping = float(damping)
         self.skin = float(skin)
         self.loaded_area = loaded_area  # m^2, normal to the platens: peak_stress = peak force / it
-        self.brazilian: tuple[float, float] | None = None  # a disc's (diameter, thickness), m
-        self.flaw = None  # the scenario's [flaw] (setup.FlawSpec), if any
-        self.platen: Platen | None = None  # the tool whose stress and strain the history gives
-        self._curve: dict[float, tuple[float, float]] = {}  # time -> the platen's (strain, stress)
-        self.strength_test: TensionTest | None = None  # direct tension: nominal strengths in the summary
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.x0 = particles.x.copy()
@@ -107,18 +76,18 @@ class DemSimulation(SimulationBase):
         return super().state_is_finite() and bool(np.isfinite(self.particles.spin).all())
 
     # -- results -------------------------------------------------------------------------------
-    def _failed(self) -> np.ndarray:
+    def failed_bonds(self) -> np.ndarray:
         """Which bonds have failed (a joint never does)."""
         return np.isfinite(self.inter.fail_time[: self.n_bonds])
 
     @property
     def broken(self) -> int:
-        return int(np.count_nonzero(self._failed()))
+        return int(np.count_nonzero(self.failed_bonds()))
 
     def broken_by_mode(self) -> dict[str, int]:
         from ..solver.failures import MODE_NAMES
 
-        modes = self.inter.fail_mode[: self.n_bonds][self._failed()]
+        modes = self.inter.fail_mode[: self.n_bonds][self.failed_bonds()]
         return {MODE_NAMES[m]: int(np.count_nonzero(modes == m)) for m in np.unique(modes)}
 
     def interaction_energy(self, dt: float) -> float:
@@ -166,18 +135,10 @@ class DemSimulation(SimulationBase):
             "friction": float(np.sum(self.inter.e_friction) + self._dropped_friction),
         }
 
-    def sample(self, dt: float) -> dict[str, float]:
-        row = super().sample(dt)
-        if self.platen is not None and self.loaded_area:
-            stress, strain = self.platen.stress_strain(row, self.loaded_area)
-            row["platen.stress"], row["platen.strain"] = stress, strain
-            self._curve[self.time] = (strain, stress)
-        return row
-
     def new_events(self):
         s = self.inter
         n = self.n_bonds
-        return self._failures.new(self._failed(), s.fail_time[:n], s.fail_mode[:n],
+        return self._failures.new(self.failed_bonds(), s.fail_time[:n], s.fail_mode[:n],
                                   lambda ids: 0.5 * (self.x0[s.a[ids]] + self.x0[s.b[ids]]))
 
     def particle_stress(self) -> np.ndarray:
@@ -291,32 +252,10 @@ class DemSimulation(SimulationBase):
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "warnings": list(self.warnings),
         }
-        if self.flaw is not None and self.broken:
-            failed = np.flatnonzero(self._failed())
-            s = self.inter
-            along, across = self.flaw.axes()
-            out["flaw_initiation"] = initiation_along_flaw(0.5 * (self.x0[s.a[failed]] + self.x0[s.b[failed]]),
-                                                           s.fail_time[failed], self.flaw.center, along, across,
-                                                           self.flaw.length)
         if self.loaded_area:
-            peaks = self.load_cell.peaks()[0]
             out["loaded_area"] = self.loaded_area
-            out["peak_stress"] = float(np.max(peaks, initial=0.0)) / self.loaded_area
-            if self.platen is not None:
-                # JSON has no NaN: None until the curve has rows between 20 and 50 % of its peak.
-                curve = np.array([self._curve[t] for t in sorted(self._curve)]).reshape(-1, 2)
-                out["platen_modulus"] = platen_modulus(curve[:, 0], curve[:, 1])
-            if self.brazilian:
-                diameter, thickness = self.brazilian
-                # The elastic Brazilian relation: the tensile stress across the loaded diameter.
-                out["brazilian_strength"] = brazilian_strength(float(np.max(peaks, initial=0.0)), diameter, thickness)
-        if self.strength_test is not None:
-            out.update(self.strength_test.summary(self.load_cell.peaks()[0]))
-        return out
-
-    def extra_plots(self, out_dir) -> None:
-        if self.platen is not None and self.loaded_area:
-            plot_stress_strain(out_dir / "history.csv", run_plot_path(out_dir, "stress_strain"))
+            out["peak_stress"] = float(np.max(self.load_cell.peaks()[0], initial=0.0)) / self.loaded_area
+        return {**out, **self.probe_summary()}
 
 
 def _grid_cells(lower, cell: float, shape) -> tuple[np.ndarray, np.ndarray]:

@@ -19,6 +19,7 @@ from ..materials import Material
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from .laws import LAWS
 from .model import build_fdem_model
+from .probes import CrackProbe, FractureTipProbe, StrengthProbe
 from .simulation import FdemSimulation
 
 
@@ -165,14 +166,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     if plane is not None:
         size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
         tol = plane.tol if plane.tol is not None else 1e-6 * size
-        sim.fracture_plane = FracturePlane(plane.point, plane.normal, plane.direction, tol)
+        sim.probes.append(FractureTipProbe(FracturePlane(plane.point, plane.normal, plane.direction, tol)))
     cracks = scenario.analysis.cracks
     if cracks is not None:
-        sim.crack_settings = CrackSettings(
+        sim.probes.append(CrackProbe(CrackSettings(
             wall=cracks.wall if cracks.wall is not None else scenario.specimen.wall,
             scale=cracks.scale if cracks.scale is not None else 2.0 * model.element_size,
             top=cracks.top,
-        )
+        )))
     return sim
 
 
@@ -184,11 +185,11 @@ def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mes
     grip = pulling_grip(tools, mesh.points, supports, float(np.max(mesh.bounds()[1] - mesh.bounds()[0])))
     if grip is not None:
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
-        sim.strength_test = TensionTest(grip, section, scenario.material.interface.tensile_strength)
+        sim.probes.append(StrengthProbe(TensionTest(grip, section, scenario.material.interface.tensile_strength)))
     elif spec.shape == "disc":
         moving = [t for t in tools if t.moves]
         if moving:
             # The loading axis: the first moving platen's direction (rotated with [loading]).
             axis = np.asarray(spec.axis, float) / np.linalg.norm(spec.axis)
-            sim.strength_test = BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
-                                              tuple(moving[0].direction))
+            sim.probes.append(StrengthProbe(BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
+                                                          tuple(moving[0].direction))))

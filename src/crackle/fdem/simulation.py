@@ -1,25 +1,13 @@
-"""FDEM behind the driver's Simulation protocol (solver.simulation)."""
+"""FDEM behind the driver's Simulation protocol (solver.simulation); its measurements are in probes.py."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..analysis import (
-    CrackAnalysis,
-    CrackSettings,
-    FracturePlane,
-    Fragments,
-    analyse_cracks,
-    find_fragments,
-    loading_index_of,
-    propagating_plastic_zone,
-    tip_and_plastic_zone,
-)
-from ..analysis.energy_jumps import JUMP_SPEED, energy_jumps
-from ..analysis.strength import BrazilianTest, TensionTest
-from ..io.plots import plot_crack_growth, plot_fragment_sizes, plot_time_steps, run_plot_path
+from ..analysis import Fragments, find_fragments
+from ..io.plots import plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import MODE_NAMES, FailureRecorder
+from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import advance, interface_energy, tet_energy_and_stress
@@ -27,16 +15,11 @@ from .topology import INTACT, PRECRACK
 from .model import FdemModel
 
 
-# Columns of the Cauchy stress per tet in the fields (Pa).
-
 # Longest run of steps between two checks of the contact surface: new fracture faces take part in
 # surface contact at most this many steps after they fail.
 CONTACT_REFRESH_STEPS = 100
 # Extrinsic insertion energy, as a fraction of the external work, above which the summary warns.
 INSERTION_WARNING = 0.1
-
-
-CRACK_SCALE_FACTORS = (0.75, 1.0, 1.5)
 
 
 class FdemSimulation(SimulationBase):
@@ -59,13 +42,6 @@ class FdemSimulation(SimulationBase):
         self._contact_failed = -1
         self._next_refresh = 0  # step of the next contact refresh
         self.rebuilds = 0
-        self.fracture_plane: FracturePlane | None = None  # followed in the history when set
-        self._tips: list[float] = []
-        self._plastic_zones: list[float] = []
-        self.crack_settings: CrackSettings | None = None  # crack count and speed in the summary when set
-        self.strength_test: TensionTest | BrazilianTest | None = None  # nominal strengths in the summary when set
-        self._cracks: tuple[int, CrackAnalysis] | None = None  # (failures analysed, analysis)
-        self._dissipation: list[tuple[float, float]] = []  # (time, energy.damage) per history row, for the jumps
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -149,25 +125,8 @@ class FdemSimulation(SimulationBase):
             "friction": float(np.sum(m.ifs.e_friction) + np.sum(self.contact.d_friction)),
         }
 
-    def sample(self, dt: float) -> dict[str, float]:
-        """One history row at the current time (the solver adds `time`)."""
-        row = super().sample(dt)
-        if self.crack_settings is not None:
-            self._dissipation.append((self.time, row["energy.damage"]))
-        return row
-
     def history_columns(self, dt: float) -> dict[str, float]:
-        """The fragment count, and where a fracture plane is followed its tip and plastic zone."""
-        m = self.model
-        row = {"fragments": self.fragments().count}
-        if self.fracture_plane is not None:
-            ifs = m.ifs
-            tip, zone = tip_and_plastic_zone(self.fracture_plane, m.iface_centroids(m.nodes.x), ifs.damage, ifs.state != INTACT)
-            self._tips.append(tip)
-            self._plastic_zones.append(zone)
-            row["fracture.tip"] = tip
-            row["fracture.plastic_zone"] = zone
-        return row
+        return {"fragments": self.fragments().count}
 
     def fragments(self) -> Fragments:
         """Pieces of tets still joined by intact interfaces (recomputed after new failures)."""
@@ -216,50 +175,7 @@ class FdemSimulation(SimulationBase):
         plot_fragment_sizes(self.fragments().masses, run_plot_path(out_dir, "fragment_sizes"))
         step = self.model.time_step
         plot_time_steps(step.element_dt, step.bulk_dt, step.as_summary(), run_plot_path(out_dir, "time_step"))
-        cracks = self.cracks()
-        if cracks is not None and len(cracks.length_history):
-            plot_crack_growth(cracks.length_history, cracks.speed_history, run_plot_path(out_dir, "crack_growth"))
-
-    def cracks(self, scale: float | None = None) -> CrackAnalysis | None:
-        """Crack count and main-crack speed of the failures so far (None unless crack_settings),
-        at the settings' scale or `scale` (m); the settings' analysis is kept until new failures,
-        as the summary and the plots both ask for it."""
-        if self.crack_settings is None:
-            return None
-        m = self.model
-        failed = np.flatnonzero((m.ifs.state != INTACT) & (m.ifs.state != PRECRACK))
-        c = self.crack_settings
-
-        def analyse(r):
-            top_point = m.x0[np.argmax(m.x0 @ np.asarray(c.top, float))]
-            return analyse_cracks(m.iface_centroids(ids=failed), m.ifs.area[failed], m.ifs.fail_time[failed], r, c.wall,
-                                  top_point, faces=m.corner_point[m.ifs.na[failed]])
-
-        if scale is not None:
-            return analyse(scale)
-        if self._cracks is None or self._cracks[0] != len(failed):
-            self._cracks = (len(failed), analyse(c.scale))
-        return self._cracks[1]
-
-    def _crack_summary(self) -> dict:
-        cracks = self.cracks()
-        if cracks is None:
-            return {}
-        directions = np.array([t.direction for t in self.model.tool_specs], float).T
-        scale = self.crack_settings.scale
-        face = self.model.materials[0]
-        threshold = (min(m.interface.fracture_energy for m in self.model.materials) * self.crack_settings.wall
-                     * JUMP_SPEED * face.rayleigh_speed)
-        jumps = energy_jumps(*np.array(self._dissipation).reshape(-1, 2).T, threshold)
-        return {
-            **cracks.as_summary(),
-            # the ring rule's length moved by -25 % and +50 %: how much the count leans on it
-            "cracks_at_scales": [[factor * scale, self.cracks(factor * scale).cracks] for factor in CRACK_SCALE_FACTORS],
-            "energy_jumps": len(jumps),
-            "energy_jump_times": [start for start, _, _ in jumps],
-            "energy_jump_threshold": threshold,
-            "loading_index": loading_index_of(directions) if directions.size else None,
-        }
+        super().extra_plots(out_dir)
 
     def _process_zones(self) -> list[dict]:
         """Paper 004 eqs 4-5 (paper 001 eqs 10-11) per material, with the minimal discretisation
@@ -274,31 +190,6 @@ class FdemSimulation(SimulationBase):
             for mat in self.model.materials
         ]
 
-    def _fracture_summary(self) -> dict:
-        if self.fracture_plane is None or not self._tips:
-            return {}
-        zones = np.asarray(self._plastic_zones)
-        values = {
-            "plastic_zone_length": propagating_plastic_zone(self._tips, zones),
-            "plastic_zone_max": float(zones.max()),
-            "fracture_tip_final": float(self._tips[-1]),
-        }
-        return {k: (v if np.isfinite(v) else None) for k, v in values.items()}  # JSON has no inf/nan
-
-    def _strength_summary(self) -> dict:
-        test = self.strength_test
-        if test is None:
-            return {}
-        peaks = self.load_cell.peaks()[0]
-        if isinstance(test, TensionTest):
-            return test.summary(peaks)
-        ifs = self.model.ifs
-        failed = np.flatnonzero((ifs.state != INTACT) & (ifs.state != PRECRACK))
-        xyz = self.model.iface_centroids(ids=failed)
-        events = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
-                  "mode": np.array([MODE_NAMES[k] for k in ifs.fail_mode[failed]])}
-        return test.summary(peaks, events)
-
     def summary(self) -> dict:
         m = self.model
         insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None
@@ -312,9 +203,7 @@ class FdemSimulation(SimulationBase):
             "fragment_speeds": np.linalg.norm(frags.velocities[:20], axis=1).tolist(),
             "largest_fragment_velocity": frags.velocities[0].tolist(),
             "contact_rebuilds": self.rebuilds,
-            **self._fracture_summary(),
-            **self._crack_summary(),
-            **self._strength_summary(),
+            **self.probe_summary(),
             "process_zones": self._process_zones(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,

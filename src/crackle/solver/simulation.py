@@ -69,6 +69,22 @@ class Simulation(Protocol):
         """Method-specific plots into out_dir / 'plots' (may do nothing)."""
 
 
+class Probe:
+    """A measurement a simulation carries (LAMMPS's compute): it adds its columns to each history
+    row (`columns`, from the simulation and the row so far), its results to summary.json
+    (`summary`) and its figures (`plots`, named in io.plots.RUN_PLOTS). A set-up appends the
+    probes its scenario asks for to `sim.probes`; the default of each part is nothing."""
+
+    def columns(self, sim, row: dict) -> dict[str, float]:
+        return {}
+
+    def summary(self, sim) -> dict:
+        return {}
+
+    def plots(self, sim, out_dir: Path) -> None:
+        pass
+
+
 class SimulationBase:
     """The part of the Simulation protocol every method shares, written once: the clock, the
     tools (names, springs, load cell), the energy terms of the shared per-node arrays, the history
@@ -99,6 +115,7 @@ class SimulationBase:
         self._springs = ToolSprings(tools, self._tool_names)
         self.load_cell = LoadCell(tools)
         self.warnings: list[str] = [] if warnings is None else warnings
+        self.probes: list[Probe] = []  # the measurements the scenario asks for (set-up)
 
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
@@ -162,7 +179,19 @@ class SimulationBase:
 
     def sample(self, dt: float) -> dict[str, float]:
         row = self._springs.columns(self.load_cell, self._tool_springs)
-        return {**row, **self.energies(dt), "broken": self.broken, **self.history_columns(dt)}
+        row = {**row, **self.energies(dt), "broken": self.broken, **self.history_columns(dt)}
+        for probe in self.probes:
+            row.update(probe.columns(self, row))
+        return row
+
+    def probe_summary(self) -> dict:
+        """The probes' results, for the method's summary()."""
+        out = {}
+        for probe in self.probes:
+            out.update(probe.summary(self))
+        return out
 
     def extra_plots(self, out_dir: Path) -> None:
-        pass
+        """The probes' figures (a method with figures of its own adds them)."""
+        for probe in self.probes:
+            probe.plots(self, out_dir)
