@@ -1,6 +1,6 @@
 """DEM's measurements (solver.simulation.Probe), each set up when the scenario asks for it: the
 platen's stress-strain curve and modulus, a disc's Brazilian strength, where cracking starts
-along a flaw, the nominal strengths of a direct tension test."""
+along a flaw (a direct tension test's strengths: solver.simulation.PeakForceProbe)."""
 
 from __future__ import annotations
 
@@ -86,13 +86,3 @@ class FlawProbe(Probe):
         return {"flaw_initiation": initiation_along_flaw(0.5 * (sim.x0[s.a[failed]] + sim.x0[s.b[failed]]),
                                                          s.fail_time[failed], self.flaw.center, along, across,
                                                          self.flaw.length)}
-
-
-class TensionProbe(Probe):
-    """The nominal strengths of a direct tension test (analysis.strength.TensionTest)."""
-
-    def __init__(self, test):
-        self.test = test
-
-    def summary(self, sim) -> dict:
-        return self.test.summary(sim.load_cell.peaks()[0])

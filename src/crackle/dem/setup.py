@@ -22,7 +22,8 @@ from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
-from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe, TensionProbe
+from ..solver.simulation import PeakForceProbe
+from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe
 from .simulation import DemSimulation
 
 
@@ -265,7 +266,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     if scenario.specimen.shape == "disc" and loaded_area:
         sim.probes.append(BrazilianProbe(scenario.specimen.diameter, scenario.specimen.thickness))
     if grip is not None:
-        sim.probes.append(TensionProbe(TensionTest(grip, loaded_area, mat.tensile_strength)))
+        sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, mat.tensile_strength)))
     return sim
 
 

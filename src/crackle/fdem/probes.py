@@ -1,6 +1,7 @@
 """FDEM's measurements (solver.simulation.Probe), each set up when the scenario asks for it:
 the fracture tip and plastic zone along a plane ([analysis.fracture_plane]), the crack count and
-main-crack speed ([analysis.cracks]), the nominal strength of a direct tension or Brazilian test."""
+main-crack speed ([analysis.cracks]), the nominal strength of a Brazilian disc (a direct tension
+test's is solver.simulation.PeakForceProbe's)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ import numpy as np
 from ..analysis import (CrackAnalysis, CrackSettings, FracturePlane, analyse_cracks, loading_index_of,
                         propagating_plastic_zone, tip_and_plastic_zone)
 from ..analysis.energy_jumps import JUMP_SPEED, energy_jumps
-from ..analysis.strength import TensionTest
 from ..io.plots import plot_crack_growth, run_plot_path
 from ..solver.failures import MODE_NAMES
 from ..solver.simulation import Probe
@@ -107,18 +107,15 @@ class CrackProbe(Probe):
             plot_crack_growth(cracks.length_history, cracks.speed_history, run_plot_path(out_dir, "crack_growth"))
 
 
-class StrengthProbe(Probe):
-    """The nominal strengths of a direct tension test (analysis.strength.TensionTest) or a
-    Brazilian disc (BrazilianTest, which also reads where and how the interfaces failed) from
-    the tools' peak forces."""
+class BrazilianProbe(Probe):
+    """A Brazilian disc's nominal strength (analysis.strength.BrazilianTest) from the tools' peak
+    forces and where and how the interfaces failed."""
 
     def __init__(self, test):
         self.test = test
 
     def summary(self, sim) -> dict:
         peaks = sim.load_cell.peaks()[0]
-        if isinstance(self.test, TensionTest):
-            return self.test.summary(peaks)
         m = sim.model
         failed = failed_interfaces(m)
         xyz = m.iface_centroids(ids=failed)

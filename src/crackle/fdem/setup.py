@@ -19,7 +19,8 @@ from ..materials import Material
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from .laws import LAWS
 from .model import build_fdem_model
-from .probes import CrackProbe, FractureTipProbe, StrengthProbe
+from ..solver.simulation import PeakForceProbe
+from .probes import BrazilianProbe, CrackProbe, FractureTipProbe
 from .simulation import FdemSimulation
 
 
@@ -185,11 +186,11 @@ def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mes
     grip = pulling_grip(tools, mesh.points, supports, float(np.max(mesh.bounds()[1] - mesh.bounds()[0])))
     if grip is not None:
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
-        sim.probes.append(StrengthProbe(TensionTest(grip, section, scenario.material.interface.tensile_strength)))
+        sim.probes.append(PeakForceProbe(TensionTest(grip, section, scenario.material.interface.tensile_strength)))
     elif spec.shape == "disc":
         moving = [t for t in tools if t.moves]
         if moving:
             # The loading axis: the first moving platen's direction (rotated with [loading]).
             axis = np.asarray(spec.axis, float) / np.linalg.norm(spec.axis)
-            sim.probes.append(StrengthProbe(BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
+            sim.probes.append(BrazilianProbe(BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
                                                           tuple(moving[0].direction))))

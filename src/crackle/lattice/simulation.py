@@ -28,6 +28,7 @@ class LatticeSimulation(SimulationBase):
         self.x0 = nodes.x.copy()
         self.tool_radius = np.array([self.radius])
         self._failures = FailureRecorder(len(springs.a))
+
     def advance(self, n_steps: int, dt: float) -> None:
         advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
                 self.gravity, self.damping)

@@ -105,11 +105,6 @@ class ToolSprings:
                 v[j] = interp_history(time - 0.5 * dt, t.times[j], t.speeds[j], t.n[j]) * t.direction[j]
         return v
 
-    def columns(self, load_cell: LoadCell, measure) -> dict[str, float]:
-        """tool.NAME.f*/u* of a history row: the load cell's forces (`measure()`, returning this
-        object measured now, before the first step)."""
-        return tool_columns(self.names, load_cell.forces(lambda: measure().force.copy()), self.tools)
-
     def free_work(self) -> float:
         """The work (J) the free tools have done on the specimen: part of energy.external."""
         return free_tool_work(self.tools)

@@ -52,6 +52,7 @@ class MeshfreeSimulation(SimulationBase):
         self._failures = FailureRecorder(len(particles.x))
         # Energy present at t = 0 (an initial velocity) counts as work put in.
         self._initial_energy = self.kinetic_energy()
+
     def advance(self, n_steps: int, dt: float) -> None:
         # Fracture checks and the contact pairs' refresh at the step numbers that are multiples of FRACTURE_CHECK.
         self._advance_on_grid(n_steps, dt, None if self.breaking is None and self.contact is None else FRACTURE_CHECK,

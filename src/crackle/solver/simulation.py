@@ -8,7 +8,7 @@ from typing import Protocol
 import numpy as np
 
 from ..analysis.energy import PREFIX, energy_order
-from ..loading.loadcell import LoadCell, ToolSprings
+from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 
 
 class Simulation(Protocol):
@@ -83,6 +83,17 @@ class Probe:
 
     def plots(self, sim, out_dir: Path) -> None:
         pass
+
+
+class PeakForceProbe(Probe):
+    """A result read from the tools' peak forces: `test.summary(peaks)`, e.g. the nominal
+    strengths of a direct tension test (analysis.strength.TensionTest)."""
+
+    def __init__(self, test):
+        self.test = test
+
+    def summary(self, sim) -> dict:
+        return self.test.summary(sim.load_cell.peaks()[0])
 
 
 class SimulationBase:
@@ -178,7 +189,7 @@ class SimulationBase:
         return {}
 
     def sample(self, dt: float) -> dict[str, float]:
-        row = self._springs.columns(self.load_cell, self._tool_springs)
+        row = tool_columns(self._tool_names, self.tool_forces(), self.tools)
         row = {**row, **self.energies(dt), "broken": self.broken, **self.history_columns(dt)}
         for probe in self.probes:
             row.update(probe.columns(self, row))
