@@ -34,8 +34,7 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
             raise ValueError("give gamma or bonds_per_particle")
         gamma = bond_gamma(centers, radii, bonds_per_particle)
     scale = float(np.max(np.ptp(centers, axis=0) + 2.0 * radii.max()))
-    constraint, projection, support_tool = support_constraints(supports, centers, scale)
-    particles = make_particles(centers, radii, density, constraint, projection, support_tool, velocity)
+    particles = make_particles(centers, radii, density, support_constraints(supports, centers, scale), velocity)
     inter = bonds(particles, law, gamma)
     if joint is not None:
         inter = with_joints(particles, inter, joint)
@@ -49,8 +48,7 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     # so new ones replace broken bonds or close gaps): room for 6 more per particle.
     contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
     dt = stable_dt(particles, inter, tool_k + contact_k)
-    seating = seat_on_tools(tools, tool_table, particles.x, particles.radius, particles.tool, particles.tool_offset,
-                            "particles")
+    seating = seat_on_tools(tools, tool_table, particles, "particles")
     sim = DemSimulation(particles, inter, len(inter.a), law, tool_table, [t.name for t in tools], dt, gravity,
                         damping, SKIN * mean_radius, loaded_area)
     # The bound at set-up, without room for later contacts: what a user's run.dt may reach.

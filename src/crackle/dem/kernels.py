@@ -36,16 +36,15 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..solver.body import BODY_FIELDS
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
 from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
 
 BONDED, BROKEN, CONTACT, GONE, JOINT = 0, 1, 2, 3, 4
 
-Particles = namedtuple(
-    "Particles",
-    "x v spin mass inertia radius area constraint projection support_tool tool tool_offset friction d_friction w_external "
-    "w_damping",
-)
+# The shared per-node arrays (solver.body; radius: each sphere's, its contact radius too), with
+# the spins and rotational inertias.
+Particles = namedtuple("Particles", BODY_FIELDS + " spin inertia")
 Interactions = namedtuple(
     "Interactions",
     "a b state d0 kn kt fn_max cohesion tan_phi shear force moment lever fail_time fail_mode e_damage e_friction "
@@ -237,12 +236,9 @@ def _release(i, t, mode, state, shear, inter):
 
 @block_kernel
 def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool_v_next, gravity, alpha):
-    x, v, w, mass, inertia, radius, area = (particles.x, particles.v, particles.spin, particles.mass,
-                                            particles.inertia, particles.radius, particles.area)
+    x, v, w, mass, inertia = particles.x, particles.v, particles.spin, particles.mass, particles.inertia
     force, moment, lever, start, entry, sign = inter.force, inter.moment, inter.lever, inter.start, inter.entry, inter.sign
     w_damping = particles.w_damping
-    force_slots = tools.force_slots
-    n_tool = tools.kind.shape[0]
     for g in range(lo, hi):
         fx = 0.0
         fy = 0.0
@@ -261,14 +257,9 @@ def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool
             my += arm * moment[i, 1]
             mz += arm * moment[i, 2]
         m = mass[g]
-        cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
-            force_slots, tool_v_prev, tool_v_next, particles.tool, particles.tool_offset, particles.friction,
-            particles.d_friction,
-        )
-        update_velocity_local_damping(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz,
-                                      tool_work, m, alpha, dt, particles.constraint, particles.projection,
-                                      particles.support_tool, tool_v_next, force_slots, slot, particles.w_external, w_damping)
+        cx, cy, cz, tool_work = contact_with_tools(g, particles, dt, slot, tools, tool_v_prev, tool_v_next)
+        update_velocity_local_damping(g, particles, (fx, fy, fz), (m * gravity[0], m * gravity[1], m * gravity[2]),
+                                      (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next, slot)
         move(g, x, v, dt)
         # Spin: the same central difference and local damping on the torque (no supports on it).
         j = inertia[g]

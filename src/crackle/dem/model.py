@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..solver.body import body_arrays
 from .kernels import BONDED, CONTACT, GONE, JOINT, Interactions, Particles
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
@@ -62,27 +63,13 @@ def _range_ratio(centers, radii, pairs) -> np.ndarray:
     return dist / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
 
 
-def make_particles(centers, radii, density, constraint, projection, support_tool, velocity=None) -> Particles:
-    n = len(radii)
+def make_particles(centers, radii, density, supports, velocity=None) -> Particles:
+    """Spheres at rest (or moving at `velocity`), with their masses and rotational inertias;
+    supports: the (constraint, projection, support_tool) of support_constraints."""
+    radii = np.asarray(radii, float)
     mass = density * 4.0 / 3.0 * math.pi * radii**3
-    return Particles(
-        x=np.ascontiguousarray(centers, dtype=float).copy(),
-        v=np.zeros((n, 3)) if velocity is None else np.array(np.broadcast_to(velocity, (n, 3)), dtype=float),
-        spin=np.zeros((n, 3)),
-        mass=mass,
-        inertia=0.4 * mass * radii**2,
-        radius=np.asarray(radii, float).copy(),
-        area=math.pi * radii**2,
-        constraint=constraint,
-        projection=projection,
-        support_tool=support_tool,
-        tool=np.full(n, -1, dtype=np.int8),
-        tool_offset=np.zeros(n),
-        friction=np.zeros((n, 3)),
-        d_friction=np.zeros(n),
-        w_external=np.zeros(n),
-        w_damping=np.zeros(n),
-    )
+    return Particles(**body_arrays(centers, mass, math.pi * radii**2, radii, supports, velocity),
+                     spin=np.zeros((len(radii), 3)), inertia=0.4 * mass * radii**2)
 
 
 def normal_stiffness(law: BondLaw, ra, rb):

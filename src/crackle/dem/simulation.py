@@ -25,7 +25,7 @@ class DemSimulation(SimulationBase):
                  skin, loaded_area=None):
         self._start_clock_and_tools(tools, tool_names)
         self.particles, self.inter, self.n_bonds, self.law = particles, inter, n_bonds, law
-        self.body, self.tool_radius = particles, particles.radius
+        self.body = particles
         self.stable_dt = stable_dt
         self.proven_dt = stable_dt  # the bound at set-up; build_dem_simulation sets it
         self.proven_dt_how = ("a Gershgorin bound over each particle's bonds, contacts and tools, translation and "

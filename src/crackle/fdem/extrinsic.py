@@ -271,9 +271,6 @@ def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
     members, one central-difference update on its leader, and the members take its velocity and
     move with it. A moving support's reaction goes to the tools' force `slot` of this block."""
     x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
-    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
-    force_slots = tools.force_slots
-    w_external, w_damping = nodes.w_external, nodes.w_damping
     ptr, members, leader = ties.vertex_ptr, ties.vertex_nodes, ties.leader
     ext, tool_force, tool_work = ties.ext, ties.tool_force, ties.tool_work
     alpha = ctrl.damping[0]
@@ -298,8 +295,8 @@ def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
                 work += tool_work[g]
                 m += mass[g]
                 k += 1
-            update_velocity(lead, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, work, m, alpha, dt, constraint,
-                            projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
+            update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt, tools,
+                            tool_v_next, slot)
             move(lead, x, v, dt)
             for r in range(j, k):
                 g = members[r]

@@ -208,17 +208,12 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
     on the tools into their `slot`), damping, gravity and the central-difference update of each
     tet's own 4 nodes. With tied faces (clusters, ties.ext not empty) the update is the node
     pass's (extrinsic.cluster_block): the forces are stored for it instead."""
-    x, v, f, mass, contact_area = nodes.x, nodes.v, nodes.force, nodes.mass, nodes.area
+    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
-    tool_of, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
-    w_external, w_damping = nodes.w_external, nodes.w_damping
-    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
-    force_slots = tools.force_slots
-    n_tool = tools.kind.shape[0]
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
     clustered = ties.ext.shape[0] > 0
@@ -251,7 +246,6 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
         for k in range(4):
             g = n0 + k
             m = mass[g]
-            vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
             # External forces that work on the node's own motion: pressure and gravity.
             ex = 0.0
             ey = 0.0
@@ -276,10 +270,7 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
             work = 0.0
             # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
             if free_faces & ~(1 << k):
-                cx, cy, cz, work = contact_with_tools(
-                    g, x[g, 0], x[g, 1], x[g, 2], vx0, vy0, vz0, 0.0, contact_area[g], dt, slot, tools, n_tool, force_slots,
-                    tool_v_prev, tool_v_next, tool_of, tool_offset, friction, d_friction,
-                )
+                cx, cy, cz, work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
             # Node-to-surface contact between free surfaces: internal to the specimen.
             if any_contact and node_slot[g] >= 0:
                 sx, sy, sz = gathered_contact_force(g, contact)
@@ -295,9 +286,8 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                 tool_force[g, 2] = cz
                 tool_work[g] = work
                 continue
-            update_velocity(g, v, f[g, 0], f[g, 1], f[g, 2], ex, ey, ez, cx, cy, cz, work, m, alpha, dt,
-                            constraint, projection, support_tool, tool_v_next, force_slots, slot, w_external,
-                            w_damping)
+            update_velocity(g, nodes, (f[g, 0], f[g, 1], f[g, 2]), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt,
+                            tools, tool_v_next, slot)
         if clustered:
             continue
         # Positions last: the pressure on a face above used the corners' positions at time t.

@@ -17,6 +17,7 @@ from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
 from ..loading.arrays import HistoryTable, Tools, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.tools import HIDDEN, NO_TOOL
+from ..solver.body import BODY_FIELDS, body_arrays
 from ..solver.integrator import support_constraints
 from ..materials import Material
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
@@ -29,10 +30,9 @@ from .topology import FACE_CORNERS, INTACT, PRECRACK
 # interfaces on purpose: in the exploded mesh several coincident nodes can press on one triangle
 # corner, and their springs add up there; penetrations stay ~1e-4 h at 100 MPa.
 
-Nodes = namedtuple(
-    "Nodes",
-    "x v mass area force constraint projection support_tool friction tool tool_offset w_external w_damping d_friction",
-)
+# The shared per-node arrays (solver.body; radius 0: a tet node touches the tools with its centre),
+# with the nodes' force (the tet pass's gather, which the tied clusters' pass reads).
+Nodes = namedtuple("Nodes", BODY_FIELDS + " force")
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
@@ -148,7 +148,7 @@ def build_fdem_model(
     tool_table = tool_arrays(tools, default_penalty, median_altitude, slots)
 
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
-    seating = seat_on_tools(tools, tool_table, nodes.x, 0.0, nodes.tool, nodes.tool_offset, "nodes")
+    seating = seat_on_tools(tools, tool_table, nodes, "nodes")
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
     n_if = len(pairs.area)
     ifs = Interfaces(
@@ -390,23 +390,9 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
     if len(pairs.state):
         free_face |= pairs.state[np.maximum(face_iface, 0)] == PRECRACK
     contact_area, on_free_face = _contact_area(bulk.face_area, free_face)
-    constraint, projection, support_tool = support_constraints(supports, bulk.x0, scale)
-    return Nodes(
-        x=bulk.x0.copy(),
-        v=v,
-        mass=bulk.mass,
-        area=contact_area,
-        force=np.zeros((n, 3)),
-        constraint=constraint,
-        projection=projection,
-        support_tool=support_tool,
-        friction=np.zeros((n, 3)),
-        tool=np.where(on_free_face, NO_TOOL, HIDDEN).astype(np.int8),
-        tool_offset=np.zeros(n),
-        w_external=np.zeros(n),
-        w_damping=np.zeros(n),
-        d_friction=np.zeros(n),
-    )
+    supports = support_constraints(supports, bulk.x0, scale)
+    return Nodes(**body_arrays(bulk.x0, bulk.mass, contact_area, 0.0, supports, v,
+                               np.where(on_free_face, NO_TOOL, HIDDEN)), force=np.zeros((n, 3)))
 
 
 @dataclass

@@ -36,7 +36,6 @@ class FdemSimulation(SimulationBase):
         self._stress = np.zeros((model.n_tets, 6))
         self._cohesive = np.zeros(model.n_interfaces)
         self._contact = np.zeros(model.n_interfaces)
-        self.tool_radius = np.zeros(1)  # tet nodes touch tools with their centre
         self.contact = empty_contact(4 * model.n_tets, model.contact_penalty)
         self._contact_ref = None  # positions at the last broad phase
         self._contact_failed = -1

@@ -13,12 +13,10 @@ from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
 from ..solver.failures import MODE_TENSION
+from ..solver.body import Body
 from ..solver.integrator import block_kernel, move, update_velocity
 
-Nodes = namedtuple(
-    "Nodes",
-    "x v mass area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping",
-)
+Nodes = Body  # the lattice's nodes need nothing beyond the shared per-node arrays
 Springs = namedtuple("Springs", "a b rest k intact fail_time fail_mode e_damage force node_start node_spring node_sign")
 
 
@@ -66,13 +64,8 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
 
 
 @block_kernel
-def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_next, radius, gravity, alpha):
-    x, v, mass, area = nodes.x, nodes.v, nodes.mass, nodes.area
-    node_tool, tool_offset, friction, d_friction = nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction
-    constraint, projection, support_tool = nodes.constraint, nodes.projection, nodes.support_tool
-    w_external, w_damping = nodes.w_external, nodes.w_damping
-    force_slots = tools.force_slots
-    n_tool = tools.kind.shape[0]
+def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_next, gravity, alpha):
+    x, v, mass = nodes.x, nodes.v, nodes.mass
     start, node_spring, node_sign, force = springs.node_start, springs.node_spring, springs.node_sign, springs.force
     for g in range(lo, hi):
         fx = 0.0
@@ -85,18 +78,14 @@ def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_nex
             fy += sign * force[s, 1]
             fz += sign * force[s, 2]
         m = mass[g]
-        cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, area[g], dt, slot, tools, n_tool, force_slots,
-            tool_v_prev, tool_v_next, node_tool, tool_offset, friction, d_friction,
-        )
-        update_velocity(g, v, fx, fy, fz, m * gravity[0], m * gravity[1], m * gravity[2], cx, cy, cz, tool_work,
-                        m, alpha, dt, constraint, projection, support_tool, tool_v_next, force_slots, slot, w_external,
-                        w_damping)
+        cx, cy, cz, tool_work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
+        update_velocity(g, nodes, (fx, fy, fz), (m * gravity[0], m * gravity[1], m * gravity[2]), (cx, cy, cz),
+                        tool_work, m, alpha, dt, tools, tool_v_next, slot)
         move(g, x, v, dt)
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, nodes, springs, tools, radius, break_strain, gravity, alpha):
+def advance(n_steps, first_step, dt, nodes, springs, tools, break_strain, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place."""
     n_tool = tools.kind.shape[0]
@@ -113,6 +102,6 @@ def advance(n_steps, first_step, dt, nodes, springs, tools, radius, break_strain
         for blk in prange((n_node + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _node_block(lo, min(lo + BLOCK, n_node), np.int64(blk), dt, nodes, springs, tools, tool_v_prev, tool_v_next,
-                        radius, gravity, alpha)
+                        gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

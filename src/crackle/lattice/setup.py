@@ -21,6 +21,7 @@ from ..loading.arrays import default_tool_penalty, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
+from ..solver.body import body_arrays
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, Nodes, Springs
 from .simulation import LatticeSimulation
@@ -109,22 +110,18 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSim
     area = np.full(n, spec.spacing**2)
     penalty = default_tool_penalty(scenario.material.youngs_modulus, spec.spacing)
     tool_table = tool_arrays(tools, penalty, spec.spacing, -(-n // BLOCK))
-    nodes = Nodes(
-        x=x, v=np.zeros((n, 3)), mass=mass, area=area, constraint=constraint,
-        projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
-        friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
-    )
+    radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
+    nodes = Nodes(**body_arrays(x, mass, area, radius, (constraint, projection, support_tool)))
     # Stable step (Gershgorin per node): 2 sqrt(m / sum of its spring and tool stiffnesses).
     k_node = np.zeros(n)
     np.add.at(k_node, ends, np.concatenate([k, k]))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
     stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
-    radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
-    seating = seat_on_tools(tools, tool_table, x, radius, nodes.tool, nodes.tool_offset, "nodes")
+    seating = seat_on_tools(tools, tool_table, nodes, "nodes")
     # P-wave speed of the lattice: C11 = 3k/a = 1.2 E.
     wave_transit = spec.spacing / math.sqrt(1.2 * scenario.material.youngs_modulus / scenario.material.density)
     sim = LatticeSimulation(
-        nodes, springs, tool_table, [t.name for t in tools], radius, spec.break_strain, stable_dt,
+        nodes, springs, tool_table, [t.name for t in tools], spec.break_strain, stable_dt,
         wave_transit, np.asarray(scenario.run.gravity, float), scenario.run.damping,
     )
     sim.warnings.extend(seating)

@@ -12,12 +12,10 @@ from .kernels import advance
 class LatticeSimulation(SimulationBase):
     method = "lattice"
 
-    def __init__(self, nodes, springs, tools, tool_names, radius, break_strain, stable_dt, wave_transit, gravity,
-                 damping):
+    def __init__(self, nodes, springs, tools, tool_names, break_strain, stable_dt, wave_transit, gravity, damping):
         self._start_clock_and_tools(tools, tool_names)
         self.nodes, self.springs = nodes, springs
         self.body = nodes
-        self.radius = float(radius)
         self.break_strain = float(break_strain)
         self.stable_dt = stable_dt
         self.proven_dt = stable_dt
@@ -26,12 +24,11 @@ class LatticeSimulation(SimulationBase):
         self.gravity = gravity
         self.damping = float(damping)
         self.x0 = nodes.x.copy()
-        self.tool_radius = np.array([self.radius])
         self._failures = FailureRecorder(len(springs.a))
 
     def advance(self, n_steps: int, dt: float) -> None:
-        advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.radius, self.break_strain,
-                self.gravity, self.damping)
+        advance(n_steps, self.steps, dt, self.nodes, self.springs, self.tools, self.break_strain, self.gravity,
+                self.damping)
         self.steps += n_steps
         self.time = self.steps * dt
 

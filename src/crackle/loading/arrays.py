@@ -98,13 +98,11 @@ STARTS_INSIDE = "start inside it"
 DEEP_START = 0.05
 
 
-def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndarray, node_offset: np.ndarray,
-                  what: str = "points") -> list[str]:
-    """Seat the points (positions x, contact radius per point or one for all) inside the tools
-    that ask `seat` (loading.tools.seat_points); returns the set-up notes: how many were seated,
-    and for a tool that does not ask it, how many points it pushes from step 0."""
-    x = np.ascontiguousarray(x, dtype=float)
-    radius = np.atleast_1d(np.asarray(radius, dtype=float))
+def seat_on_tools(tools, table: Tools, body, what: str = "points") -> list[str]:
+    """Seat the points of `body` (solver.body.Body's fields) inside the tools that ask `seat`
+    (loading.tools.seat_points); returns the set-up notes: how many were seated, and for a tool
+    that does not ask it, how many points it pushes from step 0."""
+    x, node_tool, node_offset = body.x, body.tool, body.tool_offset
     notes = []
     # Overlaps within round-off of the positions (a touching tool) are not worth a note.
     tolerance = 1e-9 * float(np.max(np.ptp(x, axis=0))) if len(x) else 0.0
@@ -112,7 +110,7 @@ def seat_on_tools(tools, table: Tools, x: np.ndarray, radius, node_tool: np.ndar
         if tool.shape == "support":
             continue
         trial_tool, trial_offset = node_tool.copy(), node_offset.copy()
-        seat_points(table, np.array([j], dtype=np.int64), x, radius, trial_tool, trial_offset)
+        seat_points(table, np.array([j], dtype=np.int64), body._replace(tool=trial_tool, tool_offset=trial_offset))
         inside = int(np.count_nonzero((trial_tool != node_tool) & (trial_offset < -tolerance)))
         if not inside:
             continue

@@ -74,22 +74,21 @@ class ToolSprings:
         self.force = np.zeros((len(self.names), 3))  # N, per tool, after `measure`
         self.energy = np.zeros(len(self.names))  # J, per tool, after `measure`
 
-    def measure(self, x, radius, area, node_tool, node_offset, friction, v=None, time=0.0, dt=0.0) -> "ToolSprings":
-        """The springs at the points' state (radius: one per point, or one for all). With the
-        points' half-step velocities `v` (and the time and step): at the mid-step positions,
-        points at x - v dt/2 and tools half a step back, where the rest of the energy audit pairs
-        potentials with the half-step velocities and where the tools' work booked so far ends
-        (measured at x instead, a tool's first steps of contact would hold a step more energy than
-        its work: -100 % at the first contact)."""
-        if v is None:
-            tool_contact_totals(x, radius, area, node_tool, node_offset, friction, self.tools, self.force, self.energy)
+    def measure(self, body, time=0.0, dt=None) -> "ToolSprings":
+        """The springs at the state of `body` (solver.body.Body's fields). With the step dt: at
+        the mid-step positions, points at x - v dt/2 (v: the half-step velocities) and tools half
+        a step back from `time`, where the rest of the energy audit pairs potentials with the
+        half-step velocities and where the tools' work booked so far ends (measured at x instead,
+        a tool's first steps of contact would hold a step more energy than its work: -100 % at
+        the first contact)."""
+        if dt is None:
+            tool_contact_totals(body, self.tools, self.force, self.energy)
             return self
         tools = self.tools
         disp = tools.disp.copy()
         tools.disp[:] -= 0.5 * dt * self._velocity_before(time, dt)
         try:
-            tool_contact_totals(x - 0.5 * dt * v, radius, area, node_tool, node_offset, friction, tools, self.force,
-                                self.energy)
+            tool_contact_totals(body._replace(x=body.x - 0.5 * dt * body.v), tools, self.force, self.energy)
         finally:
             tools.disp[:] = disp
         return self

@@ -262,12 +262,13 @@ def _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, t
 
 
 @njit(cache=True)
-def seat_points(tools, seated, x, radius, node_tool, node_offset):
-    """Seat the points that lie inside a seated tool (index in `seated`) at set-up: each starts in
-    that tool's contact state woken at its present depth (node_offset = its gap < 0), so that it
-    carries no force until the tool pushes it deeper (contact_with_tools), as a platen seated on
-    a packing that overlaps it. `radius`: per point, or one value for all. Points already in a
+def seat_points(tools, seated, body):
+    """Seat the points of `body` (solver.body.Body's fields) that lie inside a seated tool (index
+    in `seated`) at set-up: each starts in that tool's contact state woken at its present depth
+    (body.tool_offset = its gap < 0), so that it carries no force until the tool pushes it deeper
+    (contact_with_tools), as a platen seated on a packing that overlaps it. Points already in a
     tool's contact, or HIDDEN inside a body, are left as they are."""
+    x, radius, node_tool, node_offset = body.x, body.radius, body.tool, body.tool_offset
     for g in range(x.shape[0]):
         if node_tool[g] != NO_TOOL:
             continue
@@ -281,20 +282,19 @@ def seat_points(tools, seated, x, radius, node_tool, node_offset):
 
 
 @njit(cache=True, inline="always")
-def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools, n_tool, force_slots, tool_v_prev,
-                       tool_v_next, node_tool, node_offset, friction, d_friction):
-    """Penalty contact of point g (position p at time t, velocity v over the half step before t,
-    contact radius `radius`, contact area `area`) against every tool; returns the total force on
-    the point and the work the driven tools did on it over the step (free tools: free_tool_work).
+def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next):
+    """Penalty contact of point g of `body` (solver.body.Body's fields: position at time t,
+    velocity over the half step before t, contact radius and area) against every tool; returns
+    the total force on the point and the work the driven tools did on it over the step (free
+    tools: free_tool_work).
 
     The penalty per point is the tool's penalty (N/m^3) times `area`. Only the first tool touched
     carries Coulomb friction, with a stick spring of the normal stiffness; its tangential force
     lives in friction[g] and the dissipation goes to d_friction[g]. Each tool's force adds to
     force_slots[tool, slot] (tools.force_slots; one slot per parallel block, so that blocks never
-    write the same entry), which `load_cell_step` sums and clears after every step. n_tool and
-    force_slots are passed in, read once per block by the caller.
+    write the same entry), which `load_cell_step` sums and clears after every step.
 
-    node_tool[g] and node_offset[g] carry the point's contact state between steps (see NO_TOOL,
+    body.tool[g] and body.tool_offset[g] carry the point's contact state between steps (see NO_TOOL,
     HIDDEN): a point exposed (HIDDEN before) while already inside a tool starts its spring
     unloaded at that depth (node_offset < 0), so that no energy comes from nowhere, and gets no
     force until it is pushed deeper or has left the tool.
@@ -302,16 +302,22 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
     A glued tool (tools.glue[j] > 0, the attach distance) takes a point that comes within that
     distance of it (touching no other tool) and holds it from then on by `_glued_tie`: a gripped
     end that pulls as well as pushes (direct tension)."""
+    node_tool, node_offset, friction = body.tool, body.tool_offset, body.friction
+    force_slots = tools.force_slots
+    vx, vy, vz = body.v[g, 0], body.v[g, 1], body.v[g, 2]
+    area = body.area[g]
     prev = node_tool[g]
     if prev >= 0 and tools.glue[prev] > 0.0:
         return _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, tool_v_next, prev, friction)
+    px, py, pz = body.x[g, 0], body.x[g, 1], body.x[g, 2]
+    radius = body.radius[g] if body.radius.shape[0] > 1 else body.radius[0]
     cx = 0.0
     cy = 0.0
     cz = 0.0
     work = 0.0
     offset = node_offset[g]
     touching = -1
-    for j in range(n_tool):
+    for j in range(tools.kind.shape[0]):
         gap, nx, ny, nz = tool_gap(j, px, py, pz, radius, tools)
         if tools.glue[j] > 0.0 and gap <= tools.glue[j] and touching < 0 and prev != HIDDEN:
             # Attached to a glued tool from now on, its tie unloaded at the current position.
@@ -350,7 +356,7 @@ def contact_with_tools(g, px, py, pz, vx, vy, vz, radius, area, dt, slot, tools,
                 friction[g, 0], friction[g, 1], friction[g, 2], nx, ny, nz,
                 vx - tvx, vy - tvy, vz - tvz, dt, kn, tools.mu[j] * fn,
             )
-            d_friction[g] += lost
+            body.d_friction[g] += lost
             friction[g, 0] = tx
             friction[g, 1] = ty
             friction[g, 2] = tz
@@ -414,13 +420,15 @@ def load_cell_step(time, tools):
 
 
 @njit(cache=True, inline="always")
-def tool_contact_diagnostics(g, px, py, pz, radius, area, tools, node_tool, node_offset, friction, forces, energy):
+def tool_contact_diagnostics(g, body, tools, forces, energy):
     """Add point g's contact force on each tool (forces[j], N) and the energy stored in its
     springs (energy[j], J) at its current position and contact state: the springs of
     `contact_with_tools` after its last step. Sum points in a fixed order (histories then do not
     depend on the thread count)."""
+    node_tool, node_offset, friction = body.tool, body.tool_offset, body.friction
     if node_tool[g] == HIDDEN:
         return
+    area = body.area[g]
     j = node_tool[g]
     if j >= 0 and tools.glue[j] > 0.0:
         kn = tools.penalty[j] * area
@@ -428,8 +436,9 @@ def tool_contact_diagnostics(g, px, py, pz, radius, area, tools, node_tool, node
             forces[j, d] += friction[g, d]
         energy[j] += 0.5 * (friction[g, 0] ** 2 + friction[g, 1] ** 2 + friction[g, 2] ** 2) / kn
         return
+    radius = body.radius[g] if body.radius.shape[0] > 1 else body.radius[0]
     for j in range(tools.kind.shape[0]):
-        gap, nx, ny, nz = tool_gap(j, px, py, pz, radius, tools)
+        gap, nx, ny, nz = tool_gap(j, body.x[g, 0], body.x[g, 1], body.x[g, 2], radius, tools)
         if j == node_tool[g] and gap < 0.0:
             gap -= node_offset[g]
         if gap >= 0.0:
@@ -453,17 +462,16 @@ TOTALS_BLOCK = 2048
 
 
 @njit(parallel=True, cache=True)
-def tool_contact_totals(x, radius, area, node_tool, node_offset, friction, tools, forces, energy):
+def tool_contact_totals(body, tools, forces, energy):
     """Per-tool contact force on the specimen (forces, N) and stored contact energy (energy, J)
-    at the current state, over all points (radius: one per point, or one for all). Runs at
+    at the current state of `body` (solver.body.Body's fields), over all its points. Runs at
     output times only."""
     forces[:] = 0.0
     energy[:] = 0.0
     n_tools = tools.kind.shape[0]
     if n_tools == 0:
         return
-    one_radius = radius.shape[0] == 1
-    n = x.shape[0]
+    n = body.x.shape[0]
     n_blocks = (n + TOTALS_BLOCK - 1) // TOTALS_BLOCK
     part_forces = np.zeros((n_blocks, n_tools, 3))
     part_energy = np.zeros((n_blocks, n_tools))
@@ -471,9 +479,7 @@ def tool_contact_totals(x, radius, area, node_tool, node_offset, friction, tools
         block_forces = part_forces[blk]
         block_energy = part_energy[blk]
         for g in range(blk * TOTALS_BLOCK, min(n, (blk + 1) * TOTALS_BLOCK)):
-            r = radius[0] if one_radius else radius[g]
-            tool_contact_diagnostics(g, x[g, 0], x[g, 1], x[g, 2], r, area[g], tools, node_tool, node_offset, friction,
-                                     block_forces, block_energy)
+            tool_contact_diagnostics(g, body, tools, block_forces, block_energy)
     for blk in range(n_blocks):
         for j in range(n_tools):
             energy[j] += part_energy[blk, j]

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..loading.arrays import default_tool_penalty, history_tables, seat_on_tools, tool_arrays
+from ..solver.body import body_arrays
 from ..solver.integrator import support_constraints
 from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
@@ -93,10 +94,9 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         v[:sizes[0]] = np.asarray(velocity, dtype=float)
     for b, lo, hi in zip(bodies, first[1:], first[2:]):
         v[lo:hi] = np.asarray(b.velocity, dtype=float)
+    # The particles on the faces are on the specimen's surface: they meet the tools there (radius 0).
     particles = Particles(
-        x=X.copy(), v=v, X=X, mass=mass, volume=volume.copy(), area=area.copy(), constraint=constraint,
-        projection=projection, support_tool=support_tool, tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n),
-        friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n),
+        **body_arrays(X, mass, area, 0.0, (constraint, projection, support_tool), v), X=X, volume=volume.copy(),
         plastic=np.zeros((2 * n, 6)), eq_plastic=np.zeros(2 * n), w_plastic=np.zeros(n), stress=np.zeros((n, 6)),
         deformation=np.tile(np.eye(3).ravel(), (n, 1)), internal=np.zeros((n, 9)), bending=np.zeros((n, 9)),
         stab_k=np.concatenate([d.stab_k for d in shapes]), stab_force=np.zeros((n, 3)),
@@ -113,8 +113,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         contact = ParticleContact(X, material, radius, spring, [np.max(d.radius) for d in shapes], self_contact)
         # The step allows STEP_PAIRS pairs at once on a particle, each two equal springs in series.
         tool_k = np.maximum(tool_k, 0.5 * STEP_PAIRS * spring)
-    seating = seat_on_tools(list(tools), tool_table, particles.x, 0.0, particles.tool, particles.tool_offset,
-                            "particles")
+    seating = seat_on_tools(list(tools), tool_table, particles, "particles")
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
     c_p = math.sqrt((table[0, 0] + 2.0 * table[0, 1]) / density)
     breaking = None

@@ -43,15 +43,15 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..solver.body import BODY_FIELDS
 from ..solver.integrator import block_kernel, move, update_velocity
 from .material import elastic_energy, stress_update
 from .shape import quartic_spline_array
 
-Particles = namedtuple(
-    "Particles",
-    "x v X mass volume area constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
-    "plastic eq_plastic w_plastic stress deformation internal bending stab_k stab_force thermal material",
-)
+# The shared per-node arrays (solver.body; radius 0: the surface particles meet the tools at
+# their centres), with the method's own: X the reference positions, and
+Particles = namedtuple("Particles", BODY_FIELDS + " X volume plastic eq_plastic w_plastic stress deformation internal "
+                                                  "bending stab_k stab_force thermal material")
 # plastic, eq_plastic, thermal: the law's state at each particle's two Gauss points through the
 # wall (rows 2 I and 2 I + 1, thickness.py); thermal: the temperature (K) and the stored energy
 # per reference volume the temperature changes released (J/m^3, energy.thermal), the thermo law's
@@ -290,11 +290,9 @@ def _contact_block(lo, hi, x, contact):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact, tool_v_prev, tool_v_next, radius,
-                    gravity, alpha):
+def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact, tool_v_prev, tool_v_next, gravity,
+                    alpha):
     x, v, mass = p.x, p.v, p.mass
-    force_slots = tools.force_slots
-    n_tool = tools.kind.shape[0]
     pairs = contact.other.shape[0] > 0
     for g in range(lo, hi):
         fx, fy, fz = _link_force(g, p, links)
@@ -311,13 +309,9 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact
             ex += px
             ey += py
             ez += pz
-        cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius, p.area[g], dt, slot, tools, n_tool,
-            force_slots, tool_v_prev, tool_v_next, p.tool, p.tool_offset, p.friction, p.d_friction,
-        )
-        update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work,
-                        m, alpha, dt, p.constraint, p.projection, p.support_tool, tool_v_next, force_slots, slot,
-                        p.w_external, p.w_damping)
+        cx, cy, cz, tool_work = contact_with_tools(g, p, dt, slot, tools, tool_v_prev, tool_v_next)
+        update_velocity(g, p, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next,
+                        slot)
         move(g, x, v, dt)
 
 
@@ -375,7 +369,7 @@ def _stress_passes(dt, particles, links, columns, law):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, contact, radius, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, contact, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place. contact: the pairs of the
     particle contact (PairContact; none: no pass)."""
@@ -395,7 +389,7 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
         for blk in prange(n_block):
             lo = blk * BLOCK
             _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, particles, links, tools, pressures, contact,
-                            tool_v_prev, tool_v_next, radius, gravity, alpha)
+                            tool_v_prev, tool_v_next, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

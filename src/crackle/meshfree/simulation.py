@@ -45,9 +45,6 @@ class MeshfreeSimulation(SimulationBase):
         self.body_start = np.array([0, len(particles.x)] if body_start is None else body_start, dtype=np.int64)
         self._no_pairs = PairContact(np.zeros(len(particles.x) + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
                                      np.zeros(0), np.zeros(0), np.zeros((0, 3)))
-        # The particles on the faces are on the specimen's surface: they meet the tools there.
-        self.contact_radius = 0.0
-        self.tool_radius = np.array([self.contact_radius])
         # One failure per particle (the particle where a crack plane was put).
         self._failures = FailureRecorder(len(particles.x))
         # Energy present at t = 0 (an initial velocity) counts as work put in.
@@ -62,7 +59,7 @@ class MeshfreeSimulation(SimulationBase):
     def _compiled_steps(self, n: int, dt: float) -> None:
         pairs = self._no_pairs if self.contact is None else self.contact.pairs
         advance(n, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools, self.pressures, pairs,
-                self.contact_radius, self.gravity, self.damping)
+                self.gravity, self.damping)
 
     def _refresh_contact(self, dt: float) -> None:
         self.contact.refresh(self.particles.x, self.particles.v, dt, FRACTURE_CHECK,

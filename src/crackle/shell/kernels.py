@@ -35,15 +35,13 @@ from numba import njit, prange
 
 from ..loading.arrays import HistoryTable
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..solver.body import BODY_FIELDS
 from ..solver.integrator import block_kernel, move, update_velocity
 
 BLOCK = 256  # faces, edges or nodes per parallel task
 
-Nodes = namedtuple(
-    "Nodes",
-    "x v mass area radius constraint projection support_tool tool tool_offset friction d_friction w_external w_damping "
-    "load face_start face_slot edge_start edge_slot",
-)
+# The shared per-node arrays (solver.body; radius: half the thickness), with the method's own:
+Nodes = namedtuple("Nodes", BODY_FIELDS + " load face_start face_slot edge_start edge_slot")
 # load: (n, 3) N, the nodal external force at load factor 1 (edge tractions, lumped);
 # face_slot / edge_slot: CSR (by node, in face then corner order) into Faces.force (face * 3 +
 # corner) and Edges.force (edge * 4 + slot).
@@ -307,22 +305,16 @@ def _gathered(g, nodes, faces, edges):
 @block_kernel
 def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, tool_v_next, load_factor, gravity,
                 alpha):
-    x, v, mass, area, radius, load = nodes.x, nodes.v, nodes.mass, nodes.area, nodes.radius, nodes.load
-    n_tool = tools.kind.shape[0]
-    force_slots = tools.force_slots
+    x, v, mass, load = nodes.x, nodes.v, nodes.mass, nodes.load
     scale = interp_history(t, load_factor.times, load_factor.values, load_factor.n)
     for g in range(lo, hi):
         fx, fy, fz, px, py, pz = _gathered(g, nodes, faces, edges)
         m = mass[g]
-        cx, cy, cz, tool_work = contact_with_tools(
-            g, x[g, 0], x[g, 1], x[g, 2], v[g, 0], v[g, 1], v[g, 2], radius[g], area[g], dt, slot, tools, n_tool,
-            force_slots, tool_v_prev, tool_v_next, nodes.tool, nodes.tool_offset, nodes.friction, nodes.d_friction,
-        )
-        update_velocity(g, v, fx, fy, fz, m * gravity[0] + scale * load[g, 0] + px,
-                        m * gravity[1] + scale * load[g, 1] + py, m * gravity[2] + scale * load[g, 2] + pz, cx, cy, cz,
-                        tool_work, m, alpha, dt, nodes.constraint, nodes.projection, nodes.support_tool,
-                        tool_v_next, force_slots, slot,
-                        nodes.w_external, nodes.w_damping)
+        cx, cy, cz, tool_work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
+        external = (m * gravity[0] + scale * load[g, 0] + px, m * gravity[1] + scale * load[g, 1] + py,
+                    m * gravity[2] + scale * load[g, 2] + pz)
+        update_velocity(g, nodes, (fx, fy, fz), external, (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next,
+                        slot)
         move(g, x, v, dt)
 
 

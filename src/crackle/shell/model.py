@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 
 from ..solver import stability
-from ..solver.integrator import FREE
+from ..solver.body import body_arrays
 from .kernels import CLAMPED, Edges, Faces, Nodes, element_forces, face_edge_moments, internal_forces, strain_energies
 from .mesh import ShellMesh, altitudes
 
@@ -282,10 +282,6 @@ def build_shell(mesh: ShellMesh, material: ShellMaterial, clamped: np.ndarray | 
     faces, edges, mass, area, radius, (face_start, face_slot), (edge_start, edge_slot) = build_arrays(mesh, material,
                                                                                                       clamped)
     n = len(mesh.X)
-    nodes = Nodes(x=mesh.X.copy(), v=np.zeros((n, 3)), mass=mass, area=area, radius=radius,
-                  constraint=np.full(n, FREE, dtype=np.int16),
-                  projection=np.zeros((1, 3, 3)), support_tool=np.full(1, -1, dtype=np.int64),
-                  tool=np.full(n, -1, dtype=np.int8), tool_offset=np.zeros(n), friction=np.zeros((n, 3)),
-                  d_friction=np.zeros(n), w_external=np.zeros(n), w_damping=np.zeros(n), load=np.zeros((n, 3)),
-                  face_start=face_start, face_slot=face_slot, edge_start=edge_start, edge_slot=edge_slot)
+    nodes = Nodes(**body_arrays(mesh.X, mass, area, radius), load=np.zeros((n, 3)), face_start=face_start,
+                  face_slot=face_slot, edge_start=edge_start, edge_slot=edge_slot)
     return Shell(mesh, material, faces, edges, nodes, clamped)

@@ -243,8 +243,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
                                        support_tool=support_tool)
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
     stable_dt = shell.stable_dt(tool_k)
-    seating = seat_on_tools(tools, tool_table, shell.nodes.x, shell.nodes.radius, shell.nodes.tool,
-                            shell.nodes.tool_offset, "nodes")
+    seating = seat_on_tools(tools, tool_table, shell.nodes, "nodes")
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
     fracture = scenario.fracture
     rings = fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]

@@ -81,10 +81,6 @@ class ShellSimulation(SimulationBase):
 
     body = nodes
 
-    @property
-    def tool_radius(self) -> np.ndarray:
-        return self.nodes.radius
-
     def advance(self, n_steps: int, dt: float) -> None:
         if self.growth is None:
             self._advance_on_grid(n_steps, dt, None, self._compiled_steps)

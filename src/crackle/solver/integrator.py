@@ -32,24 +32,24 @@ FREE, FIXED = -1, 0
 
 
 @njit(cache=True, inline="always")
-def update_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint, projection,
-                    support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
-    """New half-step velocity of node g into v[g] and the node's work accounting.
+def update_velocity(g, body, f, e, c, tool_work, m, alpha, dt, tools, tool_v_next, slot):
+    """New half-step velocity of node g into body.v[g] and the node's work accounting (body:
+    solver.body.Body's fields).
 
     f: the method's internal forces (elements, bonds, cohesive and self-contact); e: external
     forces that work on the node's own motion (pressure, gravity); c: tool contact forces, whose
-    work `tool_work` the tool contact counted itself (at the tool's velocity); alpha: the
+    work `tool_work` the tool contact counted itself (at the tool's velocity); each a tuple
+    (x, y, z). m: the mass moved (the node's, or a tied cluster's on its leader); alpha: the
     mass-proportional damping coefficient (force -alpha m v on the previous half-step velocity).
-    The supports project the new velocity (constraint[g], see support_constraints); a support
+    The supports project the new velocity (body.constraint[g], see support_constraints); a support
     with a speed sets the blocked components to its grip's velocity tool_v_next[j] and adds its
-    reaction to force_slots[j, slot] (the grip's load cell, see contact_with_tools). Work of e, of
-    the tools and of a moving support goes to w_external[g], the damping's loss to w_damping[g];
-    the accumulators are only touched where a force works (each touch is a read-write of memory)."""
-    dx = -alpha * m * v[g, 0]
-    dy = -alpha * m * v[g, 1]
-    dz = -alpha * m * v[g, 2]
-    _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
-                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
+    reaction to tools.force_slots[j, slot] (the grip's load cell, see contact_with_tools). Work of
+    e, of the tools and of a moving support goes to body.w_external[g], the damping's loss to
+    body.w_damping[g]; the accumulators are only touched where a force works (each touch is a
+    read-write of memory)."""
+    v = body.v
+    damping = (-alpha * m * v[g, 0], -alpha * m * v[g, 1], -alpha * m * v[g, 2])
+    _step_velocity(g, body, f, e, c, damping, alpha != 0.0, tool_work, m, dt, tools, tool_v_next, slot)
 
 
 @njit(cache=True, inline="always")
@@ -61,39 +61,42 @@ def local_damping_force(f, v, m, alpha, dt):
 
 
 @njit(cache=True, inline="always")
-def update_velocity_local_damping(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, tool_work, m, alpha, dt, constraint,
-                                  projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
+def update_velocity_local_damping(g, body, f, e, c, tool_work, m, alpha, dt, tools, tool_v_next, slot):
     """update_velocity with local non-viscous damping instead of the mass-proportional one:
     `alpha` (0 to 1) scales the unbalanced force of each component (local_damping_force)."""
-    dx = local_damping_force(fx + ex + cx, v[g, 0], m, alpha, dt)
-    dy = local_damping_force(fy + ey + cy, v[g, 1], m, alpha, dt)
-    dz = local_damping_force(fz + ez + cz, v[g, 2], m, alpha, dt)
-    _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, alpha != 0.0, tool_work, m, dt, constraint,
-                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping)
+    v = body.v
+    damping = (local_damping_force(f[0] + e[0] + c[0], v[g, 0], m, alpha, dt),
+               local_damping_force(f[1] + e[1] + c[1], v[g, 1], m, alpha, dt),
+               local_damping_force(f[2] + e[2] + c[2], v[g, 2], m, alpha, dt))
+    _step_velocity(g, body, f, e, c, damping, alpha != 0.0, tool_work, m, dt, tools, tool_v_next, slot)
 
 
 @njit(cache=True, inline="always")
-def _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, damped, tool_work, m, dt, constraint,
-                   projection, support_tool, tool_v_next, force_slots, slot, w_external, w_damping):
+def _step_velocity(g, body, f, e, c, d, damped, tool_work, m, dt, tools, tool_v_next, slot):
     """v[g] += dt (f + e + c + d) / m, projected by the supports (the blocked part set to a moving
     support's velocity), with the work of e, the tools and a moving support into w_external[g] and
     that of the damping force d into w_damping[g] (at the mean of the two half-step velocities)."""
+    v = body.v
+    fx, fy, fz = f
+    ex, ey, ez = e
+    cx, cy, cz = c
+    dx, dy, dz = d
     vx0, vy0, vz0 = v[g, 0], v[g, 1], v[g, 2]
     inv_m = dt / m
     vx = vx0 + (fx + ex + cx + dx) * inv_m
     vy = vy0 + (fy + ey + cy + dy) * inv_m
     vz = vz0 + (fz + ez + cz + dz) * inv_m
-    con = constraint[g]
+    con = body.constraint[g]
     rx = 0.0
     ry = 0.0
     rz = 0.0
     driven = False
     if con >= 0:
-        pr = projection[con]
+        pr = body.projection[con]
         px = pr[0, 0] * vx + pr[0, 1] * vy + pr[0, 2] * vz
         py = pr[1, 0] * vx + pr[1, 1] * vy + pr[1, 2] * vz
         pz = pr[2, 0] * vx + pr[2, 1] * vy + pr[2, 2] * vz
-        j = support_tool[con]
+        j = body.support_tool[con]
         if j >= 0:
             # The blocked part follows the grip: v = P v* + (I - P) u; the support's reaction
             # m (v - v*) / dt is the grip's force on the specimen.
@@ -105,6 +108,7 @@ def _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, damped,
             rx = (px - vx) * m / dt
             ry = (py - vy) * m / dt
             rz = (pz - vz) * m / dt
+            force_slots = tools.force_slots
             force_slots[j, slot, 0] += rx
             force_slots[j, slot, 1] += ry
             force_slots[j, slot, 2] += rz
@@ -113,9 +117,9 @@ def _step_velocity(g, v, fx, fy, fz, ex, ey, ez, cx, cy, cz, dx, dy, dz, damped,
     my = 0.5 * (vy0 + vy) * dt
     mz = 0.5 * (vz0 + vz) * dt
     if ex != 0.0 or ey != 0.0 or ez != 0.0 or tool_work != 0.0 or driven:
-        w_external[g] += ex * mx + ey * my + ez * mz + tool_work + rx * mx + ry * my + rz * mz
+        body.w_external[g] += ex * mx + ey * my + ez * mz + tool_work + rx * mx + ry * my + rz * mz
     if damped:
-        w_damping[g] -= dx * mx + dy * my + dz * mz
+        body.w_damping[g] -= dx * mx + dy * my + dz * mz
     v[g, 0] = vx
     v[g, 1] = vy
     v[g, 2] = vz

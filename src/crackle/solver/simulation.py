@@ -103,11 +103,9 @@ class SimulationBase:
 
     A method's class derives from it, calls `_start_clock_and_tools(tools, tool_names)` in its
     __init__, and gives:
-      `body`            the per-node (particle) arrays the shared compiled pieces take: x, v, mass,
-                        area, tool, tool_offset, friction, d_friction, w_damping, w_external (an
-                        attribute; a property where the method replaces them, the shell at a cut)
-      `tool_radius`     an array: one radius for every node, or one per node (m), with which a
-                        node touches the tools
+      `body`            the per-node (particle) arrays the shared compiled pieces take: a tuple
+                        with solver.body.Body's fields (an attribute; a property where the method
+                        replaces them, the shell at a cut)
       `own_energies(dt)`  its stored and dissipated terms ({"elastic": J, "damage": J, ...};
                         "contact" and "friction" add to the shared ones), at mid-step positions
     and, as today, `advance`, `broken`, `new_events`, `fields`, `describe`, `summary`, `bounds`.
@@ -162,9 +160,7 @@ class SimulationBase:
 
     def _tool_springs(self, dt: float | None = None) -> ToolSprings:
         """The tool springs now, or with the step dt at mid-step (the energy audit's)."""
-        b = self.body
-        mid = {} if dt is None else {"v": b.v, "time": self.time, "dt": dt}
-        return self._springs.measure(b.x, self.tool_radius, b.area, b.tool, b.tool_offset, b.friction, **mid)
+        return self._springs.measure(self.body, self.time, dt)
 
     def external_work(self) -> float:
         """J put in: by the tools, supports, pressures and gravity on the nodes, the free tools, and
