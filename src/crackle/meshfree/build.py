@@ -14,7 +14,7 @@ from ..solver.body import body_arrays
 from ..solver.integrator import support_constraints
 from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
-from .kernels import BLOCK, Links, Particles, WallPressures, stabilisation_stiffness
+from .kernels import BLOCK, Links, Particles, PressedFaces, stabilisation_stiffness
 from .material import T_REF, J2Law
 from .particles import WALL_SIDES, Cells, WallParticles, wall_columns
 from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients, support_radii, within_supports
@@ -88,7 +88,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     mass = np.concatenate([rho * d.plate.volume for rho, d in zip([density] + [b.density for b in bodies], shapes)])
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection, support_tool = support_constraints(supports, X, scale)
-    loads = pressure_arrays(plate, pressures, scale, n)
+    pressed = pressure_arrays(plate, pressures, scale, n)
     v = np.zeros((n, 3))
     if velocity is not None:
         v[:sizes[0]] = np.asarray(velocity, dtype=float)
@@ -127,7 +127,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
                                 links, frame, tool_k, step_ratio, failure_plastic_strain, fracturing=sizes[0])
     sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools],
                              float(np.max(shapes[0].radius)),
-                             dt, h / c_p, gravity, damping, plate, breaking, loads, contact, first)
+                             dt, h / c_p, gravity, damping, plate, breaking, pressed,
+                             history_tables([p.history for p in pressures]), contact, first)
     sim.warnings.extend(seating)
     if contact is not None:
         overlapping = contact.overlaps_between_bodies(X)
@@ -256,7 +257,7 @@ def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):
     return value, stab_k
 
 
-def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None = None) -> WallPressures:
+def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None = None) -> PressedFaces:
     """The wall faces (particles.WallFaces) that each pressure loads, gathered per particle: the
     faces of the particles its `where` selects (on its `wall` only, when given), with the delay
     s / front_speed of a travelling front (s the distance of the face's reference centre from
@@ -293,5 +294,4 @@ def pressure_arrays(plate: WallParticles, pressures, scale: float, n: int | None
     order = np.lexsort((which, particle))  # by particle, then by pressure
     start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(particle, minlength=n), out=start[1:])
-    return WallPressures(start, np.ascontiguousarray(area[order]), which[order], delay[order],
-                         *history_tables([p.history for p in pressures]))
+    return PressedFaces(start, np.ascontiguousarray(area[order]), which[order], delay[order])

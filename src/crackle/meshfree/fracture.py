@@ -375,8 +375,8 @@ class LinkBreaking:
             p.stab_k[lost] = 0.0
             # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
             # reference face would push a tumbling fragment in a fixed direction).
-            faces, _ = csr_positions(sim.pressures.start, lost)
-            sim.pressures.area[faces] = 0.0
+            faces, _ = csr_positions(sim.pressed.start, lost)
+            sim.pressed.area[faces] = 0.0
             rows = np.unique(self.row[touching])
             rows = rows[~self.detached[rows]]
         # The gather's copies, in the transposed order (kernels.Links), where they changed.

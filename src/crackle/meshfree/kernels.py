@@ -66,12 +66,11 @@ Particles = namedtuple("Particles", BODY_FIELDS + " X volume plastic eq_plastic 
 # the transposed order (kept equal by build and fracture), so that the gather reads them in
 # sequence (an indirect read per link made the gather 5 x slower).
 Links = namedtuple("Links", "start neighbour grad value back_start to_back back_row back_grad back_value")
-# Pressures on the wall faces of the surface particles: the faces of particle g are rows
-# start[g]:start[g + 1]; area: A0 N (reference area vector, out of the solid); load: the row of
-# the histories; delay: s / front speed (0 without a front), the time the front reaches the face;
-# then the histories' table as loading.arrays.HistoryTable lays it out (times, values, counts:
-# its fields, not the table itself, which a parallel kernel cannot take nested).
-WallPressures = namedtuple("WallPressures", "start area load delay times values counts")
+# The wall faces of the surface particles that pressures load: the faces of particle g are rows
+# start[g]:start[g + 1]; area: A0 N (reference area vector, out of the solid); load: the face's
+# row in the pressures' histories (a loading.arrays.HistoryTable, as FDEM's and the shell's);
+# delay: s / front speed (0 without a front), the time the front reaches the face.
+PressedFaces = namedtuple("PressedFaces", "start area load delay")
 # The penalty contact between particles no link joins (contact.py): the pairs of particle g are
 # rows start[g]:start[g + 1] (each pair in both particles' rows, with the same numbers), the other
 # particle, the pair's spring (N/m) and its reach (m: the distance under which it pushes);
@@ -290,8 +289,8 @@ def _contact_block(lo, hi, x, contact):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact, tool_v_prev, tool_v_next, gravity,
-                    alpha):
+def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressed, pressures, contact, tool_v_prev, tool_v_next,
+                    gravity, alpha):
     x, v, mass = p.x, p.v, p.mass
     pairs = contact.other.shape[0] > 0
     for g in range(lo, hi):
@@ -304,8 +303,8 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact
         ex = m * gravity[0]
         ey = m * gravity[1]
         ez = m * gravity[2]
-        if pressures.start[g + 1] > pressures.start[g]:
-            px, py, pz = _pressure_force(g, t_now, p.deformation, pressures)
+        if pressed.start[g + 1] > pressed.start[g]:
+            px, py, pz = _pressure_force(g, t_now, p.deformation, pressed, pressures)
             ex += px
             ey += py
             ez += pz
@@ -316,7 +315,7 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressures, contact
 
 
 @njit(cache=True, inline="always")
-def _pressure_force(g, t, deformation, pressures):
+def _pressure_force(g, t, deformation, pressed, pressures):
     """The follower pressure force on particle g at time t: -p(t - delay) J F^-T A0 N summed over
     its wall faces (Nanson's formula with the particle's F of this step: the face's current area
     vector), nothing on a face the front has not reached."""
@@ -337,12 +336,12 @@ def _pressure_force(g, t, deformation, pressures):
     fx = 0.0
     fy = 0.0
     fz = 0.0
-    area = pressures.area
-    for r in range(pressures.start[g], pressures.start[g + 1]):
-        tau = t - pressures.delay[r]
+    area = pressed.area
+    for r in range(pressed.start[g], pressed.start[g + 1]):
+        tau = t - pressed.delay[r]
         if tau < 0.0:
             continue
-        q = pressures.load[r]
+        q = pressed.load[r]
         pr = interp_history(tau, pressures.times[q], pressures.values[q], pressures.counts[q])
         a0, a1, a2 = area[r, 0], area[r, 1], area[r, 2]
         fx -= pr * (c00 * a0 + c01 * a1 + c02 * a2)
@@ -369,7 +368,7 @@ def _stress_passes(dt, particles, links, columns, law):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressures, contact, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressed, pressures, contact, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place. contact: the pairs of the
     particle contact (PairContact; none: no pass)."""
@@ -388,8 +387,8 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
                 _contact_block(lo, min(lo + BLOCK, n), particles.x, contact)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, particles, links, tools, pressures, contact,
-                            tool_v_prev, tool_v_next, gravity, alpha)
+            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, particles, links, tools, pressed, pressures,
+                            contact, tool_v_prev, tool_v_next, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

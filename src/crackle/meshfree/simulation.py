@@ -23,7 +23,7 @@ class MeshfreeSimulation(SimulationBase):
     method = "meshfree"
 
     def __init__(self, particles, links, columns, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate, breaking, pressures, contact=None, body_start=None):
+                 damping, plate, breaking, pressed, pressures, contact=None, body_start=None):
         self._start_clock_and_tools(tools, tool_names)
         self.particles, self.links, self.law = particles, links, law
         self.body = particles
@@ -37,8 +37,9 @@ class MeshfreeSimulation(SimulationBase):
         self.plate = plate
         # Link breaking (fracture.LinkBreaking), or None without a fracture stress.
         self.breaking = breaking
-        # The pressures on the wall faces (kernels.WallPressures; build.pressure_arrays, empty without).
-        self.pressures = pressures
+        # The wall faces the pressures load (kernels.PressedFaces; build.pressure_arrays, empty
+        # without) and the pressures' histories (loading.arrays.HistoryTable).
+        self.pressed, self.pressures = pressed, pressures
         # The particle contact (contact.ParticleContact) between bodies and across cracks, or None.
         self.contact = contact
         # The first particle of each body (the specimen's 0, then build.MeshfreeBody's) and the end.
@@ -58,8 +59,8 @@ class MeshfreeSimulation(SimulationBase):
 
     def _compiled_steps(self, n: int, dt: float) -> None:
         pairs = self._no_pairs if self.contact is None else self.contact.pairs
-        advance(n, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools, self.pressures, pairs,
-                self.gravity, self.damping)
+        advance(n, self.steps, dt, self.particles, self.links, self.columns, self.law, self.tools, self.pressed,
+                self.pressures, pairs, self.gravity, self.damping)
 
     def _refresh_contact(self, dt: float) -> None:
         self.contact.refresh(self.particles.x, self.particles.v, dt, FRACTURE_CHECK,
