@@ -261,6 +261,12 @@ def _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, t
     return tx, ty, tz, work
 
 
+@njit(cache=True, inline="always")
+def contact_radius(body, g):
+    """Point g's contact radius: body.radius holds one per point, or one for all."""
+    return body.radius[g] if body.radius.shape[0] > 1 else body.radius[0]
+
+
 @njit(cache=True)
 def seat_points(tools, seated, body):
     """Seat the points of `body` (solver.body.Body's fields) that lie inside a seated tool (index
@@ -268,11 +274,11 @@ def seat_points(tools, seated, body):
     (body.tool_offset = its gap < 0), so that it carries no force until the tool pushes it deeper
     (contact_with_tools), as a platen seated on a packing that overlaps it. Points already in a
     tool's contact, or HIDDEN inside a body, are left as they are."""
-    x, radius, node_tool, node_offset = body.x, body.radius, body.tool, body.tool_offset
+    x, node_tool, node_offset = body.x, body.tool, body.tool_offset
     for g in range(x.shape[0]):
         if node_tool[g] != NO_TOOL:
             continue
-        r = radius[g] if radius.shape[0] > 1 else radius[0]
+        r = contact_radius(body, g)
         for j in seated:
             gap, _, _, _ = tool_gap(j, x[g, 0], x[g, 1], x[g, 2], r, tools)
             if gap < 0.0:
@@ -310,7 +316,7 @@ def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next):
     if prev >= 0 and tools.glue[prev] > 0.0:
         return _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, tool_v_next, prev, friction)
     px, py, pz = body.x[g, 0], body.x[g, 1], body.x[g, 2]
-    radius = body.radius[g] if body.radius.shape[0] > 1 else body.radius[0]
+    radius = contact_radius(body, g)
     cx = 0.0
     cy = 0.0
     cz = 0.0
@@ -436,7 +442,7 @@ def tool_contact_diagnostics(g, body, tools, forces, energy):
             forces[j, d] += friction[g, d]
         energy[j] += 0.5 * (friction[g, 0] ** 2 + friction[g, 1] ** 2 + friction[g, 2] ** 2) / kn
         return
-    radius = body.radius[g] if body.radius.shape[0] > 1 else body.radius[0]
+    radius = contact_radius(body, g)
     for j in range(tools.kind.shape[0]):
         gap, nx, ny, nz = tool_gap(j, body.x[g, 0], body.x[g, 1], body.x[g, 2], radius, tools)
         if j == node_tool[g] and gap < 0.0:

@@ -29,7 +29,7 @@ from collections import namedtuple
 import numpy as np
 
 from ..loading.tools import NO_TOOL
-from .integrator import FREE
+from .integrator import support_constraints
 
 BODY_FIELDS = ("x v mass area radius constraint projection support_tool tool tool_offset friction d_friction "
                "w_external w_damping")
@@ -43,9 +43,7 @@ def body_arrays(x, mass, area, radius, supports=None, velocity=None, tool=None) 
     or None (at rest); tool: each node's initial contact state, or None (NO_TOOL: free to touch).
     x and area are copied; mass is kept as given (FDEM's mass scaling changes it in place later)."""
     n = len(mass)
-    if supports is None:
-        supports = np.full(n, FREE, dtype=np.int16), np.zeros((1, 3, 3)), np.full(1, -1, dtype=np.int64)
-    constraint, projection, support_tool = supports
+    constraint, projection, support_tool = support_constraints((), x, 1.0) if supports is None else supports
     v = np.zeros((n, 3))
     if velocity is not None:
         v[:] = np.asarray(velocity, dtype=float)
