@@ -33,10 +33,12 @@ def test_interface_penalty_sets_the_step_and_scales_as_its_inverse_root():
     default, stiffer, soft = _report(), _report(penalty_factor=800.0), _report(penalty_factor=0.5)
     assert default.kind == "interface penalty" and stiffer.kind == "interface penalty"
     assert np.median(default.bulk_dt) > 10 * np.median(default.element_dt)
+    assert default.bound_dt / stiffer.bound_dt == pytest.approx(2.0, rel=0.03)
     assert default.dt / stiffer.dt == pytest.approx(2.0, rel=0.03)
     assert soft.kind == "bulk tet"
     for r in (default, stiffer, soft):
-        assert r.dt == pytest.approx(r.element_dt.min(), rel=1e-12)
+        assert r.bound_dt == pytest.approx(r.element_dt.min(), rel=1e-12)
+        assert r.dt >= r.bound_dt
         assert np.all(r.element_dt <= r.bulk_dt * (1 + 1e-12))
         assert 1 <= r.element <= len(r.element_dt)
 
@@ -47,7 +49,8 @@ def test_dt_limit_in_the_summary_and_the_plot(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     limit = s["dt_limit"]
     assert limit["dt"] == s["stable_dt"] and limit["kind"] == "interface penalty"
-    assert limit["median_dt"] >= limit["dt"] and limit["median_bulk_dt"] > 10 * limit["median_dt"]
+    assert limit["median_dt"] >= limit["bound_dt"] and limit["median_bulk_dt"] > 10 * limit["median_dt"]
+    assert limit["estimate"] == "lanczos" and limit["dt"] > limit["bound_dt"]
     assert len(limit["position"]) == 3 and all(math.isfinite(c) for c in limit["position"])
     assert (out / "plots" / "time_step.png").stat().st_size > 0
 

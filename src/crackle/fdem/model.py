@@ -6,10 +6,9 @@ attribute (``nodes.x``, ``ifs.damage``...).
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections import namedtuple
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from ..materials import Material
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
 from .kernels import TET_BLOCK
 from .laws import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT
+from .time_step import MassScaling, TimeStepReport, scale_masses, time_step, tool_penalty_advice
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 
 # Contact (tools and free surfaces): penalty per unit contact area TOOL_PENALTY_FACTOR E / h, h
@@ -59,8 +59,8 @@ class FdemModel:
     tool_specs: list[Tool]
     pressure_specs: list[Pressure]
     x0: np.ndarray  # reference positions of the exploded nodes
-    time_step: "TimeStepReport"  # the stable step and what sets it
-    mass_scaling: "MassScaling"  # mass added to reach run.target_dt (none by default)
+    time_step: TimeStepReport  # the stable step and what sets it
+    mass_scaling: MassScaling  # mass added to reach run.target_dt (none by default)
     element_size: float
     wave_transit: float  # s: element size over the fastest P-wave speed of the bulk
     contact_penalty: float  # N/m^3 per unit area, for tools and surface contact
@@ -120,7 +120,7 @@ def build_fdem_model(
     `end_time` (s), when given, lets the coarse-mesh advice be left out of a run whose loads
     cannot bring any interface to its strength by then (_fracture_reachable).
     `target_dt` (s): mass scaling so that the run's step, `safety` times the stable one, reaches
-    it (_scale_masses); refused (ValueError) when that adds more than `max_added_mass` of the mass.
+    it (time_step.scale_masses); refused (ValueError) when that adds more than `max_added_mass` of the mass.
     `penalty_keys` ({tool name: scenario key}) names the key that sets a tool's penalty in the
     advice when it is not tools.NAME.penalty (the [plates]: plates.penalty).
     """
@@ -177,17 +177,17 @@ def build_fdem_model(
     ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
     surface_penalty = default_penalty if contact else 0.0
-    time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
+    step = time_step(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     # The advice reads the unscaled masses: it comes before mass scaling changes them.
-    step_advice = _tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, time_step,
+    step_advice = tool_penalty_advice(bulk, pairs, face_iface, surface_penalty, tools, tool_table.penalty, step,
                                        penalty_keys or {})
     element_size = mesh.element_size()
     wave_transit = element_size / float(np.max(np.sqrt((bulk.lam + 2.0 * bulk.mu) / bulk.rho)))
     mass_scaling = MassScaling(target_dt)
     if target_dt is not None:
         step_advice = [f"{msg}, before mass scaling (run.target_dt then needs less added mass)" for msg in step_advice]
-        mass_scaling = _scale_masses(bulk, time_step, target_dt, safety, max_added_mass)
-        time_step = _stable_dt(bulk, pairs, face_iface, surface_penalty, tool_penalty)
+        mass_scaling = scale_masses(bulk, step, target_dt, safety, max_added_mass)
+        step = time_step(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     reachable = end_time is None or _fracture_reachable(
         materials, nodes, tools, pressures, precracks, gravity, scale, element_size, end_time
     )
@@ -209,7 +209,7 @@ def build_fdem_model(
         tool_specs=list(tools),
         pressure_specs=list(pressures),
         x0=bulk.x0,
-        time_step=time_step,
+        time_step=step,
         mass_scaling=mass_scaling,
         element_size=element_size,
         wave_transit=wave_transit,
@@ -393,180 +393,6 @@ def _nodes(bulk: _Bulk, pairs: _Pairs, face_iface, supports, initial_velocity, a
     supports = support_constraints(supports, bulk.x0, scale)
     return Nodes(**body_arrays(bulk.x0, bulk.mass, contact_area, 0.0, supports, v,
                                np.where(on_free_face, NO_TOOL, HIDDEN)), force=np.zeros((n, 3)))
-
-
-@dataclass
-class TimeStepReport:
-    """What sets the stable step: per node, the bulk tet and the springs on its faces each add to
-    the squared frequency bound; the node with the highest bound sets the step."""
-
-    dt: float  # s, the largest stable step (no safety factor)
-    kind: str  # the largest share at the critical node: "bulk tet", "interface penalty", "contact penalty", "tool penalty"
-    element: int  # the critical node's tet (counted from 1)
-    position: np.ndarray  # m, the critical node at set-up
-    element_dt: np.ndarray  # s, per tet: the step its own nodes allow
-    bulk_dt: np.ndarray  # s, per tet: the step its bulk stiffness alone allows
-
-    def as_summary(self, label=lambda index: index + 1) -> dict:
-        """summary.json's dt_limit; `label` numbers a tet as the user knows it (TetMesh.label)."""
-        return {
-            "kind": self.kind,
-            "element": label(self.element - 1),
-            "position": [float(c) for c in self.position],
-            "dt": self.dt,
-            "median_dt": float(np.median(self.element_dt)),
-            "median_bulk_dt": float(np.median(self.bulk_dt)),
-        }
-
-
-@dataclass
-class MassScaling:
-    """Mass added to the elements whose stable step is below a target (summary.json)."""
-
-    target_dt: float | None = None  # s, the step asked for (run.target_dt); None: no scaling
-    added_mass: float = 0.0  # fraction of the total mass
-    elements: int = 0  # elements made heavier
-    largest_factor: float = 1.0  # the largest density factor
-    largest_factor_element: int | None = None  # its element, counted from 1
-    added_mass_centroid: list[float] | None = None  # m, where the added mass sits on average
-
-    def as_summary(self, label=lambda index: index + 1) -> dict:
-        """summary.json's mass_scaling; `label` as TimeStepReport.as_summary's."""
-        out = asdict(self)
-        if self.largest_factor_element is not None:
-            out["largest_factor_element"] = label(self.largest_factor_element - 1)
-        return out
-
-
-def _scale_masses(bulk: "_Bulk", step: "TimeStepReport", target_dt: float, safety: float,
-                  max_added_mass: float) -> MassScaling:
-    """Fixed mass scaling as explicit codes do it: each element whose step (safety x its stable
-    step) is below `target_dt` gets its density (its nodes' masses) multiplied by (target_dt /
-    its step)^2, which brings its step to the target (every term of a node's frequency bound goes
-    as 1 / mass). Changes bulk.rho and bulk.mass (the nodes' masses) in place."""
-    element_dt = safety * step.element_dt
-    factor = np.maximum(1.0, (target_dt / element_dt) ** 2)
-    tet_mass = bulk.rho * bulk.vol
-
-    def added(f) -> float:
-        return float(np.sum((f - 1.0) * tet_mass) / np.sum(tet_mass))
-
-    fraction = added(factor)
-    if fraction > max_added_mass:
-        lo, hi = safety * step.dt, target_dt  # the largest target within the limit, by bisection
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if added(np.maximum(1.0, (mid / element_dt) ** 2)) <= max_added_mass else (lo, mid)
-        share = np.count_nonzero(factor > 1.0) / len(factor)
-        raise ValueError(
-            f"run.target_dt = {target_dt:.3g} s would add {fraction:.1%} of the specimen's mass (more than "
-            f"run.max_added_mass = {max_added_mass:.1%}): {share:.0%} of the elements take a shorter step (the stable "
-            f"step is set by the {step.kind}); set run.target_dt at most {_round_down(lo):.3g} s or raise run.max_added_mass"
-        )
-    scaled = factor > 1.0
-    bulk.rho *= factor
-    bulk.mass *= np.repeat(factor, 4)
-    if not scaled.any():
-        return MassScaling(target_dt)
-    extra = (factor - 1.0) * tet_mass
-    centroids = bulk.x0.reshape(-1, 4, 3).mean(axis=1)
-    worst = int(np.argmax(factor))
-    return MassScaling(
-        target_dt=target_dt,
-        added_mass=fraction,
-        elements=int(np.count_nonzero(scaled)),
-        largest_factor=float(factor[worst]),
-        largest_factor_element=worst + 1,
-        added_mass_centroid=[float(c) for c in extra @ centroids / extra.sum()],
-    )
-
-
-def _round_down(x: float, digits: int = 3) -> float:
-    """x rounded down to `digits` significant digits (an offered limit that is within it)."""
-    unit = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
-    return math.floor(x / unit) * unit
-
-
-TIME_STEP_KINDS = ("bulk tet", "interface penalty", "contact penalty", "tool penalty")
-
-
-def _stable_dt(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tool_penalty: float) -> TimeStepReport:
-    """Largest stable step: per node, bulk tet + interface + contact springs (eigenvalue bounds)."""
-    m = len(bulk.vol)
-    grads = np.concatenate([-bulk.dm_inv.sum(axis=1, keepdims=True), bulk.dm_inv], axis=1)  # (m, 4, 3) grad N_k
-    gtg = np.einsum("mki,mkj->mij", grads, grads)
-    lam_max_g = np.linalg.eigvalsh(gtg)[:, -1]
-    omega2_tet = 4.0 * (3.0 * bulk.lam + 2.0 * bulk.mu) * lam_max_g / bulk.rho  # lambda_max(M^-1 K_e) bound
-    # Springs on each face (Gershgorin row sums per node), by kind. An interface face carries its
-    # pair spring (twice, for the two sides' relative motion) or, once failed and when stiffer,
-    # what a free face carries: surface contact and a tool. Surface contact is node-to-triangle
-    # tested both ways, so a face pressed on another both pushes (its nodes) and is pushed (its
-    # corners carry the other side's reactions): 2 x 2 x the penalty. Counting it once let the
-    # crushed zone under a platen blow up at safety 0.7 (mass-scaled extrinsic Brazilian disc).
-    # A tool spring acts on a node alone (k A / m exactly), but it is one-sided, and a node that
-    # hits a one-sided spring at a large omega dt rebounds faster than it came (up to 1.25x at
-    # omega dt = 1.5, 2.6x at 1.9): counting it on each of the node's faces (about 3x on a
-    # surface node) keeps omega dt below ~0.8 at safety 0.7; the exact k A / m let a rattling
-    # block create energy (tests/fdem/test_time_step.py).
-    face_spring = np.zeros((4, m, 4))  # kind (as TIME_STEP_KINDS, bulk unused), tet, face
-    interface = 2.0 * np.maximum(pairs.pn, pairs.ps)
-    contact = 4.0 * surface_penalty
-    exposed = contact + tool_penalty
-    for tet, face in ((pairs.ta, pairs.fa), (pairs.tb, pairs.fb)):
-        face_spring[1, tet, face] = np.where(interface >= exposed, interface, 0.0) * pairs.area / 3.0
-        face_spring[2, tet, face] = np.where(interface < exposed, contact, 0.0) * pairs.area / 3.0
-        face_spring[3, tet, face] = np.where(interface < exposed, tool_penalty, 0.0) * pairs.area / 3.0
-    outer = face_iface < 0
-    face_spring[2][outer] = contact * bulk.face_area[outer] / 3.0
-    face_spring[3][outer] = tool_penalty * bulk.face_area[outer] / 3.0
-    omega2 = np.zeros((4, m, 4))  # kind, tet, corner
-    omega2[0] = omega2_tet[:, None]
-    for f in range(4):
-        omega2[1:, :, FACE_CORNERS[f]] += face_spring[1:, :, f, None] / bulk.mass.reshape(m, 4)[None, :, FACE_CORNERS[f]]
-    total = omega2.sum(axis=0)
-    critical = int(np.argmax(total))
-    tet, corner = divmod(critical, 4)
-    return TimeStepReport(
-        dt=float(2.0 / np.sqrt(total.max())),
-        kind=TIME_STEP_KINDS[int(np.argmax(omega2[:, tet, corner]))],
-        element=tet + 1,
-        position=bulk.x0[critical].copy(),
-        element_dt=2.0 / np.sqrt(total.max(axis=1)),
-        bulk_dt=2.0 / np.sqrt(omega2_tet),
-    )
-
-
-# A tool needs to be stiff only against what it presses on: the surface layer of tets and
-# interfaces in series. Where the interfaces are far softer than E / h (a per-area stiffness
-# from a paper, as the walnut's), a tool this many times stiffer than the stiffest interface
-# already adds less compliance than a tenth of one interface layer.
-TOOL_OVER_INTERFACE = 10.0
-
-
-def _tool_penalty_advice(bulk: _Bulk, pairs: _Pairs, face_iface, surface_penalty: float, tools, penalties,
-                         step: TimeStepReport, penalty_keys: dict[str, str]) -> list[str]:
-    """Advice when a tool's contact penalty, far stiffer than the interfaces, sets the stable step
-    (before any mass scaling): the penalty that is stiff enough and the step it would give, with
-    the key that sets it (tools.NAME.penalty, or what penalty_keys names)."""
-    if step.kind != "tool penalty" or not len(pairs.pn):
-        return []
-    stiffest = float(np.max(np.maximum(pairs.pn, pairs.ps)))
-    enough = float(f"{TOOL_OVER_INTERFACE * stiffest:.2g}")  # as the advice states it
-    stiff = [(t.name, k) for t, k in zip(tools, penalties) if k > enough]
-    if not stiff:
-        return []
-    softer = _stable_dt(bulk, pairs, face_iface, surface_penalty, enough)  # every tool then at most `enough`
-    if softer.dt < 1.1 * step.dt:
-        return []
-    names = ", ".join(f"'{name}'" for name, _ in stiff)
-    worst = max(k for _, k in stiff)
-    return [
-        f"the stable step {step.dt * 1e9:.3g} ns is set by the contact penalty of tool{'s' if len(stiff) > 1 else ''} {names} ({worst:.3g} Pa/m, "
-        f"{worst / stiffest:.0f}x the stiffest interface, {stiffest:.3g} Pa/m); {TOOL_OVER_INTERFACE:g}x the "
-        f"interfaces is stiff enough (it adds under a tenth of one interface layer's compliance): "
-        + ", ".join(dict.fromkeys(f"{penalty_keys.get(name, f'tools.{name}.penalty')} = {enough:g}" for name, _ in stiff))
-        + f" gives a stable step of {softer.dt * 1e9:.3g} ns (set by the {softer.kind})"
-    ]
 
 
 # A hole's stress concentration: the factor on a pressure's stress in the bound below.

@@ -290,7 +290,8 @@ def plot_time_steps(element_dt, bulk_dt, limit: dict, path) -> Path:
     bins = np.geomspace(lo, hi * 1.0001, 50) if hi > lo else 10
     ax.hist(values[0], bins=bins, alpha=0.7, color="tab:red", label="element (bulk + interfaces + contact)")
     ax.hist(values[1], bins=bins, alpha=0.5, color="tab:blue", label="bulk tet alone")
-    ax.axvline(limit["dt"] * scale, color="k", ls="--", label=f"run's stable step ({limit['kind']}, element {limit['element']})")
+    ax.axvline(limit["dt"] * scale, color="k", ls="--", label=f"run's stable step ({limit['estimate']})")
+    ax.axvline(limit["bound_dt"] * scale, color="k", ls=":", label=f"element bound ({limit['kind']}, element {limit['element']})")
     if hi > lo:
         ax.set_xscale("log")
     ax.set_xlabel(axis_label("stable time step", unit))

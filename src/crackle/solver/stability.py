@@ -32,13 +32,14 @@ PROBE = 1e-4
 
 
 def highest_frequency2(X: np.ndarray, mass: np.ndarray, forces: Callable[[np.ndarray, np.ndarray], None],
-                       spacing: float, tool_k: np.ndarray | float = 0.0) -> tuple[float, float, int]:
+                       spacing: float, tool_k: np.ndarray | float = 0.0, linear: bool = False) -> tuple[float, float, int]:
     """omega_max^2 (1/s^2) of the linearised step about the positions X, by Lanczos on
     M^-1/2 K M^-1/2 (no reorthogonalisation: that makes ghost copies, never larger values).
     K v is the central difference of `forces(x, out)` (the method's internal forces at
     positions x into out, elastic: plasticity only softens) about X, plus the tool penalties
     tool_k (N/m, per node) on every node, the worst case of any contact set (adding a positive
-    semi-definite diagonal only raises eigenvalues). Supports are left out: a constraint only
+    semi-definite diagonal only raises eigenvalues). `linear`: the forces are linear in x and zero
+    at X, so one evaluation gives K v. Supports are left out: a constraint only
     lowers omega_max (interlacing). Returns (the largest Ritz value + its residual bound, that
     residual bound, iterations). Deterministic: a seeded start vector, numpy's pairwise sums and
     thread-independent force kernels."""
@@ -53,6 +54,8 @@ def highest_frequency2(X: np.ndarray, mass: np.ndarray, forces: Callable[[np.nda
         s = PROBE * spacing / np.max(np.abs(u))
         np.add(X, s * u, out=x)
         forces(x, plus)
+        if linear:
+            return -plus / s * inv_sqrt_m + diagonal * q
         np.subtract(X, s * u, out=x)
         forces(x, minus)
         return (minus - plus) / (2.0 * s) * inv_sqrt_m + diagonal * q
