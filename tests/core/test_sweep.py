@@ -65,15 +65,15 @@ def test_bad_plans_are_refused_naming_the_problem(vary, zip_, message):
 
 
 def test_every_shipped_sweep_is_a_valid_family_of_scenarios():
-    """brazilian-angles (4 runs), walnut-layouts (6 zipped layouts), mesh-ladder (3 sizes): every
-    run's scenario validates."""
-    assert set(list_sweeps()) == {"brazilian-angles", "walnut-layouts", "mesh-ladder"}
+    """brazilian-angles (4 runs), walnut-layouts (6 zipped layouts), mesh-ladder (3 sizes),
+    tube-shots (3 zipped notches): every run's scenario validates."""
+    assert set(list_sweeps()) == {"brazilian-angles", "walnut-layouts", "mesh-ladder", "tube-shots"}
     sizes = {}
     for name in list_sweeps():
         plan = make_plan(name, [], [], False, False)
         assert check_runs(plan, plan.runs()) == {}
         sizes[name] = len(plan.runs())
-    assert sizes == {"brazilian-angles": 4, "walnut-layouts": 6, "mesh-ladder": 3}
+    assert sizes == {"brazilian-angles": 4, "walnut-layouts": 6, "mesh-ladder": 3, "tube-shots": 3}
 
 
 def test_sweep_on_two_workers_equals_the_runs_one_by_one(tmp_path):
