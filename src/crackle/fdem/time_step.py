@@ -6,9 +6,11 @@ Two estimates of the step's highest frequency omega_max:
   it), and per element: it says what sets the step and where, and mass scaling works on it;
 - the assembled step's omega_max by Lanczos (solver.stability) on the linearised forces: each
   tet's linear elasticity and each interface's point-pair springs, the contact and tool springs as
-  the bound counts them on the diagonal. Measured 1.2-1.4x the bound's step where interfaces set
-  it (paper 001's quick Brazilian disc, its three-point bending).
-The step is the larger: the bound's 2 / omega, or STEP_MARGIN x the Lanczos one.
+  the bound counts them on the diagonal. Measured 1.07-1.28x the bound's step on the quick
+  examples where interfaces or the bulk set it (docs/validation.md, "The assembled step by
+  Lanczos").
+The step is the larger: the bound's 2 / omega, or STEP_MARGIN x the Lanczos one; the bound's alone
+where a tool or surface contact sets it (time_step).
 
 Every interface is counted as carrying its law, an extrinsic face too: tying faces is a
 constraint on the exploded mesh, and a constraint only lowers omega_max (interlacing), so the step
