@@ -23,6 +23,7 @@ the bytes a tet-step moves; bandwidth_fraction = bytes_per_tet x tet_steps_per_s
 machine's triad bandwidth with the same threads (benchmarks/bandwidth.py: bandwidth_gb_s), the
 share of the memory system the step reaches at least. Extra keys per size: contact_bytes_per_tet (arrays of
 the simulation's node-to-surface contact state, not counted in bytes_per_tet), cells, dt,
+simulated_us_per_s (the time to solution: dt / seconds_per_step, in us of simulated time a second),
 tool_contact_nodes (nodes touching a platen at the end: contact is exercised), build_s,
 repeat_seconds, cpu_utilisation (process CPU time / (wall x threads) over the
 repeats) and idle_percent_before (idle share of the machine over 1 s before timing). The last two
@@ -244,6 +245,9 @@ def run_size(target_tets: int, args) -> dict:
         "contact_bytes_per_tet": contact_bytes(sim) / n_tets,
         "cells": list(cells),
         "dt": dt,
+        # Time to solution: simulated time per second of wall time at the run's step (0.8 x the
+        # stable one): what a longer stable step buys at the same cost per step.
+        "simulated_us_per_s": 1e6 * dt / seconds_per_step,
         "tool_contact_nodes": tool_nodes,
         # Process CPU time / (wall time x threads) over the timed repeats: well below 1 means
         # the threads did not get their cores (another process, fewer cores than threads).
@@ -284,7 +288,8 @@ def human_line(r: dict) -> str:
         f"{r['tets']:>8d} tets {r['interfaces']:>8d} ifaces | {r['steps']:>5d} steps x{len(r['repeat_seconds'])} | "
         f"{r['seconds_per_step'] * 1e3:8.3f} ms/step | {r['tet_steps_per_s'] / 1e6:6.2f} M tet-steps/s | "
         f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
-        f"{r['tool_contact_nodes']} nodes on tools | at least {100 * r['bandwidth_fraction']:.0f} % of the "
+        f"{r['tool_contact_nodes']} nodes on tools | step {r['dt'] * 1e9:.3g} ns, "
+        f"{r['simulated_us_per_s']:.3g} us simulated per s | at least {100 * r['bandwidth_fraction']:.0f} % of the "
         f"{r['bandwidth_gb_s']:.1f} GB/s triad bandwidth"
     )
     if "interface_seconds_per_step" in r:
