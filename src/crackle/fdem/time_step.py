@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from .model import _Bulk, _Pairs
 
 TIME_STEP_KINDS = ("bulk tet", "interface penalty", "contact penalty", "tool penalty")
+ONE_SIDED_KINDS = TIME_STEP_KINDS[2:]  # penalty springs that push only: surface contact, tools
 
 
 @dataclass
@@ -177,7 +178,7 @@ def time_step(bulk: "_Bulk", pairs: "_Pairs", face_iface, surface_penalty: float
     # Where a one-sided spring (a tool, surface contact) sets the bound, the bound stays: its count
     # of those springs is what keeps their rebound in check (above), measured on the bound's step
     # (the rattling block: -1.7 % at 0.7 x the bound, -3.1 % at 0.7 x the Lanczos step, 1.4 % longer).
-    if kind not in ("contact penalty", "tool penalty"):
+    if kind not in ONE_SIDED_KINDS:
         # The contact and tool springs as the bound counts them, one diagonal spring per node; each
         # interface as the bound counts it: its springs, or, where a tool or contact is stiffer,
         # the exposed springs on both its sides' nodes (in exposed_k).
@@ -211,8 +212,8 @@ def linearised_forces(x0: np.ndarray, tets, ifs, carried=None):
     n_nodes = len(x0)
     grads = np.concatenate([-tets.dm_inv.sum(axis=1, keepdims=True), tets.dm_inv], axis=1)  # (m, 4, 3) grad N_k
     lam, two_mu, vol = tets.lam[:, None], 2.0 * tets.mu[:, None, None], tets.vol[:, None, None]
-    na, nb = (ifs.na, ifs.nb) if carried is None else (ifs.na[carried], ifs.nb[carried])
-    area, pn, ps = (ifs.area, ifs.pn, ifs.ps) if carried is None else (ifs.area[carried], ifs.pn[carried], ifs.ps[carried])
+    keep = slice(None) if carried is None else carried
+    na, nb, area, pn, ps = ifs.na[keep], ifs.nb[keep], ifs.area[keep], ifs.pn[keep], ifs.ps[keep]
     corners = x0[na]
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     normal /= np.linalg.norm(normal, axis=1)[:, None]
