@@ -53,8 +53,16 @@ FREE, TIED, RELEASED = 0, 1, 2
 
 Ties = namedtuple(
     "Ties",
-    "tied vertex_ptr vertex_nodes node_vertex partner partner_iface leader tet_stress ext tool_force tool_work",
+    "tied vertex_ptr vertex_nodes member_leader node_vertex partner partner_iface leader tet_stress load",
 )
+
+# Columns of ties.load, the one record per node that the tet pass writes for the node pass: the
+# internal force, the external force (pressure, gravity), the tools' contact force and its work,
+# and the node's mass. One row per node, not five arrays: the node pass gathers the copies of a
+# mesh point from scattered nodes, and a row costs two cache lines where five arrays cost seven
+# (measured: the node pass was the extrinsic step's largest, benchmarks/fdem_passes.py).
+LOAD_FORCE, LOAD_EXTERNAL, LOAD_TOOL, LOAD_TOOL_WORK, LOAD_MASS = 0, 3, 6, 9, 10
+LOAD_COLUMNS = 11
 
 # Mesh points per block of the node pass.
 VERTEX_BLOCK = 1024
@@ -67,9 +75,8 @@ def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.n
     n_nodes = len(corner_point)
     if not tied.any():
         empty_i = np.zeros(0, dtype=np.int64)
-        return Ties(tied, np.zeros(1, dtype=np.int64), empty_i, empty_i, np.zeros((0, 3), np.int64),
-                    np.zeros((0, 3), np.int64), empty_i, np.zeros((0, 6)), np.zeros((0, 3)), np.zeros((0, 3)),
-                    np.zeros(0))
+        return Ties(tied, np.zeros(1, dtype=np.int64), empty_i, empty_i, empty_i, np.zeros((0, 3), np.int64),
+                    np.zeros((0, 3), np.int64), empty_i, np.zeros((0, 6)), np.zeros((0, LOAD_COLUMNS)))
     order = np.lexsort((np.arange(n_nodes), corner_point))
     vertex_ptr = np.zeros(n_points + 1, dtype=np.int64)
     np.add.at(vertex_ptr, corner_point + 1, 1)
@@ -88,14 +95,13 @@ def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.n
         tied=tied,
         vertex_ptr=vertex_ptr,
         vertex_nodes=order.astype(np.int64),
+        member_leader=np.zeros(n_nodes, dtype=np.int64),
         node_vertex=corner_point.astype(np.int64),
         partner=partner,
         partner_iface=partner_iface,
         leader=np.arange(n_nodes, dtype=np.int64),
         tet_stress=np.zeros((n_tets, 6)),
-        ext=np.zeros((n_nodes, 3)),
-        tool_force=np.zeros((n_nodes, 3)),
-        tool_work=np.zeros(n_nodes),
+        load=np.zeros((n_nodes, LOAD_COLUMNS)),
     )
     regroup_all(ties)
     return ties
@@ -111,7 +117,8 @@ def regroup_all(ties):
 def regroup(vertex, ties):
     """Clusters of the copies of one mesh point: connected through tied faces; each copy's leader
     is the lowest node of its cluster, and the copies are kept sorted by (leader, node) so that a
-    cluster is a contiguous run of vertex_nodes."""
+    cluster is a contiguous run of vertex_nodes (member_leader: the leader of each entry, read in
+    order by the node pass)."""
     lo, hi = ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]
     nodes, leader, tied = ties.vertex_nodes, ties.leader, ties.tied
     for j in range(lo, hi):
@@ -138,6 +145,8 @@ def regroup(vertex, ties):
             nodes[k + 1] = nodes[k]
             k -= 1
         nodes[k + 1] = g
+    for j in range(lo, hi):
+        ties.member_leader[j] = leader[nodes[j]]
 
 
 @njit(cache=True, inline="always")
@@ -268,43 +277,46 @@ def regroup_released(ties, na, released_blocks, block):
 @block_kernel
 def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
     """Mesh points lo..hi-1: each cluster of copies gets the summed mass and forces of its
-    members, one central-difference update on its leader, and the members take its velocity and
-    move with it. A moving support's reaction goes to the tools' force `slot` of this block."""
-    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
-    ptr, members, leader = ties.vertex_ptr, ties.vertex_nodes, ties.leader
-    ext, tool_force, tool_work = ties.ext, ties.tool_force, ties.tool_work
+    members (their ties.load rows), one central-difference update on its leader, and the members
+    take its velocity and move with it. A moving support's reaction goes to the tools' force
+    `slot` of this block."""
+    x, v = nodes.x, nodes.v
+    ptr, members, member_leader, load = ties.vertex_ptr, ties.vertex_nodes, ties.member_leader, ties.load
     alpha = ctrl.damping[0]
     for vertex in range(lo, hi):
         j = ptr[vertex]
         end = ptr[vertex + 1]
         while j < end:
-            lead = leader[members[j]]
+            lead = member_leader[j]
             fx = fy = fz = ex = ey = ez = cx = cy = cz = work = m = 0.0
             k = j
-            while k < end and leader[members[k]] == lead:
+            while k < end and member_leader[k] == lead:
+                # Indexed, not a row view: a view costs more here (measured 1.5x the pass).
                 g = members[k]
-                fx += f[g, 0]
-                fy += f[g, 1]
-                fz += f[g, 2]
-                ex += ext[g, 0]
-                ey += ext[g, 1]
-                ez += ext[g, 2]
-                cx += tool_force[g, 0]
-                cy += tool_force[g, 1]
-                cz += tool_force[g, 2]
-                work += tool_work[g]
-                m += mass[g]
+                fx += load[g, LOAD_FORCE]
+                fy += load[g, LOAD_FORCE + 1]
+                fz += load[g, LOAD_FORCE + 2]
+                ex += load[g, LOAD_EXTERNAL]
+                ey += load[g, LOAD_EXTERNAL + 1]
+                ez += load[g, LOAD_EXTERNAL + 2]
+                cx += load[g, LOAD_TOOL]
+                cy += load[g, LOAD_TOOL + 1]
+                cz += load[g, LOAD_TOOL + 2]
+                work += load[g, LOAD_TOOL_WORK]
+                m += load[g, LOAD_MASS]
                 k += 1
             update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt, tools,
                             tool_v_next, slot)
             move(lead, x, v, dt)
+            # Held in locals: stores into v[g] would otherwise reload the leader's (aliasing).
+            vx, vy, vz = v[lead, 0], v[lead, 1], v[lead, 2]
+            px, py, pz = x[lead, 0], x[lead, 1], x[lead, 2]
             for r in range(j, k):
                 g = members[r]
-                if g != lead:
-                    v[g, 0] = v[lead, 0]
-                    v[g, 1] = v[lead, 1]
-                    v[g, 2] = v[lead, 2]
-                    x[g, 0] = x[lead, 0]
-                    x[g, 1] = x[lead, 1]
-                    x[g, 2] = x[lead, 2]
+                v[g, 0] = vx
+                v[g, 1] = vy
+                v[g, 2] = vz
+                x[g, 0] = px
+                x[g, 1] = py
+                x[g, 2] = pz
             j = k

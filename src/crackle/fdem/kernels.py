@@ -24,7 +24,8 @@ from ..loading.friction import coulomb_update
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
-from .extrinsic import TIED, VERTEX_BLOCK, cluster_block, regroup_released, try_insert
+from .extrinsic import (LOAD_EXTERNAL, LOAD_MASS, LOAD_TOOL, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
+                        regroup_released, try_insert)
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
@@ -206,9 +207,9 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                ties):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact (forces
     on the tools into their `slot`), damping, gravity and the central-difference update of each
-    tet's own 4 nodes. With tied faces (clusters, ties.ext not empty) the update is the node
-    pass's (extrinsic.cluster_block): the forces are stored for it instead."""
-    x, v, f, mass = nodes.x, nodes.v, nodes.force, nodes.mass
+    tet's own 4 nodes. With tied faces (clusters, ties.load not empty) the update is the node
+    pass's (extrinsic.cluster_block): the forces and the mass go to its ties.load rows instead."""
+    x, v, mass = nodes.x, nodes.v, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
@@ -216,8 +217,10 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
     any_contact = contact.counts[1] > 0
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
-    clustered = ties.ext.shape[0] > 0
-    tet_stress, ext, tool_force, tool_work = ties.tet_stress, ties.ext, ties.tool_force, ties.tool_work
+    clustered = ties.load.shape[0] > 0
+    tet_stress, load = ties.tet_stress, ties.load
+    # The internal forces go straight into the node pass's rows (their first 3 columns).
+    f = load if clustered else nodes.force
     for e in range(lo, hi):
         _tet_forces(e, x, dm_inv, vol, lam, mu, f, tet_stress, clustered)
         n0 = 4 * e
@@ -278,13 +281,14 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                 f[g, 1] += sy
                 f[g, 2] += sz
             if clustered:
-                ext[g, 0] = ex
-                ext[g, 1] = ey
-                ext[g, 2] = ez
-                tool_force[g, 0] = cx
-                tool_force[g, 1] = cy
-                tool_force[g, 2] = cz
-                tool_work[g] = work
+                load[g, LOAD_EXTERNAL] = ex
+                load[g, LOAD_EXTERNAL + 1] = ey
+                load[g, LOAD_EXTERNAL + 2] = ez
+                load[g, LOAD_TOOL] = cx
+                load[g, LOAD_TOOL + 1] = cy
+                load[g, LOAD_TOOL + 2] = cz
+                load[g, LOAD_TOOL_WORK] = work
+                load[g, LOAD_MASS] = m
                 continue
             update_velocity(g, nodes, (f[g, 0], f[g, 1], f[g, 2]), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt,
                             tools, tool_v_next, slot)
@@ -300,7 +304,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     """Run n_steps central-difference steps from step number first_step (time first_step x dt:
     the same times however a run is split into calls); arrays are updated in place."""
     n_if = ifs.na.shape[0]
-    clustered = ties.ext.shape[0] > 0
+    clustered = ties.load.shape[0] > 0
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
     n_tet = tets.vol.shape[0]
     n_tool = tools.kind.shape[0]

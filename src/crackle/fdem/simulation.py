@@ -191,7 +191,7 @@ class FdemSimulation(SimulationBase):
 
     def summary(self) -> dict:
         m = self.model
-        insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.ext) else None
+        insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.load) else None
         # Velocities change without new failures: refresh the fragment velocities for the record.
         self._fragments = None
         frags = self.fragments()
