@@ -38,7 +38,7 @@ def _tet_pass(dt, nodes, tets, ifs, contact, tools, ctrl, ties):
     v_next = np.zeros((max(tools.kind.shape[0], 1), 3))
     for blk in prange((n_tet + kernels.TET_BLOCK - 1) // kernels.TET_BLOCK):
         lo = blk * kernels.TET_BLOCK
-        kernels._tet_block(lo, min(lo + kernels.TET_BLOCK, n_tet), np.int64(blk), dt, nodes, tets, ifs, contact, tools,
+        kernels._tet_block(lo, min(lo + kernels.TET_BLOCK, n_tet), np.int64(blk), dt, dt, nodes, tets, ifs, contact, tools,
                            pressure_now, v_prev, v_next, ctrl, ties)
 
 
@@ -48,7 +48,7 @@ def _cluster_pass(dt, nodes, ties, ctrl, tools):
     v_next = np.zeros((max(tools.kind.shape[0], 1), 3))
     for blk in prange((n_vertex + VERTEX_BLOCK - 1) // VERTEX_BLOCK):
         lo = blk * VERTEX_BLOCK
-        cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), np.int64(blk), dt, nodes, ties, ctrl, tools, v_next)
+        cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), np.int64(blk), dt, dt, nodes, ties, ctrl, tools, v_next)
 
 
 def main() -> None:

@@ -260,26 +260,29 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
 @njit(cache=True)
 def regroup_released(ties, na, released_blocks, block):
     """After an interface pass that inserted faces: regroup the clusters of their mesh points, in
-    interface order (serial, so the result does not depend on the threads)."""
+    interface order (serial, so the result does not depend on the threads). True if any was."""
     tied = ties.tied
     n_if = tied.shape[0]
+    inserted = False
     for blk in range(released_blocks.shape[0]):
         if not released_blocks[blk]:
             continue
+        inserted = True
         released_blocks[blk] = 0
         for i in range(blk * block, min(n_if, (blk + 1) * block)):
             if tied[i] == RELEASED:
                 tied[i] = FREE
                 for p in range(3):
                     regroup(ties.node_vertex[na[i, p]], ties)
+    return inserted
 
 
 @block_kernel
-def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
+def cluster_block(lo, hi, slot, dt, kick, nodes, ties, ctrl, tools, tool_v_next):
     """Mesh points lo..hi-1: each cluster of copies gets the summed mass and forces of its
-    members (their ties.load rows), one central-difference update on its leader, and the members
-    take its velocity and move with it. A moving support's reaction goes to the tools' force
-    `slot` of this block."""
+    members (their ties.load rows), one central-difference update on its leader (velocity by
+    `kick`, position by dt: kernels.advance), and the members take its velocity and move with it.
+    A moving support's reaction goes to the tools' force `slot` of this block."""
     x, v = nodes.x, nodes.v
     ptr, members, member_leader, load = ties.vertex_ptr, ties.vertex_nodes, ties.member_leader, ties.load
     alpha = ctrl.damping[0]
@@ -305,7 +308,7 @@ def cluster_block(lo, hi, slot, dt, nodes, ties, ctrl, tools, tool_v_next):
                 work += load[g, LOAD_TOOL_WORK]
                 m += load[g, LOAD_MASS]
                 k += 1
-            update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt, tools,
+            update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, kick, tools,
                             tool_v_next, slot)
             move(lead, x, v, dt)
             # Held in locals: stores into v[g] would otherwise reload the leader's (aliasing).

@@ -203,11 +203,11 @@ TET_BLOCK = 512
 
 
 @block_kernel
-def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next, ctrl,
-               ties):
+def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressure_now, tool_v_prev, tool_v_next,
+               ctrl, ties):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact (forces
     on the tools into their `slot`), damping, gravity and the central-difference update of each
-    tet's own 4 nodes. With tied faces (clusters, ties.load not empty) the update is the node
+    tet's own 4 nodes (velocity by `kick`, position by dt: advance). With tied faces (clusters, ties.load not empty) the update is the node
     pass's (extrinsic.cluster_block): the forces and the mass go to its ties.load rows instead."""
     x, v, mass = nodes.x, nodes.v, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
@@ -290,7 +290,7 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
                 load[g, LOAD_TOOL_WORK] = work
                 load[g, LOAD_MASS] = m
                 continue
-            update_velocity(g, nodes, (f[g, 0], f[g, 1], f[g, 2]), (ex, ey, ez), (cx, cy, cz), work, m, alpha, dt,
+            update_velocity(g, nodes, (f[g, 0], f[g, 1], f[g, 2]), (ex, ey, ez), (cx, cy, cz), work, m, alpha, kick,
                             tools, tool_v_next, slot)
         if clustered:
             continue
@@ -300,9 +300,14 @@ def _tet_block(lo, hi, slot, dt, nodes, tets, ifs, contact, tools, pressure_now,
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures, ctrl, ties):
+def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures, ctrl, ties, first_kick=-1.0,
+            stop_on_insertion=False):
     """Run n_steps central-difference steps from step number first_step (time first_step x dt:
-    the same times however a run is split into calls); arrays are updated in place."""
+    the same times however a run is split into calls); arrays are updated in place. Returns the
+    steps taken and whether the last one inserted an extrinsic face: with stop_on_insertion, the
+    call stops after the first step that did. first_kick (s, if positive): the first step's velocity update spans that
+    time instead of dt: (old + new) / 2 where the step changes (v(t + dt_new / 2) =
+    v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2, the central difference with unequal steps)."""
     n_if = ifs.na.shape[0]
     clustered = ties.load.shape[0] > 0
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
@@ -318,6 +323,7 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     released_blocks = np.zeros(n_if_blocks, dtype=np.uint8)
     for step in range(n_steps):
         t = (first_step + step) * dt
+        kick = first_kick if step == 0 and first_kick > 0.0 else dt
         for q in range(n_press):
             pressure_now[q] = interp_history(t, pressures.times[q], pressures.values[q], pressures.counts[q])
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
@@ -325,23 +331,26 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
             lo = blk * INTERFACE_BLOCK
             _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), np.int64(blk), t, dt, nodes.x, nodes.v, ifs, ties,
                              released_blocks)
-        if clustered:
-            regroup_released(ties, ifs.na, released_blocks, INTERFACE_BLOCK)
+        inserted = clustered and regroup_released(ties, ifs.na, released_blocks, INTERFACE_BLOCK)
         if n_slot > 0:
             for s in prange(n_slot):
                 node_contact(np.int64(s), dt, nodes.x, nodes.v, tets, ifs, contact)
             reaction_lists(contact)
         for blk in prange(n_tet_blocks):
             lo = blk * TET_BLOCK
-            _tet_block(lo, min(lo + TET_BLOCK, n_tet), np.int64(blk), dt, nodes, tets, ifs, contact, tools, pressure_now,
-                       tool_v_prev, tool_v_next, ctrl, ties)
+            _tet_block(lo, min(lo + TET_BLOCK, n_tet), np.int64(blk), dt, kick, nodes, tets, ifs, contact, tools,
+                       pressure_now, tool_v_prev, tool_v_next, ctrl, ties)
         if clustered:
             n_vertex = ties.vertex_ptr.shape[0] - 1
             for blk in prange(n_vertex_blocks):
                 lo = blk * VERTEX_BLOCK
-                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), np.int64(blk), dt, nodes, ties, ctrl, tools, tool_v_next)
+                cluster_block(lo, min(lo + VERTEX_BLOCK, n_vertex), np.int64(blk), dt, kick, nodes, ties, ctrl, tools,
+                              tool_v_next)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
+        if inserted and stop_on_insertion:
+            return step + 1, True
+    return n_steps, False
 
 
 @njit(parallel=True, cache=True)

@@ -41,6 +41,12 @@ class FdemSimulation(SimulationBase):
         self._contact_failed = -1
         self._next_refresh = 0  # step of the next contact refresh
         self.rebuilds = 0
+        # The tied phase (fdem.time_step): while every extrinsic face is tied, one compiled step
+        # per driver step of model.tied_substeps x the stable step; from the first insertion on,
+        # that many compiled steps of the stable step each. tied_until: the time it ended.
+        self.tied_phase = model.tied_substeps > 1
+        self.tied_until: float | None = None
+        self._first_kick = -1.0  # the velocity span of the next compiled step, where the step changed
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
         # Energy present at t = 0 (initial velocities) counts as work put in.
@@ -49,7 +55,13 @@ class FdemSimulation(SimulationBase):
     # -- stepping ---------------------------------------------------------------------------
     @property
     def stable_dt(self) -> float:
-        return self.model.stable_dt
+        """The driver's step: the tied phase's where there is one (see advance)."""
+        return self.model.stable_dt * self.model.tied_substeps
+
+    @property
+    def substeps(self) -> int:
+        """Compiled steps per driver step now."""
+        return 1 if self.tied_phase else self.model.tied_substeps
 
     @property
     def wave_transit(self) -> float:
@@ -68,10 +80,33 @@ class FdemSimulation(SimulationBase):
                     self._refresh_contact()
                     self._next_refresh = self.steps + self._refresh_interval(dt)
                 n = min(n, self._next_refresh - self.steps)
-            advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures, m.controls, m.ties)
+            if self.tied_phase:
+                # Stops after a step that inserted a face: the next ones need the stable step.
+                done, inserted = advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures,
+                                         m.controls, m.ties, -1.0, True)
+                self.steps += done
+                if inserted:
+                    self._end_tied_phase(dt)
+                continue
+            k = self.substeps
+            advance(n * k, self.steps * k, dt / k, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures,
+                    m.controls, m.ties, self._first_kick, False)
+            self._first_kick = -1.0
             self.steps += n
         # Exact time of the step count, not an accumulated sum of dt.
         self.time = self.steps * dt
+
+    def _end_tied_phase(self, dt: float) -> None:
+        """From the first insertion on, sub-step: the velocity update of the first short step spans
+        the mean of the two steps (kernels.advance)."""
+        self.tied_phase = False
+        self.tied_until = self.steps * dt
+        self._first_kick = 0.5 * (dt + dt / self.substeps)
+
+    def sample(self, dt: float) -> dict[str, float]:
+        # The energies pair the half-step velocities with the mid-step positions of the step
+        # actually taken (sub-steps after the tied phase).
+        return super().sample(dt / self.substeps)
 
     def _refresh_interval(self, dt: float) -> int:
         """Steps to the next contact refresh: no node may move more than half the skin between two
@@ -209,6 +244,9 @@ class FdemSimulation(SimulationBase):
             "nodes": 4 * m.n_tets,
             "element_size": m.element_size,
             "dt_limit": m.time_step.as_summary(m.mesh.label),
+            # Extrinsic runs: the step while every face was tied, in stable steps, and when the
+            # first insertion ended that phase (None: it did not).
+            "tied_phase": {"substeps": m.tied_substeps, "until": self.tied_until} if m.tied_substeps > 1 else None,
             # Extrinsic faces: the energy their preload put into the law's springs at insertion,
             # booked as negative dissipation (fdem.extrinsic); none without extrinsic laws.
             "insertion_energy": insertion,

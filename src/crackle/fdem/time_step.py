@@ -17,6 +17,11 @@ constraint on the exploded mesh, and a constraint only lowers omega_max (interla
 holds through every insertion; a face that fails keeps at most its springs (paired contact at the
 same penalties), so through every failure as well. Not counted: the geometric stiffness of a
 stressed tet (~stress / E), which STEP_MARGIN and run.safety cover.
+
+The tied step (TimeStepReport.tied_dt): while every extrinsic face is still tied, its copies move
+as one node and the face carries no spring, so the step is that of the conforming mesh (the same
+two estimates on the clusters of copies, tied faces counting nothing). A run takes it until the
+first insertion and then sub-steps at the step above (fdem.simulation).
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ class TimeStepReport:
     bound_dt: float  # s, the element bound's step (proven)
     estimate: str  # "lanczos" (the step is STEP_MARGIN x 2 / omega_max of the assembled step) or "element bound"
     lanczos_iterations: int = 0
+    # s, the step while every extrinsic face is tied (module docstring), where longer than dt; 0: none
+    tied_dt: float = 0.0
 
     def as_summary(self, label=lambda index: index + 1) -> dict:
         """summary.json's dt_limit; `label` numbers a tet as the user knows it (TetMesh.label)."""
@@ -64,6 +71,7 @@ class TimeStepReport:
             "bound_dt": self.bound_dt,
             "median_dt": float(np.median(self.element_dt)),
             "median_bulk_dt": float(np.median(self.bulk_dt)),
+            "tied_dt": self.tied_dt or None,
         }
 
 
@@ -135,9 +143,12 @@ def _round_down(x: float, digits: int = 3) -> float:
     return math.floor(x / unit) * unit
 
 
-def time_step(bulk: "_Bulk", pairs: "_Pairs", face_iface, surface_penalty: float, tool_penalty: float) -> TimeStepReport:
+def time_step(bulk: "_Bulk", pairs: "_Pairs", face_iface, surface_penalty: float, tool_penalty: float,
+              tied: np.ndarray | None = None, cluster: np.ndarray | None = None) -> TimeStepReport:
     """The stable step (module docstring): the element bound per node (bulk tet + interface +
-    contact + tool springs) and the assembled step's omega_max by Lanczos."""
+    contact + tool springs) and the assembled step's omega_max by Lanczos. With `tied` (a mask
+    of interfaces) and `cluster` (per node, its cluster of copies, numbered from 0): the step
+    while those faces are tied (internal faces with no spring; Lanczos on the clusters)."""
     m = len(bulk.vol)
     grads = np.concatenate([-bulk.dm_inv.sum(axis=1, keepdims=True), bulk.dm_inv], axis=1)  # (m, 4, 3) grad N_k
     gtg = np.einsum("mki,mkj->mij", grads, grads)
@@ -158,10 +169,11 @@ def time_step(bulk: "_Bulk", pairs: "_Pairs", face_iface, surface_penalty: float
     interface = 2.0 * np.maximum(pairs.pn, pairs.ps)
     contact = 4.0 * surface_penalty
     exposed = contact + tool_penalty
+    open_face = np.ones(len(interface)) if tied is None else np.where(tied, 0.0, 1.0)  # a tied face: no spring
     for tet, face in ((pairs.ta, pairs.fa), (pairs.tb, pairs.fb)):
-        face_spring[1, tet, face] = np.where(interface >= exposed, interface, 0.0) * pairs.area / 3.0
-        face_spring[2, tet, face] = np.where(interface < exposed, contact, 0.0) * pairs.area / 3.0
-        face_spring[3, tet, face] = np.where(interface < exposed, tool_penalty, 0.0) * pairs.area / 3.0
+        face_spring[1, tet, face] = np.where(interface >= exposed, interface, 0.0) * pairs.area / 3.0 * open_face
+        face_spring[2, tet, face] = np.where(interface < exposed, contact, 0.0) * pairs.area / 3.0 * open_face
+        face_spring[3, tet, face] = np.where(interface < exposed, tool_penalty, 0.0) * pairs.area / 3.0 * open_face
     outer = face_iface < 0
     face_spring[2][outer] = contact * bulk.face_area[outer] / 3.0
     face_spring[3][outer] = tool_penalty * bulk.face_area[outer] / 3.0
@@ -183,8 +195,11 @@ def time_step(bulk: "_Bulk", pairs: "_Pairs", face_iface, surface_penalty: float
         # interface as the bound counts it: its springs, or, where a tool or contact is stiffer,
         # the exposed springs on both its sides' nodes (in exposed_k).
         exposed_k = ((omega2[2] + omega2[3]) * bulk.mass.reshape(m, 4)).reshape(-1)
-        omega2_max, residual, iterations = highest_frequency2(bulk.x0, bulk.mass, bulk, pairs, exposed_k,
-                                                              carried=interface >= exposed)
+        carried = interface >= exposed
+        if tied is not None:
+            carried &= ~tied
+        omega2_max, residual, iterations = highest_frequency2(bulk.x0, bulk.mass, bulk, pairs, exposed_k, carried,
+                                                              cluster)
         # Not converged (at most LANCZOS_ITERATIONS): the top mode may not be found yet; the bound holds.
         if residual <= stability.LANCZOS_TOLERANCE * (omega2_max - residual):
             lanczos_dt = stability.STEP_MARGIN * 2.0 / math.sqrt(omega2_max)
@@ -237,13 +252,28 @@ def linearised_forces(x0: np.ndarray, tets, ifs, carried=None):
     return forces
 
 
-def highest_frequency2(x0, mass, tets, ifs, exposed_k, carried=None) -> tuple[float, float, int]:
+def highest_frequency2(x0, mass, tets, ifs, exposed_k, carried=None, cluster=None) -> tuple[float, float, int]:
     """omega_max^2 (1/s^2) of the linearised FDEM step (linearised_forces, the interfaces
     `carried`) with the per-node springs exposed_k (N/m) on the diagonal, by Lanczos: (value +
-    residual bound, residual bound, iterations), as solver.stability.highest_frequency2."""
+    residual bound, residual bound, iterations), as solver.stability.highest_frequency2. With
+    `cluster` (per node, its cluster numbered from 0): the nodes of a cluster move as one (tied),
+    with their masses and springs summed."""
     spacing = float(np.cbrt(np.median(tets.vol)))  # the probe's scale (any: the forces are linear)
-    return stability.highest_frequency2(x0, mass, linearised_forces(x0, tets, ifs, carried), spacing, exposed_k,
-                                        linear=True)
+    forces = linearised_forces(x0, tets, ifs, carried)
+    if cluster is None:
+        return stability.highest_frequency2(x0, mass, forces, spacing, exposed_k, linear=True)
+    n_clusters = int(cluster.max()) + 1
+    first = np.zeros(n_clusters, dtype=np.int64)
+    first[cluster[::-1]] = np.arange(len(cluster))[::-1]  # a member of each cluster: its position
+    node_forces = np.zeros((len(x0), 3))
+
+    def cluster_forces(xc, out):
+        forces(xc[cluster], node_forces)
+        for c in range(3):
+            out[:, c] = np.bincount(cluster, node_forces[:, c], minlength=n_clusters)
+
+    return stability.highest_frequency2(x0[first], np.bincount(cluster, mass, minlength=n_clusters), cluster_forces,
+                                        spacing, np.bincount(cluster, exposed_k, minlength=n_clusters), linear=True)
 
 
 # A tool needs to be stiff only against what it presses on: the surface layer of tets and
