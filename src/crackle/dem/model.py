@@ -11,7 +11,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..solver.body import body_arrays
-from .kernels import BONDED, CONTACT, GONE, JOINT, Interactions, Particles
+from .kernels import BONDED, CONTACT, GONE, JOINT, TRANSFER_COLUMNS, Interactions, Particles
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
 # other particles separate.
@@ -95,7 +95,7 @@ def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: n
         cohesion=np.where(bonded, law.cohesion * area, 0.0),
         tan_phi=tan_phi,
         shear=np.zeros((k, 3)) if shear is None else shear,
-        force=np.zeros((k, 3)), moment=np.zeros((k, 3)), lever=np.zeros((k, 2)),
+        transfer=np.zeros((k, TRANSFER_COLUMNS)),
         fail_time=np.full(k, np.nan), fail_mode=np.zeros(k, dtype=np.int8),
         e_damage=np.zeros(k), e_friction=np.zeros(k), start=start, entry=entry, sign=sign,
         **(joints or _no_joints(k)),
@@ -155,11 +155,11 @@ def with_joints(particles: Particles, inter: Interactions, joint: Joint) -> Inte
 
 
 def _particle_csr(n: int, a: np.ndarray, b: np.ndarray):
-    """Per particle, its interactions in interaction order, with sign -1 as a and +1 as b."""
+    """Per particle, its interactions in interaction order, with sign -1 as a and +1 as b (int8)."""
     k = len(a)
     ends = np.concatenate([a, b])
     ids = np.concatenate([np.arange(k), np.arange(k)])
-    signs = np.concatenate([-np.ones(k), np.ones(k)])
+    signs = np.concatenate([-np.ones(k, dtype=np.int8), np.ones(k, dtype=np.int8)])
     order = np.lexsort((ids, ends))
     start = np.zeros(n + 1, dtype=np.int64)
     np.add.at(start, ends + 1, 1)

@@ -9,7 +9,7 @@ import numpy as np
 from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
-from .kernels import BONDED, GONE, advance
+from .kernels import BONDED, GONE, TRANSFER_FORCE, TRANSFER_LEVER_A, TRANSFER_LEVER_B, advance
 from .model import with_contacts
 
 
@@ -153,9 +153,9 @@ class DemSimulation(SimulationBase):
         d = p.x[b] - p.x[a]
         dist = np.linalg.norm(d, axis=1)
         unit = d / dist[:, None]
-        f_b = s.force[live]
-        la = s.lever[live, 0][:, None]
-        lb = s.lever[live, 1][:, None]
+        f_b = s.transfer[live, TRANSFER_FORCE:TRANSFER_FORCE + 3]
+        la = s.transfer[live, TRANSFER_LEVER_A][:, None]
+        lb = s.transfer[live, TRANSFER_LEVER_B][:, None]
         sigma = np.zeros((n, 3, 3))
         # On a: branch +la n, force -f_b; on b: branch -lb n, force +f_b. Both give -l n (x) f_b.
         np.add.at(sigma, a, -np.einsum("ki,kj->kij", la * unit, f_b))
@@ -230,7 +230,7 @@ class DemSimulation(SimulationBase):
         n = self.n_bonds
         d = p.x[s.b[:n]] - p.x[s.a[:n]]
         unit = d / np.linalg.norm(d, axis=1)[:, None]
-        force = np.where((s.state[:n] == GONE)[:, None], 0.0, s.force[:n])  # on b
+        force = np.where((s.state[:n] == GONE)[:, None], 0.0, s.transfer[:n, TRANSFER_FORCE:TRANSFER_FORCE + 3])  # on b
         along = np.einsum("ij,ij->i", force, unit)
         # A stretched bond pulls b back towards a: a force on b against the unit vector is tension.
         return -along, np.linalg.norm(force - along[:, None] * unit, axis=1)
