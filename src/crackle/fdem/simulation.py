@@ -84,7 +84,7 @@ class FdemSimulation(SimulationBase):
                 # Stops after a step that inserted a face: the next ones need the stable step.
                 done, inserted = advance(n, self.steps, dt, m.nodes, m.tets, m.ifs, self.contact, m.tools, m.pressures,
                                          m.controls, m.ties, -1.0, True)
-                self.steps += done
+                self.steps += int(done)
                 if inserted:
                     self._end_tied_phase(dt)
                 continue
