@@ -38,8 +38,8 @@ def _tet_pass(dt, nodes, tets, ifs, contact, tools, ctrl, ties):
     v_next = np.zeros((max(tools.kind.shape[0], 1), 3))
     for blk in prange((n_tet + kernels.TET_BLOCK - 1) // kernels.TET_BLOCK):
         lo = blk * kernels.TET_BLOCK
-        kernels._tet_block(lo, min(lo + kernels.TET_BLOCK, n_tet), np.int64(blk), dt, dt, nodes, tets, ifs, contact, tools,
-                           pressure_now, v_prev, v_next, ctrl, ties)
+        kernels._tet_block(lo, min(lo + kernels.TET_BLOCK, n_tet), np.int64(blk), dt, dt, nodes, tets, ifs, contact,
+                           tools, pressure_now, v_prev, v_next, ctrl, ties)
 
 
 @njit(parallel=True)

@@ -153,7 +153,8 @@ def _conforming_omega2(model) -> float:
         u = np.zeros((n, 3))
         u.flat[col] = 1e-9
         forces(model.x0 + u[cluster], out)
-        stiffness[:, col] = -np.stack([np.bincount(cluster, out[:, c], minlength=n) for c in range(3)], axis=1).ravel() / 1e-9
+        summed = np.stack([np.bincount(cluster, out[:, c], minlength=n) for c in range(3)], axis=1)
+        stiffness[:, col] = -summed.ravel() / 1e-9
     inv_sqrt_m = np.repeat(1.0 / np.sqrt(mass), 3)
     return float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T) * np.outer(inv_sqrt_m, inv_sqrt_m))[-1])
 
@@ -161,8 +162,9 @@ def _conforming_omega2(model) -> float:
 def test_tied_step_is_the_conforming_meshs_and_at_least_twice_the_step():
     """While every face is tied the bar is the conforming tet mesh: the tied step (Lanczos on the
     clusters of copies) is STEP_MARGIN x 2 / omega_max of that mesh's dense eigensolve within
-    0.1 % (measured 0.02 % longer), so below the stable limit 2 / omega_max, and here 2.44 x the step with the faces carrying their soft penalty
-    (measured 1,020 vs 418 ns), so a driver step holds 2 of them."""
+    0.1 % (measured 0.02 % longer), so below the stable limit 2 / omega_max, and here 2.44 x
+    the step with the faces carrying their soft penalty (measured 1,020 vs 418 ns), so a driver
+    step holds 2 of them."""
     w1, period = _first_mode()
     model = _bar(rock(insertion="extrinsic"), History.ramp(-1e6, 0.5 * period), 0.0)
     exact = STEP_MARGIN * 2.0 / math.sqrt(_conforming_omega2(model))

@@ -230,7 +230,8 @@ class DemSimulation(SimulationBase):
         n = self.n_bonds
         d = p.x[s.b[:n]] - p.x[s.a[:n]]
         unit = d / np.linalg.norm(d, axis=1)[:, None]
-        force = np.where((s.state[:n] == GONE)[:, None], 0.0, s.transfer[:n, TRANSFER_FORCE:TRANSFER_FORCE + 3])  # on b
+        on_b = s.transfer[:n, TRANSFER_FORCE:TRANSFER_FORCE + 3]
+        force = np.where((s.state[:n] == GONE)[:, None], 0.0, on_b)
         along = np.einsum("ij,ij->i", force, unit)
         # A stretched bond pulls b back towards a: a force on b against the unit vector is tension.
         return -along, np.linalg.norm(force - along[:, None] * unit, axis=1)

@@ -59,8 +59,8 @@ Ties = namedtuple(
 # Columns of ties.load, the one record per node that the tet pass writes for the node pass: the
 # internal force, the external force (pressure, gravity), the tools' contact force and its work,
 # and the node's mass. One row per node, not five arrays: the node pass gathers the copies of a
-# mesh point from scattered nodes, and a row costs two cache lines where five arrays cost seven
-# (measured: the node pass was the extrinsic step's largest, benchmarks/fdem_passes.py).
+# mesh point from scattered nodes, and fewer cache lines per copy make the extrinsic step 3-5 %
+# faster at 50k tets (benchmarks/fdem_passes.py; docs/validation.md).
 LOAD_FORCE, LOAD_EXTERNAL, LOAD_TOOL, LOAD_TOOL_WORK, LOAD_MASS = 0, 3, 6, 9, 10
 LOAD_COLUMNS = 11
 

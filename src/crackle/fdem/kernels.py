@@ -207,8 +207,9 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
                ctrl, ties):
     """Tets lo..hi-1: bulk forces, gathered interface forces, pressures, tool contact (forces
     on the tools into their `slot`), damping, gravity and the central-difference update of each
-    tet's own 4 nodes (velocity by `kick`, position by dt: advance). With tied faces (clusters, ties.load not empty) the update is the node
-    pass's (extrinsic.cluster_block): the forces and the mass go to its ties.load rows instead."""
+    tet's own 4 nodes (velocity by `kick`, position by dt: advance). With tied faces (clusters,
+    ties.load not empty) the update is the node pass's (extrinsic.cluster_block): the forces and
+    the mass go to its ties.load rows instead."""
     x, v, mass = nodes.x, nodes.v, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
@@ -305,9 +306,10 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     """Run n_steps central-difference steps from step number first_step (time first_step x dt:
     the same times however a run is split into calls); arrays are updated in place. Returns the
     steps taken and whether the last one inserted an extrinsic face: with stop_on_insertion, the
-    call stops after the first step that did. first_kick (s, if positive): the first step's velocity update spans that
-    time instead of dt: (old + new) / 2 where the step changes (v(t + dt_new / 2) =
-    v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2, the central difference with unequal steps)."""
+    call stops after the first step that did. first_kick (s, if positive): the first step's
+    velocity update spans that time instead of dt: (old + new) / 2 where the step changes
+    (v(t + dt_new / 2) = v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2, the central difference
+    with unequal steps)."""
     n_if = ifs.na.shape[0]
     clustered = ties.load.shape[0] > 0
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
