@@ -3,10 +3,12 @@
 import os
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
-    # The suite runs in two worker processes (pyproject's addopts: -n 2), one per core: each steps
-    # with one numba thread and lets it sleep between parallel loops, so the two never fight for a
-    # core (the thread-count comparisons start their own processes with 1 and 2 threads).
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    # The suite runs in worker processes (pyproject's addopts: -n auto), one per core: each steps
+    # with one numba thread and lets it sleep between parallel loops, so they never fight for a
+    # core (the thread-count comparisons start their own processes with 1 and 2 threads). Set, not
+    # defaulted: a worker inherits the controller's ACTIVE (below), and two workers spinning two
+    # threads each on two cores made every test ~3x slower (a 1,307 s suite).
+    os.environ["OMP_WAIT_POLICY"] = "PASSIVE"
     import numba
 
     numba.set_num_threads(1)
@@ -43,6 +45,15 @@ SLOW_TESTS = {
     "test_fast_impact_fragments_with_energy_balance", "test_scaled_run_keeps_the_energy_balance",
     "test_interrupted_run_resumed_is_bit_identical",
 }
+
+
+def pytest_runtest_teardown(item):
+    # A test that sets numba's thread count (a sweep's run on this thread, a 1-and-2-thread
+    # comparison) leaves the worker on one thread again, for the tests after it.
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import numba
+
+        numba.set_num_threads(1)
 
 
 def pytest_collection_modifyitems(config, items):

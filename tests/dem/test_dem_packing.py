@@ -359,10 +359,11 @@ def test_paper_density_packing_overlaps_and_starts_unloaded(monkeypatch):
 
     domain = Box([0.0, 0.0, 0.0], [0.027, 0.012, 0.054])
     packs = []
+    before = numba.get_num_threads()
     for threads in (1, 2):
         numba.set_num_threads(threads)
         packs.append(pack_spheres(domain, mean_radius=7.5e-4, particle_density=1.47, seed=1))
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    numba.set_num_threads(before)
     p = packs[0]
     assert p.centers.tobytes() == packs[1].centers.tobytes() and p.radii.tobytes() == packs[1].radii.tobytes()
     n, mean_d = len(p.radii), 2.0 * float(p.radii.mean())

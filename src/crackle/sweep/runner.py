@@ -44,6 +44,7 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
     from ..api import run_scenario
     from ..solver import UnstableRunError
 
+    caller_threads = numba.get_num_threads()  # given back after the run (a run on the caller's thread)
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
         try:
@@ -58,6 +59,8 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
         return {"status": "unstable", "message": str(err)}
     except Exception as err:  # noqa: BLE001 - any error is this run's row, not the sweep's end
         return {"status": "failed", "message": f"{type(err).__name__}: {err}"}
+    finally:
+        numba.set_num_threads(caller_threads)
     return {"status": result.summary["status"], "message": result.summary.get("message", "")}
 
 
