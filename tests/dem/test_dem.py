@@ -99,6 +99,36 @@ def test_shear_failure_at_cohesion_plus_friction(side):
         assert math.hypot(f[1], f[2]) == pytest.approx(fn * math.tan(LAW.friction_angle), rel=1e-6)
 
 
+def test_a_rigidly_turning_pair_carries_its_shear_force_along():
+    """Objectivity: a bonded pair turning as a rigid body (spins equal to the orbit's rate, so
+    the contact point does not slide) keeps its shear force, turned with the pair. A quarter
+    turn about z at 1e-4 rad a step (a fragment spinning at 1e4 rad/s at a 10 ns step): the
+    force along +y on the pair along +x ends along -x, its magnitude within 1e-4 and its
+    direction within 1e-4 rad, and stays in the tangent plane (normal part below 1e-9 of it)."""
+    from crackle.dem.kernels import advance
+
+    sim = _pair()
+    p, inter = sim.particles, sim.inter
+    shear = 0.1 * LAW.cohesion * AINT
+    inter.shear[0] = (0.0, shear, 0.0)
+    turn, n_steps = 0.5 * math.pi, 15708
+    rate, dt = 1e4, 1e-8
+    half = 0.5 * (sim.x0[1] - sim.x0[0])
+    centre = sim.x0[0] + half
+    for step in range(1, n_steps + 1):
+        angle = turn * step / n_steps
+        c, s = math.cos(angle), math.sin(angle)
+        arm = np.array([c * half[0] - s * half[1], s * half[0] + c * half[1], 0.0])
+        p.x[0], p.x[1] = centre - arm, centre + arm
+        p.v[0], p.v[1] = -np.cross((0.0, 0.0, rate), arm), np.cross((0.0, 0.0, rate), arm)
+        p.spin[:] = (0.0, 0.0, rate)
+        advance(1, step, dt, p, inter, sim.tools, sim.gravity, 0.0)
+    f = inter.shear[0]
+    assert np.linalg.norm(f) == pytest.approx(shear, rel=1e-4)
+    assert math.atan2(abs(f[1]), -f[0]) < 1e-4 and abs(f[2]) < 1e-9 * shear
+    assert abs(f @ arm) / np.linalg.norm(arm) < 1e-9 * shear
+
+
 def test_velocity_support_pulls_a_bond_to_t_aint():
     """Sphere a held by a fixed support, sphere b by a fixed support moving along +x (a velocity
     boundary condition, its reaction read by its grip's load cell). Started at 0.999 of the
