@@ -425,3 +425,21 @@ def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
     assert "KeyboardInterrupt" not in err
     assert all("site-packages/distributed" in tb for tb in err.split("Traceback")[1:]), err
     assert f"sweep interrupted: the finished runs are kept in {out}" in err
+
+
+def test_a_run_on_the_callers_thread_gives_its_thread_count_back(tmp_path):
+    """run_one sets numba's thread count for its run; afterwards the caller has its own count
+    again, whether the run finished or was refused (here: an unknown scenario, status
+    "invalid"), so a sweep run on the caller's thread leaves the caller's later work as it was."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        row = run_one("no-such-scenario", str(tmp_path / "run"), {}, quick=True, threads=2)
+        assert row["status"] == "invalid"
+        assert numba.get_num_threads() == 1
+    finally:
+        numba.set_num_threads(before)
