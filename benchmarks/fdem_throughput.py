@@ -169,13 +169,14 @@ def machine_idle_percent(seconds: float = 1.0) -> float | None:
 
 
 def model_bytes(model) -> int:
-    """Bytes of every numpy array in the model's state tuples, plus x0."""
+    """Bytes of every numpy array in the model's state tuples, plus x0, each array once (without
+    tied faces the ties' na_at / nb_at are ifs.na / nb themselves)."""
     import numpy as np
 
-    total = model.x0.nbytes
+    arrays = {id(model.x0): model.x0}
     for group in (model.nodes, model.tets, model.ifs, model.tools, model.pressures, model.controls, model.ties):
-        total += sum(a.nbytes for a in group if isinstance(a, np.ndarray))
-    return total
+        arrays.update((id(a), a) for a in group if isinstance(a, np.ndarray))
+    return sum(a.nbytes for a in arrays.values())
 
 
 def contact_bytes(sim) -> int:

@@ -229,3 +229,32 @@ def test_a_run_split_across_the_end_of_the_tied_phase_is_the_same_bit_for_bit():
         states.append((model.nodes.x.copy(), model.nodes.v.copy(), model.ifs.damage.copy()))
     for a, b in zip(*states):
         assert np.array_equal(a, b)
+
+
+def test_clusters_move_on_their_leaders_and_every_copy_follows_when_advance_returns():
+    """Within a call of advance a tied cluster's motion lives on its leader's row only
+    (extrinsic.state_row); a cluster that splits hands its state to its copies first, and every
+    copy gets its leader's state when the call returns. The pulled bar through its insertions and
+    the break, in calls of 7 steps against one call: bit-identical positions, velocities and
+    damage; after each call every copy's x and v equal its leader's exactly."""
+    w1, period = _first_mode()
+    ramp = 2.0 * period
+    states = []
+    for calls_of in (None, 7):
+        model = _bar(rock(insertion="extrinsic"), History.ramp(-2.0 * FT, ramp), 0.5 * w1)
+        sim = FdemSimulation(model)
+        dt = 0.8 * sim.stable_dt
+        total = int(2.0 * ramp / dt)
+        done = 0
+        while done < total:
+            n = total - done if calls_of is None else min(calls_of, total - done)
+            sim.advance(n, dt)
+            done += n
+            leader = model.ties.leader
+            assert np.array_equal(model.nodes.x, model.nodes.x[leader])
+            assert np.array_equal(model.nodes.v, model.nodes.v[leader])
+        assert (model.ifs.state == 1).sum() == 16  # the bar broke: clusters split
+        assert len(np.unique(leader)) > len(np.unique(model.ties.node_vertex))
+        states.append((model.nodes.x.copy(), model.nodes.v.copy(), model.ifs.damage.copy()))
+    for a, b in zip(*states):
+        assert np.array_equal(a, b)

@@ -35,6 +35,7 @@ from numba import njit, prange
 
 from ..loading.friction import coulomb_update
 from ..loading.tools import BARY_TOL
+from .extrinsic import state_row
 from .topology import FACE_CORNERS, INTACT, face_corners, twice_area_vector
 
 # Depth, as a fraction of the half tet height, beyond which a new contact starts unloaded.
@@ -214,7 +215,7 @@ def candidates(x, c, skin, out):
 
 
 @njit(cache=True, inline="always")
-def _paired_and_near(g, t, x, ifs, c):
+def _paired_and_near(g, t, x, ifs, c, leader):
     """True if triangle t is the partner face of node g's failed interface and the pair is still
     within reach (the interface's own paired contact then acts)."""
     i = c.tri_iface[t]
@@ -227,15 +228,17 @@ def _paired_and_near(g, t, x, ifs, c):
         elif ifs.nb[i, p] == g:
             partner = ifs.na[i, p]
         if partner >= 0:
-            dx = x[g, 0] - x[partner, 0]
-            dy = x[g, 1] - x[partner, 1]
-            dz = x[g, 2] - x[partner, 2]
+            rg = state_row(g, leader)
+            rp = state_row(partner, leader)
+            dx = x[rg, 0] - x[rp, 0]
+            dy = x[rg, 1] - x[rp, 1]
+            dz = x[rg, 2] - x[rp, 2]
             return dx * dx + dy * dy + dz * dz <= ifs.reach[i] * ifs.reach[i]
     return False
 
 
 @njit(cache=True, inline="always")
-def _node_normal(g, x, tets, ifs):
+def _node_normal(g, x, tets, ifs, leader):
     """Outward normal (not normalised) of node g's own surface: the sum of the area vectors of
     its tet's surface faces that contain it."""
     e = g // 4
@@ -250,7 +253,8 @@ def _node_normal(g, x, tets, ifs):
         if i >= 0 and ifs.state[i] == INTACT:
             continue
         c0, c1, c2 = face_corners(f)
-        ax, ay, az = twice_area_vector(x, 4 * e + c0, 4 * e + c1, 4 * e + c2)
+        ax, ay, az = twice_area_vector(x, state_row(4 * e + c0, leader), state_row(4 * e + c1, leader),
+                                       state_row(4 * e + c2, leader))
         nx += ax
         ny += ay
         nz += az
@@ -261,20 +265,23 @@ def _node_normal(g, x, tets, ifs):
 def contact_forces(dt, x, v, tets, ifs, c):
     """Narrow phase and forces for every surface node, then the reaction lists (tests use this;
     the step loop calls node_contact itself)."""
+    no_clusters = np.zeros(0, dtype=np.int64)
     for s in prange(c.counts[1]):
-        node_contact(np.int64(s), dt, x, v, tets, ifs, c)
+        node_contact(np.int64(s), dt, x, v, tets, ifs, c, no_clusters)
     reaction_lists(c)
 
 
 @njit(cache=True)
-def node_contact(s, dt, x, v, tets, ifs, c):
+def node_contact(s, dt, x, v, tets, ifs, c, leader):
     """Narrow phase and force for surface slot s: one contact per node, the least penetrated
-    triangle it lies over."""
+    triangle it lies over. Positions and velocities are read at the nodes' state rows (`leader`:
+    Ties.leader, see fdem.extrinsic.state_row)."""
     pen = c.penalty[0]
     g = c.slot_node[s]
+    rg = state_row(g, leader)
     # Only surfaces that face each other (normals more than 120 degrees apart) touch: this keeps
     # a node from being caught by a face at right angles to the one it crossed.
-    mx, my, mz = _node_normal(g, x, tets, ifs)
+    mx, my, mz = _node_normal(g, x, tets, ifs, leader)
     m_len = math.sqrt(mx * mx + my * my + mz * mz)
     best = -1
     best_gap = -np.inf
@@ -285,9 +292,9 @@ def node_contact(s, dt, x, v, tets, ifs, c):
     bnz = 0.0
     for j in range(c.cand_start[s], c.cand_start[s + 1]):
         t = c.cand_tri[j]
-        a = c.tri_nodes[t, 0]
-        b = c.tri_nodes[t, 1]
-        q = c.tri_nodes[t, 2]
+        a = state_row(c.tri_nodes[t, 0], leader)
+        b = state_row(c.tri_nodes[t, 1], leader)
+        q = state_row(c.tri_nodes[t, 2], leader)
         ux = x[b, 0] - x[a, 0]
         uy = x[b, 1] - x[a, 1]
         uz = x[b, 2] - x[a, 2]
@@ -303,9 +310,9 @@ def node_contact(s, dt, x, v, tets, ifs, c):
         nx /= nn
         ny /= nn
         nz /= nn
-        rx = x[g, 0] - x[a, 0]
-        ry = x[g, 1] - x[a, 1]
-        rz = x[g, 2] - x[a, 2]
+        rx = x[rg, 0] - x[a, 0]
+        ry = x[rg, 1] - x[a, 1]
+        rz = x[rg, 2] - x[a, 2]
         gap = rx * nx + ry * ny + rz * nz
         if gap >= 0.0 or gap < -c.tri_depth[t] or gap <= best_gap:
             continue
@@ -329,7 +336,7 @@ def node_contact(s, dt, x, v, tets, ifs, c):
         l0 = min(max(l0, 0.0), 1.0)
         l1 = min(max(l1, 0.0), 1.0 - l0)
         l2 = 1.0 - l0 - l1
-        if _paired_and_near(g, t, x, ifs, c):
+        if _paired_and_near(g, t, x, ifs, c, leader):
             continue
         best = t
         best_gap = gap
@@ -361,16 +368,16 @@ def node_contact(s, dt, x, v, tets, ifs, c):
     c.contact_gap[s] = gap
     k = pen * c.slot_area[s]
     fn = -k * gap
-    a = c.tri_nodes[best, 0]
-    b = c.tri_nodes[best, 1]
-    q = c.tri_nodes[best, 2]
+    a = state_row(c.tri_nodes[best, 0], leader)
+    b = state_row(c.tri_nodes[best, 1], leader)
+    q = state_row(c.tri_nodes[best, 2], leader)
     # Slip velocity of the node relative to the triangle's material point under it.
     mu = 0.5 * (c.tet_mu[g // 4] + c.tet_mu[c.tri_tet[best]])
     tx, ty, tz, lost = coulomb_update(
         c.tangential[s, 0], c.tangential[s, 1], c.tangential[s, 2], bnx, bny, bnz,
-        v[g, 0] - (bw0 * v[a, 0] + bw1 * v[b, 0] + bw2 * v[q, 0]),
-        v[g, 1] - (bw0 * v[a, 1] + bw1 * v[b, 1] + bw2 * v[q, 1]),
-        v[g, 2] - (bw0 * v[a, 2] + bw1 * v[b, 2] + bw2 * v[q, 2]),
+        v[rg, 0] - (bw0 * v[a, 0] + bw1 * v[b, 0] + bw2 * v[q, 0]),
+        v[rg, 1] - (bw0 * v[a, 1] + bw1 * v[b, 1] + bw2 * v[q, 1]),
+        v[rg, 2] - (bw0 * v[a, 2] + bw1 * v[b, 2] + bw2 * v[q, 2]),
         dt, k, mu * fn,
     )
     c.d_friction[g] += lost

@@ -31,6 +31,13 @@ it shows as negative dissipation, bounded by e_inserted (summary.json: insertion
 Every step stays deterministic for any thread count: insertions are decided per face from the
 previous step's stresses, the clusters of the touched mesh points are regrouped serially, and
 the node pass runs over mesh points (each owns its copies).
+
+Within kernels.advance a cluster's motion lives on its leader's row of x and v only: every
+reader in the step reads a node's state at `state_row` (the interfaces through na_at / nb_at),
+so the node pass writes one row per cluster instead of one per copy (about 20 copies a mesh
+point: the copies' scattered writes were half the node pass at 50k tets). The copies are given
+their leader's state where a cluster splits and when advance returns, so that everything outside
+the step (outputs, audits, the contact broad phase) reads every copy.
 """
 
 from __future__ import annotations
@@ -53,8 +60,11 @@ FREE, TIED, RELEASED = 0, 1, 2
 
 Ties = namedtuple(
     "Ties",
-    "tied vertex_ptr vertex_nodes member_leader node_vertex partner partner_iface leader tet_stress load",
+    "tied vertex_ptr vertex_nodes member_leader node_vertex partner partner_iface leader na_at nb_at tet_stress load",
 )
+# leader: each node's cluster leader (itself when free), the row of x and v that holds its state
+# within a step; na_at / nb_at: ifs.na / ifs.nb through leader, for the interface pass. Without
+# tied faces leader is empty and na_at / nb_at are ifs.na / ifs.nb themselves.
 
 # Columns of ties.load, the one record per node that the tet pass writes for the node pass: the
 # internal force, the external force (pressure, gravity), the tools' contact force and its work,
@@ -76,7 +86,7 @@ def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.n
     if not tied.any():
         empty_i = np.zeros(0, dtype=np.int64)
         return Ties(tied, np.zeros(1, dtype=np.int64), empty_i, empty_i, empty_i, np.zeros((0, 3), np.int64),
-                    np.zeros((0, 3), np.int64), empty_i, np.zeros((0, 6)), np.zeros((0, LOAD_COLUMNS)))
+                    np.zeros((0, 3), np.int64), empty_i, na, nb, np.zeros((0, 6)), np.zeros((0, LOAD_COLUMNS)))
     order = np.lexsort((np.arange(n_nodes), corner_point))
     vertex_ptr = np.zeros(n_points + 1, dtype=np.int64)
     np.add.at(vertex_ptr, corner_point + 1, 1)
@@ -100,25 +110,35 @@ def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.n
         partner=partner,
         partner_iface=partner_iface,
         leader=np.arange(n_nodes, dtype=np.int64),
+        na_at=na.copy(),
+        nb_at=nb.copy(),
         tet_stress=np.zeros((n_tets, 6)),
         load=np.zeros((n_nodes, LOAD_COLUMNS)),
     )
-    regroup_all(ties)
+    regroup_all(ties, na, nb)
     return ties
 
 
+@njit(cache=True, inline="always")
+def state_row(g, leader):
+    """The row of x and v that holds node g's motion within a step: its cluster's leader's (g
+    itself when it is free or nothing is tied, `leader` then empty)."""
+    return leader[g] if leader.shape[0] > 0 else g
+
+
 @njit(cache=True)
-def regroup_all(ties):
+def regroup_all(ties, na, nb):
     for vertex in range(ties.vertex_ptr.shape[0] - 1):
-        regroup(vertex, ties)
+        regroup(vertex, ties, na, nb)
 
 
 @njit(cache=True)
-def regroup(vertex, ties):
+def regroup(vertex, ties, na, nb):
     """Clusters of the copies of one mesh point: connected through tied faces; each copy's leader
     is the lowest node of its cluster, and the copies are kept sorted by (leader, node) so that a
     cluster is a contiguous run of vertex_nodes (member_leader: the leader of each entry, read in
-    order by the node pass)."""
+    order by the node pass). The interface points of the copies (na, nb) read their leader's row
+    from then on (na_at, nb_at)."""
     lo, hi = ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]
     nodes, leader, tied = ties.vertex_nodes, ties.leader, ties.tied
     for j in range(lo, hi):
@@ -146,7 +166,38 @@ def regroup(vertex, ties):
             k -= 1
         nodes[k + 1] = g
     for j in range(lo, hi):
-        ties.member_leader[j] = leader[nodes[j]]
+        g = nodes[j]
+        ties.member_leader[j] = leader[g]
+        for k in range(3):
+            i = ties.partner_iface[g, k]
+            if i < 0:
+                continue
+            for p in range(3):
+                if na[i, p] == g:
+                    ties.na_at[i, p] = leader[g]
+                elif nb[i, p] == g:
+                    ties.nb_at[i, p] = leader[g]
+
+
+@njit(cache=True, inline="always")
+def copies_from_leader(vertex, ties, x, v):
+    """Give every copy of a mesh point its cluster leader's position and velocity."""
+    nodes, member_leader = ties.vertex_nodes, ties.member_leader
+    for j in range(ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]):
+        g = nodes[j]
+        lead = member_leader[j]
+        if g == lead:
+            continue
+        for d in range(3):
+            x[g, d] = x[lead, d]
+            v[g, d] = v[lead, d]
+
+
+@block_kernel
+def copies_block(lo, hi, ties, x, v):
+    """copies_from_leader for mesh points lo..hi-1 (when kernels.advance returns)."""
+    for vertex in range(lo, hi):
+        copies_from_leader(vertex, ties, x, v)
 
 
 @njit(cache=True, inline="always")
@@ -200,13 +251,11 @@ def _utilisation(tn, ts, law):
 
 
 @njit(cache=True, inline="always")
-def face_traction(i, na, nb, tet_stress, nx, ny, nz, law):
-    """Normal traction (tension positive) and shear traction vector on interface i, on the normal
-    n (from side A to side B), that its insertion is checked with, and whether it meets the
-    criterion: the more critical of its two tets' (law[LAW_SAMPLING] = SAMPLE_EITHER) or their
-    mean stress's (SAMPLE_MEAN)."""
-    ta = na[i, 0] // 4
-    tb = nb[i, 0] // 4
+def face_traction(ta, tb, tet_stress, nx, ny, nz, law):
+    """Normal traction (tension positive) and shear traction vector on the face between tets ta
+    (side A) and tb, on the normal n (from side A to side B), that its insertion is checked with,
+    and whether it meets the criterion: the more critical of its two tets' (law[LAW_SAMPLING] =
+    SAMPLE_EITHER) or their mean stress's (SAMPLE_MEAN)."""
     if law[LAW_SAMPLING] == SAMPLE_MEAN:
         tn, sx, sy, sz = tet_traction(ta, tet_stress, nx, ny, nz, 0.5, tb)
         return tn, sx, sy, sz, _reaches(tn, sx * sx + sy * sy + sz * sz, law)
@@ -222,13 +271,14 @@ def face_traction(i, na, nb, tet_stress, nx, ny, nz, law):
 
 
 @njit(cache=True, inline="always")
-def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_inserted, tied, tet_stress, law,
-               pn, ps, nx, ny, nz):
-    """Insert tied interface i if the traction of its tets reaches the law's strength (face_traction): its law
-    state then carries that traction (clamped on the strength envelope; no normal compression) at
-    zero gap, and the energy that state holds is booked against e_damage[i] and kept in
-    e_inserted[i]. True when inserted."""
-    tn, sx, sy, sz, reached = face_traction(i, na, nb, tet_stress, nx, ny, nz, law)
+def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_inserted, tied, tet_stress,
+               law, pn, ps, nx, ny, nz):
+    """Insert tied interface i between tets ta (side A) and tb if the traction of its tets reaches
+    the law's strength (face_traction): its law state then carries that traction (clamped on the
+    strength envelope; no normal compression) at zero gap, and the energy that state holds is
+    booked against e_damage[i] and kept in e_inserted[i]. True when inserted. x is read at the
+    rows na, nb (Ties.na_at, nb_at within a step)."""
+    tn, sx, sy, sz, reached = face_traction(ta, tb, tet_stress, nx, ny, nz, law)
     if not reached:
         return False
     ts = math.sqrt(sx * sx + sy * sy + sz * sz)
@@ -258,9 +308,10 @@ def try_insert(i, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_i
 
 
 @njit(cache=True)
-def regroup_released(ties, na, released_blocks, block):
+def regroup_released(ties, na, nb, x, v, released_blocks, block):
     """After an interface pass that inserted faces: regroup the clusters of their mesh points, in
-    interface order (serial, so the result does not depend on the threads). True if any was."""
+    interface order (serial, so the result does not depend on the threads), each copy first taking
+    its old leader's state (x at t, v at t - dt / 2) for its new cluster. True if any was."""
     tied = ties.tied
     n_if = tied.shape[0]
     inserted = False
@@ -273,16 +324,19 @@ def regroup_released(ties, na, released_blocks, block):
             if tied[i] == RELEASED:
                 tied[i] = FREE
                 for p in range(3):
-                    regroup(ties.node_vertex[na[i, p]], ties)
+                    vertex = ties.node_vertex[na[i, p]]
+                    copies_from_leader(vertex, ties, x, v)
+                    regroup(vertex, ties, na, nb)
     return inserted
 
 
 @block_kernel
 def cluster_block(lo, hi, slot, dt, kick, nodes, ties, ctrl, tools, tool_v_next):
     """Mesh points lo..hi-1: each cluster of copies gets the summed mass and forces of its
-    members (their ties.load rows), one central-difference update on its leader (velocity by
-    `kick`, position by dt: kernels.advance), and the members take its velocity and move with it.
-    A moving support's reaction goes to the tools' force `slot` of this block."""
+    members (their ties.load rows) and one central-difference update on its leader's row
+    (velocity by `kick`, position by dt: kernels.advance), which holds the cluster's motion (the
+    copies' rows are written when advance returns: copies_block). A moving support's reaction
+    goes to the tools' force `slot` of this block."""
     x, v = nodes.x, nodes.v
     ptr, members, member_leader, load = ties.vertex_ptr, ties.vertex_nodes, ties.member_leader, ties.load
     alpha = ctrl.damping[0]
@@ -311,15 +365,4 @@ def cluster_block(lo, hi, slot, dt, kick, nodes, ties, ctrl, tools, tool_v_next)
             update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, kick, tools,
                             tool_v_next, slot)
             move(lead, x, v, dt)
-            # Held in locals: stores into v[g] would otherwise reload the leader's (aliasing).
-            vx, vy, vz = v[lead, 0], v[lead, 1], v[lead, 2]
-            px, py, pz = x[lead, 0], x[lead, 1], x[lead, 2]
-            for r in range(j, k):
-                g = members[r]
-                v[g, 0] = vx
-                v[g, 1] = vy
-                v[g, 2] = vz
-                x[g, 0] = px
-                x[g, 1] = py
-                x[g, 2] = pz
             j = k

@@ -25,7 +25,7 @@ from ..loading.tools import contact_with_tools, interp_history, load_cell_step, 
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_MASS, LOAD_TOOL, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
-                        regroup_released, try_insert)
+                        copies_block, regroup_released, state_row, try_insert)
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
@@ -71,9 +71,11 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     """Interfaces lo..hi-1 (block blk): kinematics, the insertion check of tied (extrinsic) faces,
     Guo-Munjiza or bilinear law or (once failed) paired penalty contact with Coulomb friction; the
     force on each B-side node into ifs.force (A gets its negative). A block that inserted a face
-    flags itself in released_blocks."""
+    flags itself in released_blocks. Positions and velocities are read at the points' state rows
+    (ties.na_at, nb_at: a tied cluster's leader)."""
     # Unpacked once per block: attribute access per element costs reference counting.
-    na, nb, area, pn_all, ps_all = ifs.na, ifs.nb, ifs.area, ifs.pn, ifs.ps
+    na, nb, area, pn_all, ps_all = ties.na_at, ties.nb_at, ifs.area, ifs.pn, ifs.ps
+    na_copy, nb_copy = ifs.na, ifs.nb
     state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
     slip_plastic, dn_shift = ifs.slip_plastic, ifs.dn_shift
     tied, tet_stress = ties.tied, ties.tet_stress
@@ -91,8 +93,8 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         if tied[i] == TIED:
             # A tied face carries no force; once its tets' traction reaches the strength it is
             # inserted and carries its law from this step on.
-            if not try_insert(i, x, na, nb, area[i], damage, slip_plastic, dn_shift, e_damage, ifs.e_inserted, tied,
-                              tet_stress, law, pn, ps, nx, ny, nz):
+            if not try_insert(i, na_copy[i, 0] // 4, nb_copy[i, 0] // 4, x, na, nb, area[i], damage, slip_plastic,
+                              dn_shift, e_damage, ifs.e_inserted, tied, tet_stress, law, pn, ps, nx, ny, nz):
                 continue
             released = True
         if state[i] == INTACT and intact_step(
@@ -122,20 +124,22 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
 
 
 @njit(cache=True, inline="always")
-def _tet_forces(e, x, dm_inv, vol, lam, mu, f, tet_stress, keep_stress):
-    """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes); with keep_stress its
-    Kirchhoff stress P F^T (xx, yy, zz, xy, yz, xz) into tet_stress[e], for the insertion check."""
+def _tet_forces(e, x, rows, dm_inv, vol, lam, mu, f, tet_stress, keep_stress):
+    """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes), its corners' positions
+    read at x[rows[k]]; with keep_stress its Kirchhoff stress P F^T (xx, yy, zz, xy, yz, xz) into
+    tet_stress[e], for the insertion check."""
     n0 = 4 * e
-    x0, y0, z0 = x[n0, 0], x[n0, 1], x[n0, 2]
-    a11 = x[n0 + 1, 0] - x0
-    a21 = x[n0 + 1, 1] - y0
-    a31 = x[n0 + 1, 2] - z0
-    a12 = x[n0 + 2, 0] - x0
-    a22 = x[n0 + 2, 1] - y0
-    a32 = x[n0 + 2, 2] - z0
-    a13 = x[n0 + 3, 0] - x0
-    a23 = x[n0 + 3, 1] - y0
-    a33 = x[n0 + 3, 2] - z0
+    r0, r1, r2, r3 = rows
+    x0, y0, z0 = x[r0, 0], x[r0, 1], x[r0, 2]
+    a11 = x[r1, 0] - x0
+    a21 = x[r1, 1] - y0
+    a31 = x[r1, 2] - z0
+    a12 = x[r2, 0] - x0
+    a22 = x[r2, 1] - y0
+    a32 = x[r2, 2] - z0
+    a13 = x[r3, 0] - x0
+    a23 = x[r3, 1] - y0
+    a33 = x[r3, 2] - z0
     m00, m01, m02 = dm_inv[e, 0, 0], dm_inv[e, 0, 1], dm_inv[e, 0, 2]
     m10, m11, m12 = dm_inv[e, 1, 0], dm_inv[e, 1, 1], dm_inv[e, 1, 2]
     m20, m21, m22 = dm_inv[e, 2, 0], dm_inv[e, 2, 1], dm_inv[e, 2, 2]
@@ -219,12 +223,15 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
     alpha = ctrl.damping[0]
     clustered = ties.load.shape[0] > 0
-    tet_stress, load = ties.tet_stress, ties.load
+    tet_stress, load, leader = ties.tet_stress, ties.load, ties.leader
     # The internal forces go straight into the node pass's rows (their first 3 columns).
     f = load if clustered else nodes.force
     for e in range(lo, hi):
-        _tet_forces(e, x, dm_inv, vol, lam, mu, f, tet_stress, clustered)
         n0 = 4 * e
+        # Where each corner's motion is held: its cluster leader's row (extrinsic.state_row).
+        rows = (state_row(n0, leader), state_row(n0 + 1, leader), state_row(n0 + 2, leader),
+                state_row(n0 + 3, leader))
+        _tet_forces(e, x, rows, dm_inv, vol, lam, mu, f, tet_stress, clustered)
         # Faces without an intact interface, as bits: where pressures act and tools can touch.
         free_faces = 0
         for face in range(4):
@@ -260,7 +267,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
                     continue
                 # Follower pressure on the current face, pushing into the tet; a third per corner.
                 c0, c1, c2 = face_corners(face)
-                ax, ay, az = twice_area_vector(x, n0 + c0, n0 + c1, n0 + c2)
+                ax, ay, az = twice_area_vector(x, rows[c0], rows[c1], rows[c2])
                 scale = -pressure_now[pid] / 6.0  # area vector / 2, shared by 3 corners
                 ex += scale * ax
                 ey += scale * ay
@@ -274,7 +281,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
             work = 0.0
             # A node on a free face (any but face k) may touch a tool, with its fixed contact area.
             if free_faces & ~(1 << k):
-                cx, cy, cz, work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
+                cx, cy, cz, work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next, rows[k])
             # Node-to-surface contact between free surfaces: internal to the specimen.
             if any_contact and node_slot[g] >= 0:
                 sx, sy, sz = gathered_contact_force(g, contact)
@@ -309,7 +316,8 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     call stops after the first step that did. first_kick (s, if positive): the first step's
     velocity update spans that time instead of dt: (old + new) / 2 where the step changes
     (v(t + dt_new / 2) = v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2, the central difference
-    with unequal steps)."""
+    with unequal steps). With tied faces a cluster's motion is held on its leader's row within the
+    call (extrinsic.state_row) and every copy gets it when the call returns."""
     n_if = ifs.na.shape[0]
     clustered = ties.load.shape[0] > 0
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
@@ -323,6 +331,8 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     released_blocks = np.zeros(n_if_blocks, dtype=np.uint8)
+    taken = n_steps
+    stopped = False
     for step in range(n_steps):
         t = (first_step + step) * dt
         kick = first_kick if step == 0 and first_kick > 0.0 else dt
@@ -333,10 +343,11 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
             lo = blk * INTERFACE_BLOCK
             _interface_block(lo, min(lo + INTERFACE_BLOCK, n_if), np.int64(blk), t, dt, nodes.x, nodes.v, ifs, ties,
                              released_blocks)
-        inserted = clustered and regroup_released(ties, ifs.na, released_blocks, INTERFACE_BLOCK)
+        inserted = clustered and regroup_released(ties, ifs.na, ifs.nb, nodes.x, nodes.v, released_blocks,
+                                                  INTERFACE_BLOCK)
         if n_slot > 0:
             for s in prange(n_slot):
-                node_contact(np.int64(s), dt, nodes.x, nodes.v, tets, ifs, contact)
+                node_contact(np.int64(s), dt, nodes.x, nodes.v, tets, ifs, contact, ties.leader)
             reaction_lists(contact)
         for blk in prange(n_tet_blocks):
             lo = blk * TET_BLOCK
@@ -351,8 +362,16 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
         if inserted and stop_on_insertion:
-            return step + 1, True
-    return n_steps, False
+            taken = step + 1
+            stopped = True
+            break
+    if clustered:
+        # The step moved the leaders' rows only: every copy gets its cluster's state back.
+        n_vertex = ties.vertex_ptr.shape[0] - 1
+        for blk in prange(n_vertex_blocks):
+            lo = blk * VERTEX_BLOCK
+            copies_block(lo, min(lo + VERTEX_BLOCK, n_vertex), ties, nodes.x, nodes.v)
+    return taken, stopped
 
 
 @njit(parallel=True, cache=True)

@@ -288,11 +288,13 @@ def seat_points(tools, seated, body):
 
 
 @njit(cache=True, inline="always")
-def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next):
+def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next, row=-1):
     """Penalty contact of point g of `body` (solver.body.Body's fields: position at time t,
     velocity over the half step before t, contact radius and area) against every tool; returns
     the total force on the point and the work the driven tools did on it over the step (free
-    tools: free_tool_work).
+    tools: free_tool_work). The point's position and velocity are read at `row` when it is given
+    (an FDEM node copy in a tied cluster: its leader's row, fdem.extrinsic.state_row), at g
+    otherwise.
 
     The penalty per point is the tool's penalty (N/m^3) times `area`. Only the first tool touched
     carries Coulomb friction, with a stick spring of the normal stiffness; its tangential force
@@ -310,12 +312,13 @@ def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next):
     end that pulls as well as pushes (direct tension)."""
     node_tool, node_offset, friction = body.tool, body.tool_offset, body.friction
     force_slots = tools.force_slots
-    vx, vy, vz = body.v[g, 0], body.v[g, 1], body.v[g, 2]
+    at = g if row < 0 else row
+    vx, vy, vz = body.v[at, 0], body.v[at, 1], body.v[at, 2]
     area = body.area[g]
     prev = node_tool[g]
     if prev >= 0 and tools.glue[prev] > 0.0:
         return _glued_tie(g, vx, vy, vz, area, dt, slot, tools, force_slots, tool_v_prev, tool_v_next, prev, friction)
-    px, py, pz = body.x[g, 0], body.x[g, 1], body.x[g, 2]
+    px, py, pz = body.x[at, 0], body.x[at, 1], body.x[at, 2]
     radius = contact_radius(body, g)
     cx = 0.0
     cy = 0.0
