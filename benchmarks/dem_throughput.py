@@ -8,8 +8,10 @@ parameters, between two frictionless box platens; the top one moves down at 0.1 
 platens press on the sample while the step is timed (elastic range: no bond breaks in the timed
 steps). dt = 0.7 x the stable step.
 
-Procedure, per size: pack (timed: `packing_s`), build, warm up (the first call compiles or loads
-the numba cache), then time `--steps` steps `--repeats` times and keep the median. Each size runs
+Procedure, per size: pack (timed: `packing_s`; the packing is kept in `--packing-cache`, keyed by
+its arguments and the packing code's source, so that a later run with the same ones loads it:
+`packing_s` is then the load's), build, warm up (the first call compiles or loads the numba
+cache), then time `--steps` steps `--repeats` times and keep the median. Each size runs
 in its own Python process, so that `peak_rss_mb` belongs to that size alone.
 
 Output: one line per size, then one JSON object on the last line:
@@ -39,16 +41,37 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 
-def one_size(n_particles: int, steps: int, repeats: int, particle_density: float) -> dict:
+def cached_packing(domain, cache_dir: str, **kwargs):
+    """pack_spheres(domain, **kwargs), kept as centres and radii in cache_dir under a key of the
+    arguments and dem/packing.py's source (the same seed packs the same spheres bit for bit)."""
+    import hashlib
+    from pathlib import Path
+
+    from crackle.dem import packing as packing_module
+    from crackle.dem.packing import Packing, pack_spheres
+
+    key = hashlib.sha1(Path(packing_module.__file__).read_bytes())
+    key.update(repr((domain.lo.tolist(), domain.hi.tolist(), sorted(kwargs.items()))).encode())
+    path = Path(cache_dir) / f"packing-{key.hexdigest()[:16]}.npz"
+    if path.exists():
+        return Packing.load(path)
+    packing = pack_spheres(domain, **kwargs)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    packing.save(path)
+    return packing
+
+
+def one_size(n_particles: int, steps: int, repeats: int, particle_density: float, cache_dir: str) -> dict:
     import numba
     import numpy as np
 
     from crackle.dem.build import build_dem_simulation
     from crackle.dem.model import BondLaw
-    from crackle.dem.packing import Box, pack_spheres
+    from crackle.dem.packing import Box
     from crackle.loading import History, Tool
 
     mean_radius = 1e-3
@@ -59,8 +82,8 @@ def one_size(n_particles: int, steps: int, repeats: int, particle_density: float
         volume = n_particles * 4.0 / 3.0 * math.pi * mean_radius**3 * 1.05 / 0.6
     side = (volume / 2.0) ** (1.0 / 3.0)
     started = time.perf_counter()
-    packing = pack_spheres(Box(np.zeros(3), np.array([side, side, 2 * side])), porosity=0.4,
-                           mean_radius=mean_radius, seed=1, particle_density=particle_density or None)
+    packing = cached_packing(Box(np.zeros(3), np.array([side, side, 2 * side])), cache_dir, porosity=0.4,
+                             mean_radius=mean_radius, seed=1, particle_density=particle_density or None)
     packing_s = time.perf_counter() - started
     plate = (3 * side, 3 * side, 10 * mean_radius)
     top = Tool("top", "box", (0.0, 0.0, -1.0), History.ramp(0.1, 1e-5),
@@ -109,10 +132,12 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=None, help="numba threads (default: numba's)")
     parser.add_argument("--particle-density", type=float, default=1.47,
                         help="spheres per cubed mean diameter (0: porosity 0.40 without overlaps)")
+    parser.add_argument("--packing-cache", default=os.path.join(tempfile.gettempdir(), "crackle-bench-packings"),
+                        help="folder of packed samples kept between runs (default: in the temp folder)")
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one size
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(one_size(args.one, args.steps, args.repeats, args.particle_density)))
+        print(json.dumps(one_size(args.one, args.steps, args.repeats, args.particle_density, args.packing_cache)))
         return
     env = dict(os.environ)
     if args.threads:
@@ -120,7 +145,8 @@ def main() -> None:
     rows = []
     for n in args.sizes:
         proc = subprocess.run([sys.executable, __file__, "--one", str(n), "--steps", str(args.steps), "--repeats",
-                               str(args.repeats), "--particle-density", str(args.particle_density)],
+                               str(args.repeats), "--particle-density", str(args.particle_density),
+                               "--packing-cache", args.packing_cache],
                               env=env, capture_output=True, text=True, check=True)
         row = json.loads(proc.stdout.strip().splitlines()[-1])
         rows.append(row)
