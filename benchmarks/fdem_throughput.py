@@ -39,6 +39,7 @@ Examples:
     python benchmarks/fdem_throughput.py --sizes 50000 --repeats 5 --seconds 2 --breakdown
     python benchmarks/fdem_throughput.py --law bilinear --sizes 13000 50000   # paper-004 walnut law
     python benchmarks/fdem_throughput.py --insertion extrinsic --sizes 50000   # tied faces, node pass
+    python benchmarks/fdem_throughput.py --mesh gmsh --sizes 50000             # unstructured, Morton-ordered
 """
 
 from __future__ import annotations
@@ -78,6 +79,9 @@ def parse_args(argv=None):
     p.add_argument("--steps", type=int, default=None, help="fixed step count per repeat (overrides --seconds)")
     p.add_argument("--cell", type=float, default=4e-3,
                    help="cell edge of the structured box in m (default 4 mm; 24 tets per cell)")
+    p.add_argument("--mesh", choices=("structured", "gmsh"), default="structured",
+                   help="the beam meshed by structured_box (default) or by gmsh (unstructured, the same "
+                        "box, its element size set for about the --sizes tet count)")
     p.add_argument("--breakdown", action="store_true",
                    help="also time the interface pass alone (interface_forces)")
     p.add_argument("--in-process", action="store_true",
@@ -114,7 +118,21 @@ def material(law: str, insertion: str = "intrinsic"):
     return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0, insertion=insertion), name="rock")
 
 
-def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: str = "intrinsic"):
+def gmsh_beam(size, target_tets: int):
+    """The box meshed by gmsh with about target_tets tets: meshed once at a guessed element size,
+    then again at the size scaled by the cube root of the count's ratio; in the order a scenario's
+    gmsh mesh gets (locality_order)."""
+    from crackle.geometry import gmsh_box
+    from crackle.geometry.meshes import locality_order
+
+    h = (size[0] * size[1] * size[2] * 6.0 / target_tets) ** (1.0 / 3.0)
+    mesh = gmsh_box(size, h)
+    h *= (len(mesh.tets) / target_tets) ** (1.0 / 3.0)
+    return locality_order(gmsh_box(size, h))[0], h
+
+
+def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: str = "intrinsic",
+          mesh_kind: str = "structured"):
     """Four-point bending of a beam: model and time step."""
     from crackle.fdem.model import build_fdem_model
     from crackle.geometry import structured_box
@@ -123,16 +141,21 @@ def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: st
     rock = material(law, insertion)
     nx, ny, nz = beam_cells(target_tets)
     L, W, H = nx * cell, ny * cell, nz * cell
-    mesh = structured_box((L, W, H), cell)
+    if mesh_kind == "gmsh":
+        mesh, h = gmsh_beam((L, W, H), target_tets)
+        reach = 0.5 * h  # the line supports take the bottom nodes within half an element
+    else:
+        mesh = structured_box((L, W, H), cell)
+        reach = 1e-3 * cell
 
     tol = 1e-3 * cell
     # Line supports along y on the bottom face, one cell in from each end.
     xs_left, xs_right = (cell, L - cell) if nx >= 3 else (0.0, L)
     supports = [
         Support("fixed", Selection(plane_point=(0, 0, 0), plane_normal=(0, 0, 1),
-                                   box_min=(xs_left - tol, -1, -1), box_max=(xs_left + tol, 1, 1), tol=tol)),
+                                   box_min=(xs_left - reach, -1, -1), box_max=(xs_left + reach, 1, 1), tol=tol)),
         Support("roller", Selection(plane_point=(0, 0, 0), plane_normal=(0, 0, 1),
-                                    box_min=(xs_right - tol, -1, -1), box_max=(xs_right + tol, 1, 1), tol=tol),
+                                    box_min=(xs_right - reach, -1, -1), box_max=(xs_right + reach, 1, 1), tol=tol),
                 normal=(0.0, 0.0, 1.0)),
     ]
     # Two platens at the thirds, resting on the top face (bottom face at z = H), wider than the
@@ -203,7 +226,7 @@ def run_size(target_tets: int, args) -> dict:
     from crackle.fdem.simulation import FdemSimulation
 
     t_build = time.perf_counter()
-    model, dt, cells = build(target_tets, args.cell, args.law, args.insertion)
+    model, dt, cells = build(target_tets, args.cell, args.law, args.insertion, args.mesh)
     sim = FdemSimulation(model)
     build_s = time.perf_counter() - t_build
 
@@ -245,7 +268,10 @@ def run_size(target_tets: int, args) -> dict:
         "insertion": args.insertion,
         "contact_bytes_per_tet": contact_bytes(sim) / n_tets,
         "cells": list(cells),
+        "mesh": args.mesh,
         "dt": dt,
+        # An extrinsic run's tied phase (0: none): the step while every face is tied.
+        "tied_dt": float(model.time_step.tied_dt),
         # Time to solution: simulated time per second of wall time at the run's step (0.8 x the
         # stable one): what a longer stable step buys at the same cost per step.
         "simulated_us_per_s": 1e6 * dt / seconds_per_step,
@@ -289,7 +315,7 @@ def human_line(r: dict) -> str:
         f"{r['tets']:>8d} tets {r['interfaces']:>8d} ifaces | {r['steps']:>5d} steps x{len(r['repeat_seconds'])} | "
         f"{r['seconds_per_step'] * 1e3:8.3f} ms/step | {r['tet_steps_per_s'] / 1e6:6.2f} M tet-steps/s | "
         f"{r['bytes_per_tet']:6.0f} B/tet | peak RSS {r['peak_rss_mb']:7.1f} MB | {r['threads']} threads | "
-        f"{r['tool_contact_nodes']} nodes on tools | step {r['dt'] * 1e9:.3g} ns, "
+        f"{r['tool_contact_nodes']} nodes on tools | step {r['dt'] * 1e9:.3g} ns (tied {r['tied_dt'] * 1e9:.3g}), "
         f"{r['simulated_us_per_s']:.3g} us simulated per s | at least {100 * r['bandwidth_fraction']:.0f} % of the "
         f"{r['bandwidth_gb_s']:.1f} GB/s triad bandwidth"
     )
@@ -310,7 +336,7 @@ def busy_warning(r: dict) -> str | None:
 def child_argv(size: int, args) -> list[str]:
     argv = [sys.executable, os.path.abspath(__file__), "--_child", "--sizes", str(size),
             "--repeats", str(args.repeats), "--seconds", str(args.seconds), "--cell", str(args.cell),
-            "--law", args.law, "--insertion", args.insertion]
+            "--law", args.law, "--insertion", args.insertion, "--mesh", args.mesh]
     if args.threads is not None:
         argv += ["--threads", str(args.threads)]
     if args.steps is not None:
