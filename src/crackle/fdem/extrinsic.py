@@ -67,12 +67,12 @@ Ties = namedtuple(
 # tied faces leader is empty and na_at / nb_at are ifs.na / ifs.nb themselves.
 
 # Columns of ties.load, the one record per node that the tet pass writes for the node pass: the
-# internal force, the external force (pressure, gravity), the tools' contact force and its work,
-# and the node's mass. One row per node, not five arrays: the node pass gathers the copies of a
-# mesh point from scattered nodes, and fewer cache lines per copy make the extrinsic step 3-5 %
-# faster at 50k tets (benchmarks/fdem_passes.py; docs/validation.md).
-LOAD_FORCE, LOAD_EXTERNAL, LOAD_TOOL, LOAD_TOOL_WORK, LOAD_MASS = 0, 3, 6, 9, 10
-LOAD_COLUMNS = 11
+# force (internal and the tools' contact: the integrator only sums them), the external force
+# (pressure, gravity: its work is booked at the node's motion), the tools' work, and the node's
+# mass. One 64-byte row per node, not five arrays: the node pass gathers the copies of a mesh
+# point from scattered nodes, one cache line each (docs/validation.md).
+LOAD_FORCE, LOAD_EXTERNAL, LOAD_TOOL_WORK, LOAD_MASS = 0, 3, 6, 7
+LOAD_COLUMNS = 8
 
 # Mesh points per block of the node pass.
 VERTEX_BLOCK = 1024
@@ -345,7 +345,7 @@ def cluster_block(lo, hi, slot, dt, kick, nodes, ties, ctrl, tools, tool_v_next)
         end = ptr[vertex + 1]
         while j < end:
             lead = member_leader[j]
-            fx = fy = fz = ex = ey = ez = cx = cy = cz = work = m = 0.0
+            fx = fy = fz = ex = ey = ez = work = m = 0.0
             k = j
             while k < end and member_leader[k] == lead:
                 # Indexed, not a row view: a view costs more here (measured 1.5x the pass).
@@ -356,13 +356,10 @@ def cluster_block(lo, hi, slot, dt, kick, nodes, ties, ctrl, tools, tool_v_next)
                 ex += load[g, LOAD_EXTERNAL]
                 ey += load[g, LOAD_EXTERNAL + 1]
                 ez += load[g, LOAD_EXTERNAL + 2]
-                cx += load[g, LOAD_TOOL]
-                cy += load[g, LOAD_TOOL + 1]
-                cz += load[g, LOAD_TOOL + 2]
                 work += load[g, LOAD_TOOL_WORK]
                 m += load[g, LOAD_MASS]
                 k += 1
-            update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), work, m, alpha, kick, tools,
+            update_velocity(lead, nodes, (fx, fy, fz), (ex, ey, ez), (0.0, 0.0, 0.0), work, m, alpha, kick, tools,
                             tool_v_next, slot)
             move(lead, x, v, dt)
             j = k

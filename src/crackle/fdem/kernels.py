@@ -24,7 +24,7 @@ from ..loading.friction import coulomb_update
 from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
-from .extrinsic import (LOAD_EXTERNAL, LOAD_MASS, LOAD_TOOL, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
+from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
                         copies_block, regroup_released, state_row, try_insert)
 from .interface import mid_normal, opening
 from .laws import LAW_MU, intact_energy, intact_step
@@ -292,9 +292,9 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
                 load[g, LOAD_EXTERNAL] = ex
                 load[g, LOAD_EXTERNAL + 1] = ey
                 load[g, LOAD_EXTERNAL + 2] = ez
-                load[g, LOAD_TOOL] = cx
-                load[g, LOAD_TOOL + 1] = cy
-                load[g, LOAD_TOOL + 2] = cz
+                load[g, LOAD_FORCE] += cx
+                load[g, LOAD_FORCE + 1] += cy
+                load[g, LOAD_FORCE + 2] += cz
                 load[g, LOAD_TOOL_WORK] = work
                 load[g, LOAD_MASS] = m
                 continue
