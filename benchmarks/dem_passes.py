@@ -15,7 +15,6 @@ would allow.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import sys
@@ -28,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).parent))
-from dem_throughput import cached_packing  # noqa: E402
+from dem_throughput import build_sample  # noqa: E402
 
 from crackle.dem import kernels  # noqa: E402
 
@@ -94,28 +93,6 @@ def _particle_floor(particles, inter, out):
             out[g] = s
 
 
-def build(n_particles: int):
-    from crackle.dem.build import build_dem_simulation
-    from crackle.dem.model import BondLaw
-    from crackle.dem.packing import Box
-    from crackle.loading import History, Tool
-
-    # dem_throughput.py's sample and platens (its one_size), from its packing cache.
-    mean_radius = 1e-3
-    side = (n_particles * (2.0 * mean_radius) ** 3 / 1.47 / 2.0) ** (1.0 / 3.0)
-    packing = cached_packing(Box(np.zeros(3), np.array([side, side, 2 * side])),
-                             os.path.join(tempfile.gettempdir(), "crackle-bench-packings"), porosity=0.4,
-                             mean_radius=mean_radius, seed=1, particle_density=1.47)
-    plate = (3 * side, 3 * side, 10 * mean_radius)
-    top = Tool("top", "box", (0.0, 0.0, -1.0), History.ramp(0.1, 1e-5),
-               center=(0.5 * side, 0.5 * side, 2 * side + 5 * mean_radius), size=plate)
-    bottom = Tool("bottom", "box", (0.0, 0.0, 1.0), History.constant(0.0),
-                  center=(0.5 * side, 0.5 * side, -5 * mean_radius), size=plate)
-    law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
-    return build_dem_simulation(packing.centers, packing.radii, 2500.0, law, bonds_per_particle=12.0,
-                                tools=[top, bottom], damping=0.2)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--particles", type=int, default=100_000, help="about this many particles")
@@ -126,7 +103,7 @@ def main() -> None:
 
         numba.set_num_threads(args.threads)
     warnings.simplefilter("ignore")
-    sim = build(args.particles)
+    sim = build_sample(args.particles, 1.47, os.path.join(tempfile.gettempdir(), "crackle-bench-packings"))[0]
     dt = 0.7 * sim.stable_dt
     sim.advance(20, dt)
     p, inter = sim.particles, sim.inter

@@ -65,8 +65,10 @@ def cached_packing(domain, cache_dir: str, **kwargs):
     return packing
 
 
-def one_size(n_particles: int, steps: int, repeats: int, particle_density: float, cache_dir: str) -> dict:
-    import numba
+def build_sample(n_particles: int, particle_density: float, cache_dir: str):
+    """The benchmark's sample: n spheres packed in a 1 x 1 x 2 box at the density (or at porosity
+    0.4 with particle_density 0), bonded with paper 003's Table 1 law between two platens, the top
+    one moving down. Returns the simulation, the packing and the seconds the packing took."""
     import numpy as np
 
     from crackle.dem.build import build_dem_simulation
@@ -75,7 +77,6 @@ def one_size(n_particles: int, steps: int, repeats: int, particle_density: float
     from crackle.loading import History, Tool
 
     mean_radius = 1e-3
-    # A box 1 x 1 x 2 holding n spheres at the density, or at porosity 0.4.
     if particle_density > 0.0:
         volume = n_particles * (2.0 * mean_radius) ** 3 / particle_density
     else:
@@ -93,6 +94,13 @@ def one_size(n_particles: int, steps: int, repeats: int, particle_density: float
     law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
     sim = build_dem_simulation(packing.centers, packing.radii, 2500.0, law, bonds_per_particle=12.0,
                                tools=[top, bottom], damping=0.2)
+    return sim, packing, packing_s
+
+
+def one_size(n_particles: int, steps: int, repeats: int, particle_density: float, cache_dir: str) -> dict:
+    import numba
+
+    sim, packing, packing_s = build_sample(n_particles, particle_density, cache_dir)
     dt = 0.7 * sim.stable_dt
     sim.advance(20, dt)  # compile or load the cache
     times = []
