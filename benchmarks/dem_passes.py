@@ -15,10 +15,8 @@ would allow.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -27,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).parent))
-from dem_throughput import build_sample  # noqa: E402
+from dem_throughput import PACKING_CACHE, PARTICLE_DENSITY, build_sample  # noqa: E402
 
 from crackle.dem import kernels  # noqa: E402
 
@@ -103,7 +101,7 @@ def main() -> None:
 
         numba.set_num_threads(args.threads)
     warnings.simplefilter("ignore")
-    sim = build_sample(args.particles, 1.47, os.path.join(tempfile.gettempdir(), "crackle-bench-packings"))[0]
+    sim = build_sample(args.particles, PARTICLE_DENSITY, PACKING_CACHE)[0]
     dt = 0.7 * sim.stable_dt
     sim.advance(20, dt)
     p, inter = sim.particles, sim.inter

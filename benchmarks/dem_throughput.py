@@ -44,6 +44,10 @@ import sys
 import tempfile
 import time
 
+# Paper 003's packing density (spheres per cubed mean diameter) and where packed samples are kept.
+PARTICLE_DENSITY = 1.47
+PACKING_CACHE = os.path.join(tempfile.gettempdir(), "crackle-bench-packings")
+
 
 def cached_packing(domain, cache_dir: str, **kwargs):
     """pack_spheres(domain, **kwargs), kept as centres and radii in cache_dir under a key of the
@@ -138,9 +142,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200, help="steps per timed repeat")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None, help="numba threads (default: numba's)")
-    parser.add_argument("--particle-density", type=float, default=1.47,
+    parser.add_argument("--particle-density", type=float, default=PARTICLE_DENSITY,
                         help="spheres per cubed mean diameter (0: porosity 0.40 without overlaps)")
-    parser.add_argument("--packing-cache", default=os.path.join(tempfile.gettempdir(), "crackle-bench-packings"),
+    parser.add_argument("--packing-cache", default=PACKING_CACHE,
                         help="folder of packed samples kept between runs (default: in the temp folder)")
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one size
     args = parser.parse_args()

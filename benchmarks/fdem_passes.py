@@ -3,8 +3,9 @@
 
 Per insertion mode: build, run 200 steps (contact under the platens), then time the interface
 pass, the tet pass, (extrinsic) the node pass over the tied clusters, each 10 calls, and the
-whole step, 10 calls of 10 steps, 5 rounds interleaved; prints the median and the rounds in ms. Each pass alone runs on
-the current state (the tet pass of an intrinsic model also moves the nodes: harmless for timing).
+whole step, 10 calls of 10 steps, 5 rounds interleaved; prints the median and the rounds in ms.
+Each pass alone runs on the current state (the tet pass of an intrinsic model also moves the
+nodes: harmless for timing).
 
     python benchmarks/fdem_passes.py                # 2 threads by default (numba's)
     python benchmarks/fdem_passes.py --tets 13000

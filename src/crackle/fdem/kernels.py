@@ -224,7 +224,8 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
     alpha = ctrl.damping[0]
     clustered = ties.load.shape[0] > 0
     tet_stress, load, leader = ties.tet_stress, ties.load, ties.leader
-    # The internal forces go straight into the node pass's rows (their first 3 columns).
+    # With clusters the forces (internal, interfaces', contact, tools') go straight into the node
+    # pass's rows (their first 3 columns).
     f = load if clustered else nodes.force
     for e in range(lo, hi):
         n0 = 4 * e
