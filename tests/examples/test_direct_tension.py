@@ -148,7 +148,7 @@ def test_paper_law_carries_the_face_orientation_bias(tmp_path):
     section: the same quick bar peaks at 1.296 ft intrinsic (1.3-1.6 ft at every size and
     orientation measured: docs/validation.md, "Strength objectivity"). Checked: above 1.2 ft."""
     result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
-        "material.interface.mixed_mode=mohr-coulomb", "run.field_frames=0"])
+        "material.interface.mixed_mode=paper", "run.field_frames=0"])
     ratio = result.summary["tensile_strength_ratio"]
     print(f"paper 001's law: tensile_strength_ratio {ratio:.3f} (measured 1.296)")
     assert ratio > 1.2

@@ -106,14 +106,14 @@ class GuoMunjizaLaw:
     opens when the more critical reaches the strength, as an intrinsic face's corners feel the more loaded side)
     or "mean" (the traction of the two tets' mean stress, which smooths a concentration under a platen away:
     docs/validation.md, "Strength objectivity")"""
-    mixed_mode: Literal["mohr-coulomb", "effective"] = "mohr-coulomb"
-    """how tension and shear combine on an opening face: "mohr-coulomb" (paper 001: the normal curve and the
-    Mohr-Coulomb shear cap act apart, so a face inclined to the pull opens only when its own normal traction
-    reaches ft) or "effective" (Camacho-Ortiz: in tension the tractions stay within the ellipse
-    (tn / ft)^2 + (ts / (shear_ratio ft))^2 <= z(D)^2, the damage follows the effective opening
-    sqrt(dn^2 + shear_ratio^2 ds^2) alone, and the shear penalty is shear_ratio^2 p_n, so both describe one
-    point: a face opens when the magnitude of its traction reaches ft, whatever its orientation;
-    docs/validation.md, "Strength objectivity")"""
+    mixed_mode: Literal["effective", "paper"] = "effective"
+    """how tension and shear combine on an opening face: "effective" (the default; Camacho-Ortiz: in tension
+    the tractions stay within the ellipse (tn / ft)^2 + (ts / (shear_ratio ft))^2 <= z(D)^2, the damage follows
+    the effective opening sqrt(dn^2 + shear_ratio^2 ds^2) alone, and the shear penalty is shear_ratio^2 p_n, so
+    a face opens when the magnitude of its traction reaches ft, whatever its orientation) or "paper" (paper
+    001's literal law: the normal curve and the Mohr-Coulomb shear cap act apart, so a face inclined to the
+    pull opens only when its own normal traction reaches ft; on an unstructured mesh, where a crack zigzags
+    over inclined faces, a specimen then reads 1.3-1.9 ft: docs/validation.md, "Strength objectivity")"""
     shear_ratio: Positive = 1.0
     """mixed_mode = "effective": beta, the shear strength of an opening face over ft (1: the face opens when
     the magnitude of its traction reaches ft)"""
