@@ -4,7 +4,8 @@ The two-tet `Cell` of tests/fdem/test_fdem_law.py: one interface, openings presc
 B face, the law evaluated by `interface_forces` (no time stepping). The expected numbers are
 written out here from the law's definition, independently of src:
 
-* tractions kn dn, ks ds up to initiation at max(<tn>/tn0, ts/ts0) = 1;
+* tractions kn dn, ks ds up to initiation at (<tn>/tn0)^2 + (ts/ts0)^2 = 1 (the default), or
+  max(<tn>/tn0, ts/ts0) = 1 (initiation = "maximum");
 * effective opening dm = sqrt(<dn>^2 + ds^2), K = (kn <dn>^2 + ks ds^2) / dm^2,
   d0 = initiation opening on the path, df = 2 Gc / (K d0); a full failure dissipates Gc per area;
 * mixed mode from B = G_II / G_T = ks ds^2 / (kn dn^2 + ks ds^2): BK Gc = GIc + (GIIc - GIc) B^eta,
@@ -234,22 +235,26 @@ def gc_power(b, alpha=2.0):
     return (((1.0 - b) / GIC) ** alpha + (b / GIIC) ** alpha) ** (-1.0 / alpha)
 
 
-@pytest.mark.parametrize("rule", ["bk", "power"])
-def test_mixed_mode_45_degrees_dissipates_mixed_gc(rule):
-    """dn = ds (45 degrees), monotonic to failure, BK (eta 1.45) and power law (alpha 2).
+@pytest.mark.parametrize("rule, initiation", [("bk", "quadratic"), ("power", "quadratic"), ("bk", "maximum"),
+                                              ("power", "maximum")])
+def test_mixed_mode_45_degrees_dissipates_mixed_gc(rule, initiation):
+    """dn = ds (45 degrees), monotonic to failure, BK (eta 1.45) and power law (alpha 2), each
+    with both initiation criteria.
 
     Energy ratio B = ks / (kn + ks) = 0.3204; Gc = 910.1 J/m^2 (BK) or 1101.2 J/m^2 (power).
-    d0 from max(kn d / tn0, ks d / ts0) = 1, K = (kn + ks) / 2 per unit dm^2, df = 2 Gc / (K d0).
-    Checks: e_damage at failure and traction work = Gc A within 2 %; failure at dm = df (within a
-    step); fail_mode 3 (mixed); peak normal traction = tn0 (the normal criterion governs here)
-    within 1 %.
+    d0 from sqrt((kn d / tn0)^2 + (ks d / ts0)^2) = 1 (quadratic: the peak normal traction is then
+    0.9496 tn0) or max(kn d / tn0, ks d / ts0) = 1 (maximum: tn0, the normal criterion governs),
+    K = (kn + ks) / 2 per unit dm^2, df = 2 Gc / (K d0). Checks: e_damage at failure and traction
+    work = Gc A within 2 %; failure at dm = df (within a step); fail_mode 3 (mixed); the peak
+    normal traction kn c d0 within 1 %.
     """
-    cell = Cell(shell(mixed_mode=rule))
+    cell = Cell(shell(mixed_mode=rule, initiation=initiation))
     b = KS / (KN + KS)
     gc = gc_bk(b) if rule == "bk" else gc_power(b)
     # along the path d = dm: dn = ds = dm / sqrt(2)
     c = 1.0 / math.sqrt(2.0)
-    f_per_dm = max(KN * c / TN0, KS * c / TS0)
+    f_n, f_s = KN * c / TN0, KS * c / TS0
+    f_per_dm = max(f_n, f_s) if initiation == "maximum" else math.hypot(f_n, f_s)
     d0 = 1.0 / f_per_dm
     k_eff = 0.5 * (KN + KS)
     df = 2.0 * gc / (k_eff * d0)
@@ -262,7 +267,7 @@ def test_mixed_mode_45_degrees_dissipates_mixed_gc(rule):
     assert work / gc == pytest.approx(1.0, rel=0.02)
     assert path[k_fail] >= df * (1.0 - 1e-9) and path[k_fail - 1] < df
     assert cell.ifs.fail_mode[0] == 3
-    assert sig.max() == pytest.approx(TN0, rel=0.01)
+    assert sig.max() == pytest.approx(KN * c * d0, rel=0.01)
 
 
 def test_friction_after_failure_uses_ks_and_mu():

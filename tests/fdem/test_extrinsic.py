@@ -192,6 +192,17 @@ def _break_bar(monkeypatch, tied_phase: bool):
     return sim, dt, first
 
 
+def _section_failures(model) -> np.ndarray:
+    """The failed faces normal to the bar's axis: the section it breaks on. (After the break the
+    free end cell is pulled by the pressure's rise to 2 f_t, and with the default law its inclined
+    faces, which carry 0.71 of the pull in traction, fail as well: 32 more failures, not the
+    break.)"""
+    failed = np.flatnonzero(model.ifs.state == 1)
+    corners = model.x0[model.ifs.na[failed]]
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return failed[np.abs(normal[:, 0]) > 0.99 * np.linalg.norm(normal, axis=1)]
+
+
 def test_the_tied_phase_gives_the_same_break_with_half_the_steps(monkeypatch):
     """The pulled bar with its tied phase (2 stable steps at once until the first insertion, then
     each one sub-stepped twice) against the same bar stepped at the stable step throughout: the
@@ -204,10 +215,9 @@ def test_the_tied_phase_gives_the_same_break_with_half_the_steps(monkeypatch):
     assert ref.stable_dt == pytest.approx(0.5 * sim.stable_dt, rel=1e-12)
     assert first == pytest.approx(ref_first, rel=2e-3)
     for s, step in ((sim, dt), (ref, ref_dt)):
-        failed = s.model.ifs.state == 1
-        assert failed.sum() == 16
+        assert len(_section_failures(s.model)) == 16
         assert abs(energy_error(s.energies(step))) < 1e-4
-    dissipated = [s.model.ifs.e_damage[s.model.ifs.state == 1].sum() for s in (sim, ref)]
+    dissipated = [s.model.ifs.e_damage[_section_failures(s.model)].sum() for s in (sim, ref)]
     assert dissipated[0] == pytest.approx(dissipated[1], rel=1e-3)
     assert dissipated[0] / (W * W) == pytest.approx(GF, rel=0.03)
 
@@ -253,7 +263,7 @@ def test_clusters_move_on_their_leaders_and_every_copy_follows_when_advance_retu
             leader = model.ties.leader
             assert np.array_equal(model.nodes.x, model.nodes.x[leader])
             assert np.array_equal(model.nodes.v, model.nodes.v[leader])
-        assert (model.ifs.state == 1).sum() == 16  # the bar broke: clusters split
+        assert len(_section_failures(model)) == 16  # the bar broke: clusters split
         assert len(np.unique(leader)) > len(np.unique(model.ties.node_vertex))
         states.append((model.nodes.x.copy(), model.nodes.v.copy(), model.ifs.damage.copy()))
     for a, b in zip(*states):

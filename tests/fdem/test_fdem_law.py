@@ -1,4 +1,5 @@
-"""One-interface tests of the Guo-Munjiza law (paper 001, eqs 3 and 6-8) in crackle.fdem.
+"""One-interface tests of the Guo-Munjiza law (paper 001, eqs 3 and 6-8) in crackle.fdem: the
+paper's literal law (mixed_mode = "paper") unless a test names the default "effective" mode.
 
 Like a one-element cohesive test in Abaqus: two positively oriented tets share one triangle, the
 model has exactly one interface, and the openings are prescribed by moving the three B-side nodes
@@ -20,9 +21,11 @@ import pytest
 
 from crackle.fdem.kernels import interface_energy, interface_forces
 from crackle.fdem.model import build_fdem_model
-from crackle.geometry import TetMesh
+from crackle.fdem.laws import BilinearLaw
+from crackle.geometry import TetMesh, gmsh_box, structured_box
+from crackle.materials import Material
 
-from fdem_helpers import COHESION, FT, GF, MU_FRICTION, PHI_DEG, rock, rotation
+from fdem_helpers import COHESION, E, FT, GF, MU_FRICTION, NU, PHI_DEG, RHO, rock, rotation
 
 S = 0.01  # triangle legs, m
 H = 0.01  # apex heights, m
@@ -54,7 +57,7 @@ class Cell:
         tets = np.array([[0, 1, 2, 3], [0, 2, 1, 4]])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # element-size advice: irrelevant for one interface
-            self.model = build_fdem_model(TetMesh(pts, tets), material or rock())
+            self.model = build_fdem_model(TetMesh(pts, tets), material or rock(mixed_mode="paper"))
         ifs = self.model.ifs
         assert len(ifs.area) == 1, "two tets sharing one face must give exactly one interface"
         self.ifs = ifs
@@ -271,7 +274,7 @@ def test_mode_two_dissipates_gf_two(gf_shear):
     """Pure mode II (sigma_n = 0): e_damage at failure = Gf_II A within 3 %, Gf_II = Gf = 10
     J/m^2 by default or fracture_energy_shear = 30 J/m^2; the work of the shear traction over
     the slip path is the same within 3 %; the failure is recorded as shear (fail_mode 2)."""
-    material = rock() if gf_shear is None else rock(fracture_energy_shear=gf_shear)
+    material = rock(mixed_mode="paper", fracture_energy_shear=gf_shear)
     gf2 = GF if gf_shear is None else gf_shear
     cell = Cell(material)
     path, taus, _ = slide_to_failure(cell, 0.0, gf2)
@@ -366,6 +369,38 @@ def test_effective_mode_opens_on_the_traction_magnitude(beta, angle):
     assert peak == pytest.approx(FT, rel=0.01)
     assert work == pytest.approx(cell.e_damage, rel=0.01)
     assert cell.e_damage / (GF * cell.A) == pytest.approx(share, rel=0.03)
+
+
+@pytest.mark.parametrize("law, biased", [
+    ({}, False),  # the default: the effective mixed mode
+    ({"mixed_mode": "paper"}, True),
+    ({"law": "bilinear"}, False),  # its default: the quadratic initiation
+    ({"law": "bilinear", "initiation": "maximum"}, True),
+])
+def test_a_law_that_opens_on_the_normal_traction_warns_on_an_unstructured_mesh(law, biased):
+    """Paper 001's literal law and the bilinear law's maximum criterion open a face on its own
+    normal traction, so an unstructured mesh makes a specimen 1.2-1.9x too strong
+    (docs/validation.md, "Strength objectivity"): set-up says so in one line, naming the key, on
+    the quick direct-tension bar's gmsh mesh (631 face orientations), and not on a structured box
+    of the same size (12 orientations: its cracks run on planes of faces), nor for the default
+    laws on either."""
+    if law.get("law") == "bilinear":
+        interface = BilinearLaw(tensile_strength=FT, shear_strength=FT, fracture_energy=GF, normal_stiffness=1.5e15,
+                                shear_stiffness=1.5e15, **{k: v for k, v in law.items() if k != "law"})
+        material = Material(RHO, E, NU, interface, name="rock")
+        key = 'initiation = "maximum"'
+    else:
+        material = rock(**law)
+        key = 'mixed_mode = "paper"'
+    for mesh, unstructured in ((gmsh_box((0.04, 0.01, 0.01), 0.005), True), (structured_box((0.04, 0.01, 0.01), 0.005), False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            build_fdem_model(mesh, material)
+        said = [str(w.message) for w in caught if "face orientations" in str(w.message)]
+        if biased and unstructured:
+            assert len(said) == 1 and key in said[0] and "631 face orientations" in said[0], said
+        else:
+            assert said == []
 
 
 # ---------------------------------------------------------------------------------------------

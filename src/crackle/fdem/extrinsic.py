@@ -51,7 +51,7 @@ from numba import njit
 from ..solver.integrator import block_kernel, move, update_velocity
 from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, intact_energy
 from .laws.row import LAW_SAMPLING, SAMPLE_MEAN
-from .laws.bilinear import LAW_TS
+from .laws.bilinear import LAW_INITIATION, INITIATION_MAXIMUM, LAW_TS, initiation_index
 from .laws.guo_munjiza import LAW_BETA, shear_cap, shear_strength
 
 # tied[i]: a face joining its tets rigidly, one released in this step (its clusters still to be
@@ -222,8 +222,8 @@ def tet_traction(t, tet_stress, nx, ny, nz, weight, other):
 def _reaches(tn, ts2, law):
     """Whether a traction (normal tn, tension positive; squared shear ts2) meets the law's
     insertion criterion: Guo-Munjiza, Mohr-Coulomb with tension cut-off (the effective mixed
-    mode: the ellipse in tension); bilinear, the maximum nominal stress. No square root or
-    division: every tied face makes this check every step."""
+    mode: the ellipse in tension); bilinear, its initiation criterion (quadratic or maximum nominal
+    stress). No square root or division: every tied face makes this check every step."""
     ft = law[LAW_FT]
     if law[LAW_KIND] != KIND_BILINEAR:
         fs = shear_strength(tn, law)
@@ -234,7 +234,10 @@ def _reaches(tn, ts2, law):
             return tn * tn + ts2 / (beta * beta) >= ft * ft
         return tn >= ft
     ts0 = law[LAW_TS]
-    return tn >= ft or ts2 >= ts0 * ts0
+    if law[LAW_INITIATION] == INITIATION_MAXIMUM:
+        return tn >= ft or ts2 >= ts0 * ts0
+    tn_plus = tn if tn > 0.0 else 0.0
+    return tn_plus * tn_plus * (ts0 * ts0) + ts2 * (ft * ft) >= (ft * ts0) ** 2
 
 
 @njit(cache=True, inline="always")
@@ -247,7 +250,7 @@ def _utilisation(tn, ts, law):
         if beta > 0.0 and tn > 0.0:
             return max(math.sqrt(tn * tn + (ts / beta) ** 2) / ft, ts / shear_strength(tn, law))
         return max(tn / ft, ts / shear_strength(tn, law))
-    return max(max(tn, 0.0) / ft, ts / law[LAW_TS])
+    return initiation_index(max(tn, 0.0), ts, law)
 
 
 @njit(cache=True, inline="always")
@@ -291,9 +294,14 @@ def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_dam
         # normal stress there is zero. A preload above it would be returned onto it in the first
         # step as if it had slid, booking less than the spring loses.
         cap = shear_cap(max(tn_c, 0.0), 1.0, law)
-    else:  # bilinear
+    elif law[LAW_INITIATION] == INITIATION_MAXIMUM:  # bilinear
         cap = law[LAW_TS]
         shift = min(tn, ft) / pn if tn > 0.0 else 0.0
+    else:  # bilinear, quadratic: the traction brought back onto the criterion along its own direction
+        over = initiation_index(max(tn, 0.0), ts, law)
+        back = 1.0 / over if over > 1.0 else 1.0
+        cap = back * ts
+        shift = back * tn / pn if tn > 0.0 else 0.0
     scale = 1.0 if ts <= cap else cap / ts
     for p in range(3):
         # The shear spring ps (s - s_p) at zero slip carries the clamped shear traction.

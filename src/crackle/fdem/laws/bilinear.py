@@ -5,10 +5,15 @@ and (as contact) once failed.
 
 * Tractions tn = (1 - D) kn dn in opening, kn dn in compression (never damaged), shear vector
   ts = (1 - D) ks s: linear to the origin on unloading (secant), a potential at fixed D.
-* Initiation (maximum nominal stress): max(kn <dn> / tn0, ks |s| / ts0) = 1.
+* Initiation: the quadratic nominal stress criterion (kn <dn> / tn0)^2 + (ks |s| / ts0)^2 = 1
+  (initiation = "quadratic", the default; Camanho and Davila's, Abaqus's QUADS), or the maximum
+  nominal stress max(kn <dn> / tn0, ks |s| / ts0) = 1 (initiation = "maximum", paper 004's
+  eq. 3, Abaqus's MAXS). Under the maximum a face inclined at theta to a pull sigma opens only
+  when sigma cos^2(theta) reaches tn0, so an unstructured specimen reads above tn0
+  (docs/validation.md, "Strength objectivity").
 * Effective opening dm = sqrt(<dn>^2 + |s|^2), effective stiffness K = (kn <dn>^2 + ks |s|^2) / dm^2
-  (so the undamaged energy is K dm^2 / 2), initiation opening d0 = dm / max(...) at the current
-  mode mix, final opening df = 2 Gc / (K d0), linear softening
+  (so the undamaged energy is K dm^2 / 2), initiation opening d0 = dm / f at the current mode
+  mix (f: the criterion's left side, of degree one in the opening), final opening df = 2 Gc / (K d0), linear softening
   D = df (dm - d0) / (dm (df - d0)), never decreasing; a complete failure at a fixed mix
   dissipates K d0 df / 2 = Gc per unit area.
 * Mixed mode from the energy ratio B = ks |s|^2 / (kn <dn>^2 + ks |s|^2) (G_II / G_T):
@@ -45,7 +50,9 @@ MIX_POWER, MIX_BK = 0, 1
 
 # The law's own columns of its table row: shear strength ts0, GIc, GIIc, mixed-mode rule and its
 # exponent.
-LAW_TS, LAW_GF1, LAW_GF2, LAW_MIX, LAW_MIX_EXP = range(OWN, OWN + 5)
+LAW_TS, LAW_GF1, LAW_GF2, LAW_MIX, LAW_MIX_EXP, LAW_INITIATION = range(OWN, OWN + 6)
+INITIATIONS = ("quadratic", "maximum")
+INITIATION_QUADRATIC, INITIATION_MAXIMUM = 0, 1
 
 
 @dataclass(frozen=True, config=STRICT_DATACLASS)
@@ -53,7 +60,8 @@ class BilinearLaw:
     """Bilinear cohesive law, paper 004; Camanho-Davila mixed mode.
 
     tensile_strength tn0 and shear_strength ts0 (Pa) are the nominal strengths (initiation when
-    max(<tn>/tn0, ts/ts0) = 1, the normal traction counted only in tension); fracture_energy GIc
+    (<tn>/tn0)^2 + (ts/ts0)^2 = 1, or max(<tn>/tn0, ts/ts0) = 1 with initiation = "maximum"; the
+    normal traction counted only in tension); fracture_energy GIc
     and fracture_energy_shear GIIc (J/m^2, GIIc defaults to GIc) the energies a unit area
     dissipates from intact to failed in pure mode I and II; normal_stiffness kn and
     shear_stiffness ks (N/m^3: a value in N/mm^3 times 1e9) the initial stiffnesses per unit area,
@@ -63,7 +71,8 @@ class BilinearLaw:
     """
 
     tensile_strength: Positive
-    """Pa, tn0: initiation when max(<tn>/tn0, ts/ts0) = 1 (normal traction counted in tension only)"""
+    """Pa, tn0: initiation when (<tn>/tn0)^2 + (ts/ts0)^2 = 1 (normal traction counted in tension only; see
+    initiation)"""
     shear_strength: Positive
     """Pa, ts0"""
     fracture_energy: Positive
@@ -84,6 +93,11 @@ class BilinearLaw:
     its element size: 0.69 mm for the walnut at 0.95 mm)"""
     fracture_energy_shear: Positive | None = None
     """J/m^2, GIIc in pure mode II; default GIc"""
+    initiation: Literal["quadratic", "maximum"] = "quadratic"
+    """when a face starts to soften: "quadratic" ((<tn>/tn0)^2 + (ts/ts0)^2 = 1, Camanho-Davila, Abaqus QUADS) or
+    "maximum" (max(<tn>/tn0, ts/ts0) = 1: paper 004's eq. 3, Abaqus MAXS; a face inclined to the pull then opens on
+    its normal traction alone, and an unstructured specimen reads above tn0: docs/validation.md, "Strength
+    objectivity")"""
     mixed_mode: Literal["bk", "power"] = "bk"
     """Gc at a mode mix: Benzeggagh-Kenane or power law"""
     bk_exponent: Positive | None = None
@@ -137,7 +151,14 @@ class BilinearLaw:
         row[LAW_GF2] = self.gf_shear
         row[LAW_MIX] = MIX_BK if self.mixed_mode == "bk" else MIX_POWER
         row[LAW_MIX_EXP] = self.mixed_mode_exponent
+        row[LAW_INITIATION] = INITIATIONS.index(self.initiation)
         return row
+
+    @property
+    def opens_on_normal_traction(self) -> bool:
+        """Whether a face inclined to a pull opens on its own normal traction alone (the maximum
+        criterion): the face-orientation bias of an unstructured mesh."""
+        return self.initiation == "maximum"
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
         """(kn, ks) for every interface: per area, whatever the bulk and the mesh, or scaled by
@@ -184,6 +205,17 @@ def mixed_mode_energy(b, law):
 
 
 @njit(cache=True, inline="always")
+def initiation_index(tn, ts, law):
+    """The initiation criterion's left side for the normal traction tn (tension, >= 0) and the
+    shear traction magnitude ts: 1 on the criterion, of degree one in the traction."""
+    f_n = tn / law[LAW_FT]
+    f_s = ts / law[LAW_TS]
+    if law[LAW_INITIATION] == INITIATION_MAXIMUM:
+        return f_n if f_n > f_s else f_s
+    return math.sqrt(f_n * f_n + f_s * f_s)
+
+
+@njit(cache=True, inline="always")
 def bilinear_damage(dn, ds, kn, ks, law):
     """Damage that the opening dn and slip magnitude ds alone give (0 up to initiation, 1 from
     the final opening on) and the energy mode ratio B = G_II / G_T there."""
@@ -194,9 +226,7 @@ def bilinear_damage(dn, ds, kn, ks, law):
     if e <= 0.0:
         return 0.0, 0.0
     b = es / e
-    f_n = kn * dnp / law[LAW_FT]
-    f_s = ks * ds / law[LAW_TS]
-    f = f_n if f_n > f_s else f_s
+    f = initiation_index(kn * dnp, ks * ds, law)
     if f <= 1.0:
         return 0.0, b
     dm = math.sqrt(dnp * dnp + ds * ds)

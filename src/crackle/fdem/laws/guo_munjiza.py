@@ -149,6 +149,12 @@ class GuoMunjizaLaw:
         row[LAW_BETA] = self.shear_ratio if self.mixed_mode == "effective" else 0.0
         return row
 
+    @property
+    def opens_on_normal_traction(self) -> bool:
+        """Whether a face inclined to a pull opens on its own normal traction alone (paper 001's
+        literal law): the face-orientation bias of an unstructured mesh."""
+        return self.mixed_mode == "paper"
+
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
         """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude: p_s from G, or
         with the effective mixed mode beta^2 p_n (Camacho and Ortiz's, which makes the traction
