@@ -9,6 +9,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -312,3 +313,12 @@ def test_a_tool_started_inside_is_named_as_the_cause_not_the_step(tmp_path, caps
     err = capsys.readouterr().err
     assert "tool top started with points inside it" in err and "seat = true" in err and "run.safety" not in err
     assert (out / "history.csv").is_file()
+    # The message says where the unstable mode is: the fastest node, its tet and what acts on it,
+    # here a corner of a tet on the beam's top face (one outer face) under the 20 mm platen
+    # (measured: x = 249.1 mm, thrown down to y = 34 mm at 1,630 m/s, its other faces failed).
+    message = json.loads((out / "summary.json").read_text())["message"]
+    where = re.search(r"the fastest point: \d+ at \(([-\d.e]+), ([-\d.e]+), ([-\d.e]+)\) mm, ([\d.e+]+) m/s, corner of tet "
+                      r"\d+ \(density 1x the material's, principal stretches [\d.]+-[\d.]+; faces: \d failed, \d intact, "
+                      r"1 outer", message)
+    assert where, message
+    assert 240 <= float(where.group(1)) <= 260, message

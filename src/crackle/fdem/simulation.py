@@ -138,6 +138,25 @@ class FdemSimulation(SimulationBase):
     def describe(self) -> str:
         return f"{self.model.n_tets:,} tets, {self.model.n_interfaces:,} interfaces"
 
+    def describe_point(self, g: int) -> str:
+        """Node g's tet (as the user numbers it), its density over the material's (mass scaling),
+        its principal stretches, its faces (failed, intact, outer) and the tool it touches."""
+        m = self.model
+        tet = g // 4
+        material = m.materials[int(m.tet_material[tet])]
+        density = 4.0 * m.nodes.mass[g] / m.tets.vol[tet]
+        x0 = m.x0[4 * tet:4 * tet + 4]
+        x = m.nodes.x[4 * tet:4 * tet + 4]
+        stretch = np.linalg.svd((x[1:] - x[0]).T @ np.linalg.inv((x0[1:] - x0[0]).T), compute_uv=False)
+        faces = m.tets.face_iface[tet]
+        inner = faces[faces >= 0]
+        failed = int(np.count_nonzero(m.ifs.state[inner] != INTACT))
+        tool = int(m.nodes.tool[g])
+        touching = f", touching tool '{m.tool_specs[tool].name}'" if tool >= 0 else ""
+        return (f", corner of tet {m.mesh.label(tet)} (density {density / material.density:.3g}x the material's, principal "
+                f"stretches {stretch.min():.3g}-{stretch.max():.3g}; faces: {failed} failed, {len(inner) - failed} intact, "
+                f"{len(faces) - len(inner)} outer{touching})")
+
     @property
     def broken(self) -> int:
         return int(np.count_nonzero((self.model.ifs.state != INTACT) & (self.model.ifs.state != PRECRACK)))

@@ -223,7 +223,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         try:
             _advance_rows(sim, control, out, scenario, state, rows, outputs, progress, interrupt, say, started)
         except UnstableRunError as err:
-            state.status, state.message = "unstable", str(err)
+            state.status, state.message = "unstable", str(err) + sim.where_unstable()
         except OSError as err:
             if err.errno not in DISK_FULL:
                 raise

@@ -153,6 +153,21 @@ class SimulationBase:
         b = self.body
         return bool(np.isfinite(b.x).all() and np.isfinite(b.v).all())
 
+    def where_unstable(self) -> str:
+        """Where a run that went unstable moves fastest (the unstable mode is there): the point,
+        its position and speed, and what the method says of it (describe_point), for the
+        message the run stops with."""
+        b = self.body
+        speed = np.linalg.norm(b.v, axis=1)
+        speed = np.where(np.isfinite(speed), speed, np.inf)
+        g = int(np.argmax(speed))
+        at = ", ".join(f"{c * 1e3:.4g}" for c in b.x[g])
+        return f"; the fastest point: {g} at ({at}) mm, {speed[g]:.3g} m/s{self.describe_point(g)}"
+
+    def describe_point(self, g: int) -> str:
+        """A method's account of point g for where_unstable (its element, what acts on it)."""
+        return ""
+
     def kinetic_energy(self) -> float:
         """Of the nodes' translation (a method with rotations adds theirs)."""
         b = self.body
