@@ -146,9 +146,12 @@ def test_paper_law_carries_the_face_orientation_bias(tmp_path):
     """The bias the effective mixed mode removes. With paper 001's Mohr-Coulomb law a face opens
     only when its own normal traction reaches ft, sigma cos^2(theta) on a face at theta to the
     section: the same quick bar peaks at 1.296 ft intrinsic (1.3-1.6 ft at every size and
-    orientation measured: docs/validation.md, "Strength objectivity"). Checked: above 1.2 ft."""
+    orientation measured: docs/validation.md, "Strength objectivity"). Checked: above 1.2 ft,
+    and the run's summary carries set-up's warning about it."""
     result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
         "material.interface.mixed_mode=paper", "run.field_frames=0"])
     ratio = result.summary["tensile_strength_ratio"]
     print(f"paper 001's law: tensile_strength_ratio {ratio:.3f} (measured 1.296)")
     assert ratio > 1.2
+    # and set-up said so, in the summary as on the screen
+    assert any('mixed_mode = "paper" on an unstructured mesh' in w for w in result.summary["warnings"])
