@@ -251,7 +251,7 @@ def test_setup_lines_and_coarse_mesh_advice_before_the_run(tmp_path, capsys):
     args = ["run", "three-point-bending", "--quick", "--set", "run.end_time=4e-5", "--set", "run.field_frames=0"]
     assert main(args + ["--out", str(tmp_path / "a")]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("three-point-bending: 960 tets, 1,672 interfaces; 561 steps of")
+    assert lines[0].startswith("three-point-bending: 960 tets, 1,672 interfaces; 619 steps of")
     assert lines[1].startswith("  warning: element size 17.9 mm is coarser than the advised 2.84 mm")
     assert lines[2].startswith("three-point-bending: completed")
     strong = ["--set", "material.interface.tensile_strength=1e10", "--set", "material.interface.cohesion=5e10"]

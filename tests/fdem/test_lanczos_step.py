@@ -61,7 +61,7 @@ def test_lanczos_finds_the_highest_frequency_and_the_bound_lies_above(mesh, pena
     eigenvalue, and where the top modes cluster (the structured box at 200 E / h under the default
     law, whose shear penalty equals the normal one) Lanczos can settle on a neighbour (measured
     7.3e-5 below), which STEP_MARGIN (10 % in omega^2) covers; the element bound above both; the
-    run's step is STEP_MARGIN x the Lanczos one and longer than the bound's."""
+    run's step is the longer of STEP_MARGIN x the Lanczos one and the bound's."""
     model = build_fdem_model(MESHES[mesh](), rock(penalty_factor=penalty_factor, **STRONG))
     exact = _reference_omega2(model)
     lanczos, residual, iterations = T.highest_frequency2(model.x0, model.nodes.mass, model.tets, model.ifs,
@@ -69,8 +69,12 @@ def test_lanczos_finds_the_highest_frequency_and_the_bound_lies_above(mesh, pena
     assert exact * (1 - 1e-4) <= lanczos <= 1.01 * exact
     step = model.time_step
     assert (2.0 / step.bound_dt) ** 2 >= exact
-    assert step.estimate == "lanczos" and step.dt == pytest.approx(0.95 * 2.0 / math.sqrt(lanczos), rel=1e-12)
-    assert step.dt > step.bound_dt
+    # The run's step is the longer of the two (time_step.time_step): the Lanczos one with its margin,
+    # except where the bound is within it (the structured box at 200 E / h under the default law,
+    # whose shear penalty equals the normal one, so the bound's row sums are nearly attained).
+    lanczos_dt = 0.95 * 2.0 / math.sqrt(lanczos)
+    assert step.dt == pytest.approx(max(lanczos_dt, step.bound_dt), rel=1e-12)
+    assert step.estimate == ("lanczos" if lanczos_dt > step.bound_dt else "element bound")
 
 
 def _kinetic_growth(model, dt: float, steps: int) -> float:
