@@ -476,7 +476,8 @@ def _orientation_bias_warnings(materials, pairs: _Pairs, x0: np.ndarray) -> list
     then zigzags over inclined faces and the specimen reads stronger than its tensile strength."""
     out = []
     for row, mat in enumerate(materials):
-        if not mat.interface.opens_on_normal_traction:
+        key = mat.interface.opens_on_normal_traction
+        if key is None:
             continue
         corners = x0[pairs.na[pairs.law == row]]
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -485,7 +486,6 @@ def _orientation_bias_warnings(materials, pairs: _Pairs, x0: np.ndarray) -> list
         normal *= np.sign(normal[np.arange(len(normal)), largest])[:, None]  # n and -n: one orientation
         orientations = len(np.unique(np.round(normal, 3), axis=0))
         if orientations > STRUCTURED_ORIENTATIONS:
-            key = "mixed_mode = \"paper\"" if mat.interface.law == "guo-munjiza" else "initiation = \"maximum\""
             out.append(
                 f"material '{mat.name}': {key} on an unstructured mesh ({orientations:,} face orientations) opens a face "
                 "on its own normal traction alone, so a crack zigzagging over inclined faces makes the specimen "

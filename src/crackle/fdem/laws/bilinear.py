@@ -155,10 +155,10 @@ class BilinearLaw:
         return row
 
     @property
-    def opens_on_normal_traction(self) -> bool:
-        """Whether a face inclined to a pull opens on its own normal traction alone (the maximum
-        criterion): the face-orientation bias of an unstructured mesh."""
-        return self.initiation == "maximum"
+    def opens_on_normal_traction(self) -> str | None:
+        """The setting that makes a face inclined to a pull open on its own normal traction alone
+        (the maximum criterion: the face-orientation bias of an unstructured mesh), or None."""
+        return 'initiation = "maximum"' if self.initiation == "maximum" else None
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
         """(kn, ks) for every interface: per area, whatever the bulk and the mesh, or scaled by

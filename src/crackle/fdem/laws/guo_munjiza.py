@@ -150,10 +150,10 @@ class GuoMunjizaLaw:
         return row
 
     @property
-    def opens_on_normal_traction(self) -> bool:
-        """Whether a face inclined to a pull opens on its own normal traction alone (paper 001's
-        literal law): the face-orientation bias of an unstructured mesh."""
-        return self.mixed_mode == "paper"
+    def opens_on_normal_traction(self) -> str | None:
+        """The setting that makes a face inclined to a pull open on its own normal traction alone
+        (paper 001's literal law: the face-orientation bias of an unstructured mesh), or None."""
+        return 'mixed_mode = "paper"' if self.mixed_mode == "paper" else None
 
     def stiffness(self, youngs_modulus, shear_modulus, altitude):
         """Interface penalties (p_n, p_s) in N/m^3 for the given moduli and tet altitude: p_s from G, or
