@@ -371,6 +371,25 @@ def test_effective_mode_opens_on_the_traction_magnitude(beta, angle):
     assert cell.e_damage / (GF * cell.A) == pytest.approx(share, rel=0.03)
 
 
+@pytest.mark.xfail(strict=True, reason="the closed face's Mohr-Coulomb slip criterion counts the slip gathered "
+                   "open under the ellipse: docs/validation.md, 'A face that closes fails at once'")
+def test_effective_damage_does_not_jump_when_a_sliding_face_closes():
+    """mixed_mode = "effective": a face held open by 1 nm and slid until its damage passes 0.5,
+    then closed by 2 nm at the same slip. At dn = 0 the effective opening is beta |ds| from either
+    side (Camacho and Ortiz), so the damage may not jump: within 0.05 of its open value. Measured
+    (2026-11-29): 0.51 -> 1.0, the face fails at once; on the quick Brazilian disc 76 of 151
+    failures come this way, from a median damage of 0.91 (strict xfail until the law is mended)."""
+    cell = Cell(rock(mixed_mode="effective"))
+    for ds in graded_path(2.0 * FT / cell.ps, 6.0 * GF / FT):
+        cell.set(dn=1e-9, ds=ds)
+        if cell.damage > 0.5:
+            break
+    assert cell.state == 0
+    damage_open = cell.damage
+    cell.set(dn=-1e-9, ds=ds)
+    assert cell.damage == pytest.approx(damage_open, abs=0.05)
+
+
 @pytest.mark.parametrize("law, biased", [
     ({}, False),  # the default: the effective mixed mode
     ({"mixed_mode": "paper"}, True),
