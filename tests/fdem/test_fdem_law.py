@@ -377,7 +377,7 @@ def test_effective_damage_does_not_jump_when_a_sliding_face_closes():
     """mixed_mode = "effective": a face held open by 1 nm and slid until its damage passes 0.5,
     then closed by 2 nm at the same slip. At dn = 0 the effective opening is beta |ds| from either
     side (Camacho and Ortiz), so the damage may not jump: within 0.05 of its open value. Measured
-    (2026-11-29): 0.51 -> 1.0, the face fails at once; on the quick Brazilian disc 76 of 151
+    (2026-11-29): 0.50 -> 1.0, the face fails at once; on the quick Brazilian disc 76 of 151
     failures come this way, from a median damage of 0.91 (strict xfail until the law is mended)."""
     cell = Cell(rock(mixed_mode="effective"))
     for ds in graded_path(2.0 * FT / cell.ps, 6.0 * GF / FT):

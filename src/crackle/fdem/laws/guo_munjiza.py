@@ -425,7 +425,7 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
         released = 0.0
         if tx * tx + ty * ty + tz * tz > cap * cap:
             # The cap before the step, needed only where the spring reaches the cap (so the
-            # velocity reads below stay off the sticking faces' path: 13 % of the intrinsic step).
+            # velocity reads below stay off the sticking faces' path: ~14 % of the intrinsic step).
             if effective:
                 # The ellipse moves with the normal stress (its cap falls ~5x where a face opens
                 # from compression, under Mohr-Coulomb's c, into tension): the cap before the step
