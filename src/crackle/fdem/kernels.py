@@ -77,7 +77,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     na, nb, area, pn_all, ps_all = ties.na_at, ties.nb_at, ifs.area, ifs.pn, ifs.ps
     na_copy, nb_copy = ifs.na, ifs.nb
     state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
-    slip_plastic, dn_shift = ifs.slip_plastic, ifs.dn_shift
+    slip_plastic, dn_shift, reading_offset = ifs.slip_plastic, ifs.dn_shift, ifs.reading_offset
     tied, tet_stress = ties.tied, ties.tet_stress
     released = False
     law_table, law_of = ifs.law_table, ifs.law
@@ -99,7 +99,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             released = True
         if state[i] == INTACT and intact_step(
             i, t, dt, x, v, na, nb, area[i], damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-            law, pn, ps, nx, ny, nz, dn_shift[i],
+            law, pn, ps, nx, ny, nz, dn_shift[i], reading_offset,
         ):
             continue
 

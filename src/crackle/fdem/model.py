@@ -37,7 +37,7 @@ Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face
 Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic dn_shift "
-    "e_damage e_friction e_inserted",
+    "reading_offset e_damage e_friction e_inserted",
 )
 Controls = namedtuple("Controls", "gravity damping")
 
@@ -174,6 +174,7 @@ def build_fdem_model(
         traction_t=np.zeros((n_if, 3, 3)),
         slip_plastic=np.zeros((n_if, 3, 3)),
         dn_shift=np.zeros(n_if),
+        reading_offset=np.zeros((n_if, 2)),
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
         e_inserted=np.zeros(n_if),

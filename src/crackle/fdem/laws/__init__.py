@@ -25,7 +25,7 @@ KIND_BILINEAR = BilinearLaw.kind
 
 @njit(cache=True, inline="always")
 def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                law, pn, ps, nx, ny, nz, dn_shift):
+                law, pn, ps, nx, ny, nz, dn_shift, reading_offset):
     """The law of row `law` on intact interface i; False when it failed and acts as a failed pair
     from this step on."""
     if law[LAW_KIND] == KIND_BILINEAR:
@@ -33,9 +33,10 @@ def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mod
                                     slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
     if law[guo_munjiza.LAW_BETA] > 0.0:
         return guo_munjiza.intact_step_effective(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode,
-                                                 force, slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
+                                                 force, slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift,
+                                                 reading_offset)
     return guo_munjiza.intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force,
-                                   slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift)
+                                   slip_plastic, e_damage, law, pn, ps, nx, ny, nz, dn_shift, reading_offset)
 
 
 @njit(cache=True, inline="always")

@@ -66,6 +66,8 @@ EXTRINSIC_PENALTY_FACTOR = 2.0
 
 # The law's own columns of its table row.
 LAW_C, LAW_TANPHI, LAW_GF1, LAW_GF2, LAW_A, LAW_B, LAW_CS, LAW_IZ, LAW_BETA = range(OWN, OWN + 9)
+# The columns of the interfaces' reading_offset (the effective mixed mode's slip offsets).
+CLOSED_READING, OPEN_READING = 0, 1
 
 
 @dataclass(frozen=True, config=STRICT_DATACLASS)
@@ -337,24 +339,45 @@ def _return_to_cap(slip_plastic, i, p, sx, sy, sz, ps, tx, ty, tz, cap, cap_befo
 
 
 @njit(cache=True, inline="always")
+def _align_other_reading(reading_offset, i, d, dn_c, ds_c, dnp, dnc, law, ps, extrinsic):
+    """The effective mixed mode reads a face's damage from its effective opening while it is open
+    and from its slip against Mohr-Coulomb's (its cap 5x higher under paper 001's c = 5 ft, its
+    critical slip shorter) while it is closed. Both read the total slip, so a face that slid open
+    and then closed would read a damage it never went through (a face at 0.5 failed at once).
+    So the reading the face is not in gets the slip it would read beyond d, if any, as an offset
+    (the open one at dn = 0, the closed one at sigma = 0): if the face switches it goes on from d.
+    A face with less slip than that keeps its reading (slip it has not made is not counted: with
+    the offset negative, a face damaged by opening alone failed in shear as soon as it closed,
+    and the quick disc shattered into 224 pieces)."""
+    if dn_c > 0.0:
+        c = law[LAW_C]
+        dsp = 2.0 * c / ps
+        dsc = critical_opening(c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
+        start = 0.5 * dsp if extrinsic else dsp
+        reading_offset[i, CLOSED_READING] = max(0.0, ds_c - (start + d * (dsc - dsp)))
+    else:
+        reading_offset[i, OPEN_READING] = max(0.0, ds_c - (dnp + d * (dnc - dnp)) / law[LAW_BETA])
+
+
+@njit(cache=True, inline="always")
 def intact_step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                law, pn, ps, nx, ny, nz, dn_shift):
+                law, pn, ps, nx, ny, nz, dn_shift, reading_offset):
     """One step of intact interface i with paper 001's Mohr-Coulomb mixed mode (_step)."""
     return _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                 law, pn, ps, nx, ny, nz, dn_shift, False)
+                 law, pn, ps, nx, ny, nz, dn_shift, reading_offset, False)
 
 
 @njit(cache=True, inline="always")
 def intact_step_effective(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic,
-                          e_damage, law, pn, ps, nx, ny, nz, dn_shift):
+                          e_damage, law, pn, ps, nx, ny, nz, dn_shift, reading_offset):
     """One step of intact interface i with the effective mixed mode (_step)."""
     return _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-                 law, pn, ps, nx, ny, nz, dn_shift, True)
+                 law, pn, ps, nx, ny, nz, dn_shift, reading_offset, True)
 
 
 @njit(cache=True, inline="always")
 def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
-          law, pn, ps, nx, ny, nz, dn_shift, effective):
+          law, pn, ps, nx, ny, nz, dn_shift, reading_offset, effective):
     """One step of intact interface i: damage from the centroid opening and slip (eq. 8,
     irreversible), the point tractions into force[i] (B side; A gets their negatives), the energy
     the step dissipates into e_damage[i]. Always True: a face that fails this step still carries
@@ -391,17 +414,27 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
     # for the slip: the Mohr-Coulomb branch's own slip damage would count it twice (a face opened
     # at 45 deg failed at 0.2 Gf).
     # `effective` is a constant of each caller: the compiler drops the other mode's branches.
+    # There the two readings see the slip from their own offset (reading_offset[i]: 0 until the
+    # face is damaged), so that a face that closes or opens carries on from its damage.
     dn_damage = dn_c
     ds_damage = ds_c
-    if effective and dn_c > 0.0:
-        beta = law[LAW_BETA]
-        dn_damage = math.sqrt(dn_c * dn_c + beta * beta * ds_c * ds_c)
-        ds_damage = 0.0
+    if effective:
+        if dn_c > 0.0:
+            slip = ds_c - reading_offset[i, OPEN_READING]
+            if slip < 0.0:
+                slip = 0.0
+            beta = law[LAW_BETA]
+            dn_damage = math.sqrt(dn_c * dn_c + beta * beta * slip * slip)
+            ds_damage = 0.0
+        else:
+            ds_damage = ds_c - reading_offset[i, CLOSED_READING]
     d_n = (dn_damage - dnp) / (dnc - dnp) if dn_damage > dnp else 0.0
     d_s = (ds_damage - ds_start) / (dsc - dsp) if ds_damage > ds_start else 0.0
     d_new = math.sqrt(d_n * d_n + d_s * d_s)
     if d_new > 1.0:
         d_new = 1.0
+    if effective and (d_new > 0.0 or d_old > 0.0):
+        _align_other_reading(reading_offset, i, max(d_new, d_old), dn_c, ds_c, dnp, dnc, law, ps, extrinsic)
     z = z_old
     if d_new > d_old:
         z = softening(d_new, a, b, c)
