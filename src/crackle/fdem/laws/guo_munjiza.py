@@ -339,6 +339,16 @@ def _return_to_cap(slip_plastic, i, p, sx, sy, sz, ps, tx, ty, tz, cap, cap_befo
 
 
 @njit(cache=True, inline="always")
+def _slip_curve(fs, ps, law, extrinsic):
+    """The Mohr-Coulomb slip reading at shear strength fs: the elastic limit dsp, the critical slip
+    dsc and the slip at which damage starts (an extrinsic face's spring starts at its elastic
+    limit, dsp / 2 of an intrinsic one)."""
+    dsp = 2.0 * fs / ps
+    dsc = critical_opening(fs, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
+    return dsp, dsc, 0.5 * dsp if extrinsic else dsp
+
+
+@njit(cache=True, inline="always")
 def _align_other_reading(reading_offset, i, d, dn_c, ds_c, dnp, dnc, law, ps, extrinsic):
     """The effective mixed mode reads a face's damage from its effective opening while it is open
     and from its slip against Mohr-Coulomb's (its cap 5x higher under paper 001's c = 5 ft, its
@@ -350,10 +360,7 @@ def _align_other_reading(reading_offset, i, d, dn_c, ds_c, dnp, dnc, law, ps, ex
     the offset negative, a face damaged by opening alone failed in shear as soon as it closed,
     and the quick disc shattered into 224 pieces)."""
     if dn_c > 0.0:
-        c = law[LAW_C]
-        dsp = 2.0 * c / ps
-        dsc = critical_opening(c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
-        start = 0.5 * dsp if extrinsic else dsp
+        dsp, dsc, start = _slip_curve(law[LAW_C], ps, law, extrinsic)
         reading_offset[i, CLOSED_READING] = max(0.0, ds_c - (start + d * (dsc - dsp)))
     else:
         reading_offset[i, OPEN_READING] = max(0.0, ds_c - (dnp + d * (dnc - dnp)) / law[LAW_BETA])
@@ -404,11 +411,7 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
     dnp = 2.0 * ft / pn
     extrinsic = law[LAW_EXTRINSIC] != 0.0
     dnc = critical_opening(ft, dnp, law[LAW_GF1], law[LAW_IZ], PRE_PEAK_NORMAL_EXTRINSIC if extrinsic else PRE_PEAK_NORMAL)
-    fs_c = shear_strength(normal_stress(dn_c, pn, z_old, law), law)
-    dsp = 2.0 * fs_c / ps
-    dsc = critical_opening(fs_c, dsp, law[LAW_GF2], law[LAW_IZ], PRE_PEAK_SHEAR_EXTRINSIC if extrinsic else PRE_PEAK_SHEAR)
-    # An extrinsic face's spring starts at its elastic limit (dsp / 2 of an intrinsic one).
-    ds_start = 0.5 * dsp if extrinsic else dsp
+    dsp, dsc, ds_start = _slip_curve(shear_strength(normal_stress(dn_c, pn, z_old, law), law), ps, law, extrinsic)
     # The opening that damages the normal branch: the centroid's normal opening, or with the
     # effective mixed mode and the face open, sqrt(dn^2 + beta^2 ds^2), which then also stands
     # for the slip: the Mohr-Coulomb branch's own slip damage would count it twice (a face opened
