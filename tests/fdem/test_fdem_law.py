@@ -100,6 +100,7 @@ class Cell:
         self.v[:] = 0.0
         self.v[self.nb] = self.R @ ((dn - dn_prev) / dt * self.n + rate * self.t)
         interface_forces(0.0, dt, x, self.v, self.ifs, self.model.ties)
+        self.x = x
         traction = -self.ifs.force[0].sum(axis=0) / self.A
         return float(traction @ (self.R @ self.n)), float(traction @ (self.R @ self.t))
 
@@ -525,3 +526,36 @@ def test_failed_pair_passed_through_stays_off():
     shallow = -0.05 * reach
     assert cell.set(dn=shallow)[0] == pytest.approx(cell.pn * shallow, rel=1e-9)
     assert cell.set(dn=-0.2 * reach) == (0.0, 0.0)
+
+
+def test_failed_pair_coming_back_within_reach_enters_unloaded():
+    """A failed pair that slid past its reach, sank below the face out there (out of contact: no
+    force) and slides back within reach at that depth enters paired contact unloaded: no force
+    and no stored energy, where before it pressed with p_n dn at once and stored p_n dn^2 A / 2
+    from nowhere (on the intrinsic Brazilian disc at the paper's mesh a pair 27 um deep gave one
+    tet 0.39 J in a step and the run blew up). Pressed deeper from there it pushes back with p_n
+    times the extra depth and stores p_n extra^2 A / 2 (1e-9 relative); once out, a pair closing
+    from open loads at once again (p_n dn)."""
+    cell = Cell()
+    open_dn = 4.0 * GF / FT
+    for dn in np.linspace(0.0, open_dn, 2001):
+        cell.set(dn=dn)
+    assert cell.state == 1
+    reach = float(cell.ifs.reach[0])
+    deep = -0.02 * reach  # within the passed-through depth (0.1 reach)
+    cohesive, contact = np.zeros(1), np.zeros(1)
+    assert cell.set(dn=open_dn, ds=1.2 * reach) == (0.0, 0.0)  # slides past its reach, open
+    assert cell.set(dn=deep, ds=1.2 * reach) == (0.0, 0.0)  # sinks below the face out there
+    normal, _ = cell.set(dn=deep, ds=0.9 * reach)  # back within reach at that depth
+    interface_energy(cell.x, cell.ifs, cohesive, contact)
+    print(f"entering at {deep / reach:.2f} reach: normal traction {normal:.3g} Pa (p_n dn = {cell.pn * deep:.3g}), "
+          f"stored {contact[0]:.3g} J (p_n dn^2 A / 2 = {0.5 * cell.pn * deep**2 * cell.A:.3g})")
+    assert normal == 0.0 and contact[0] == 0.0
+    extra = 1e-3 * reach
+    normal, _ = cell.set(dn=deep - extra, ds=0.9 * reach)
+    interface_energy(cell.x, cell.ifs, cohesive, contact)
+    assert normal == pytest.approx(-cell.pn * extra, rel=1e-9)
+    assert contact[0] == pytest.approx(0.5 * cell.pn * extra**2 * cell.A, rel=1e-9)
+    assert cell.set(dn=open_dn, ds=0.9 * reach) == (0.0, 0.0)
+    shallow = -0.01 * reach
+    assert cell.set(dn=shallow, ds=0.9 * reach)[0] == pytest.approx(cell.pn * shallow, rel=1e-9)

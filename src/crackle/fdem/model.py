@@ -37,7 +37,7 @@ Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face
 Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic dn_shift "
-    "reading_offset e_damage e_friction e_inserted",
+    "reading_offset pair_entry e_damage e_friction e_inserted",
 )
 Controls = namedtuple("Controls", "gravity damping")
 
@@ -175,6 +175,9 @@ def build_fdem_model(
         slip_plastic=np.zeros((n_if, 3, 3)),
         dn_shift=np.zeros(n_if),
         reading_offset=np.zeros((n_if, 2)),
+        # Per point pair of a failed face: the opening it entered paired contact at (kernels._pair_entry);
+        # 0 on an intact face, so that a face that fails under compression goes on pressing.
+        pair_entry=np.zeros((n_if, 3)),
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
         e_inserted=np.zeros(n_if),
