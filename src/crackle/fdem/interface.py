@@ -40,3 +40,10 @@ def opening(x, na, nb, i, p, nx, ny, nz):
     dz = x[b, 2] - x[a, 2]
     dn = dx * nx + dy * ny + dz * nz
     return dn, dx - dn * nx, dy - dn * ny, dz - dn * nz
+
+
+@njit(cache=True, inline="always")
+def opening_before_step(dn, dt, v, a, b, nx, ny, nz):
+    """Normal opening of point pair (a, b) before this step's motion: dn less the step's normal
+    approach, v being the velocities over the half step that led to dn."""
+    return dn - dt * ((v[b, 0] - v[a, 0]) * nx + (v[b, 1] - v[a, 1]) * ny + (v[b, 2] - v[a, 2]) * nz)

@@ -44,7 +44,7 @@ from pydantic.dataclasses import dataclass
 
 from ...schema import STRICT_DATACLASS, NonNegative, Positive
 from ...solver.failures import failure_mode
-from ..interface import opening
+from ..interface import opening, opening_before_step
 from ..topology import FAILED
 from .row import LAW_EXTRINSIC, LAW_FT, OWN, new_row
 
@@ -468,11 +468,8 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
             if effective:
                 # The ellipse moves with the normal stress (its cap falls ~5x where a face opens
                 # from compression, under Mohr-Coulomb's c, into tension): the cap before the step
-                # is the one at the point's opening then, dn less the step's normal approach (v:
-                # the velocities over the half step that led here).
-                a = na[i, p]
-                b = nb[i, p]
-                dn_before = dn - dt * ((v[b, 0] - v[a, 0]) * nx + (v[b, 1] - v[a, 1]) * ny + (v[b, 2] - v[a, 2]) * nz)
+                # is the one at the point's opening then.
+                dn_before = opening_before_step(dn, dt, v, na[i, p], nb[i, p], nx, ny, nz)
                 cap_before = shear_cap(normal_stress(dn_before, pn, z_old, law), z_old, law)
             else:
                 cap_before = z_old * shear_strength(sigma, law)
