@@ -43,7 +43,8 @@ def opening(x, na, nb, i, p, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def opening_before_step(dn, dt, v, a, b, nx, ny, nz):
-    """Normal opening of point pair (a, b) before this step's motion: dn less the step's normal
-    approach, v being the velocities over the half step that led to dn."""
-    return dn - dt * ((v[b, 0] - v[a, 0]) * nx + (v[b, 1] - v[a, 1]) * ny + (v[b, 2] - v[a, 2]) * nz)
+def opening_earlier(dn, lag, v, a, b, nx, ny, nz):
+    """Normal opening of point pair (a, b) `lag` seconds before dn along this step's motion (v:
+    the velocities over the half step that led to dn): lag = dt gives the opening before the
+    step, dt / 2 the one at the half step, where the explicit scheme's energies are measured."""
+    return dn - lag * ((v[b, 0] - v[a, 0]) * nx + (v[b, 1] - v[a, 1]) * ny + (v[b, 2] - v[a, 2]) * nz)

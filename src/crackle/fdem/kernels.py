@@ -26,7 +26,7 @@ from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
                         copies_block, regroup_released, state_row, try_insert)
-from .interface import mid_normal, opening, opening_before_step
+from .interface import mid_normal, opening, opening_earlier
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
 
@@ -59,7 +59,7 @@ def _pair_entry(entry, dn, dt, v, a, b, nx, ny, nz):
     disc at the paper's mesh). The entry follows a pair that rises (no force while it does), so
     the spring is loaded from the highest point it reached."""
     if entry == OUT_OF_CONTACT:
-        return 0.0 if opening_before_step(dn, dt, v, a, b, nx, ny, nz) >= 0.0 else dn
+        return 0.0 if opening_earlier(dn, dt, v, a, b, nx, ny, nz) >= 0.0 else dn
     return max(entry, dn)
 
 
