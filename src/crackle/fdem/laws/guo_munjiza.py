@@ -444,8 +444,8 @@ def _step(i, t, dt, x, v, na, nb, area, damage, state, fail_time, fail_mode, for
         damage[i] = d_new
         # Energy released by the damage step, booked at the half step x - v dt / 2 where the
         # audit measures the stored energy, so that it closes to second order in dt (at x itself
-        # it books dz x half a step's opening too much: +0.7 % of Gf on a bar pulled apart at
-        # 1 m/s at the default step). The shear spring releases its part through the cap, below.
+        # it books dz times half a step's opening work too much). The shear spring releases its
+        # part through the cap, below.
         h = 0.5 * dt
         e_damage[i] += (z_old - z) * a3 * (
             _opening_energy(opening_earlier(dn0, h, v, na[i, 0], nb[i, 0], nx, ny, nz), ft, dnp)
