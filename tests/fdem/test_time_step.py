@@ -61,8 +61,10 @@ def test_a_block_rattling_between_rigid_plates_keeps_its_energy():
     omega dt = 1.5, 2.6x at 1.9, <= 1.06x at <= 0.8), so the step bound counts a tool's spring on
     each face of the node's tet (about 3x the node's own spring k A / m on a surface node).
     A block rattling between two rigid plates 1 um away, interfaces at 1 E / h so that the tool
-    sets the step, 20,000 steps at safety 0.7: the energy balance within 2 % (measured -1.3 %;
-    a bound with the node's exact k A / m gave -7.8 %, energy created)."""
+    sets the step, 20,000 steps at safety 0.7: the energy balance within 3 % (measured -1.3 % on
+    an AMD EPYC znver3, -2.0 % on an Intel Xeon emeraldrapids: the rattle is chaotic, so the
+    processor's last bits change its impacts; a bound with the node's exact k A / m gave -7.8 %,
+    energy created)."""
     still = dict(direction=(0, 0, 1), speed=History.constant(0.0))
     tools = [
         Tool(name="base", shape="plane", center=(0, 0, -1e-6), normal=(0, 0, 1), **still),
@@ -78,7 +80,7 @@ def test_a_block_rattling_between_rigid_plates_keeps_its_energy():
     sim.advance(20_000, dt)
     energies = sim.energies(dt)
     assert energies["energy.kinetic"] > 0.1 * energies["energy.external"]  # still rattling
-    assert abs(energy_error(energies)) < 0.02
+    assert abs(energy_error(energies)) < 0.03
 
 
 def test_a_tool_far_stiffer_than_the_interfaces_gets_advice_that_holds():

@@ -6,7 +6,9 @@ races and no atomics:
 
 1. over interfaces: kinematics, the interface law of each (fdem.laws) or (once failed) penalty
    contact with Coulomb friction; the traction force on each of the 3 B-side
-   nodes goes to ``ifs.force`` (the A side gets its negative);
+   nodes goes to ``ifs.force`` (the A side gets its negative), and on a failed face the part that
+   acts on both nodes of a pair alike (its normal's turn, ``interface.turning_forces``) to
+   ``ifs.force_mid`` (failed and damaged faces);
 2. over tets: St Venant-Kirchhoff forces, gather of the interface forces of the tet's 4 faces,
    pressures, tool contact, damping, gravity, central-difference update of the tet's 4 nodes.
 
@@ -26,7 +28,7 @@ from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
                         copies_block, regroup_released, state_row, try_insert)
-from .interface import mid_normal, opening, opening_earlier
+from .interface import mid_normal, opening, opening_earlier, turning_forces
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
 
@@ -84,6 +86,29 @@ def _pair_traction(i, p, sigma, cap, nx, ny, nz, dt, ps, a3, na, nb, v, traction
     return lost * a3
 
 
+@njit(cache=True, inline="always")
+def _law_turning_forces(x, na, nb, i, nx, ny, nz, force, force_mid):
+    """The turning forces (interface.turning_forces) of intact interface i's law, from the forces
+    it wrote: for a law with a potential E(dn_p, s_p) per point, dE/dn = sum_p A/3 (sigma_p s_p -
+    dn_p t_p), zero where the law is isotropic in the gap (an undamaged face, k_n = k_s, in
+    opening) and not where it is not: a softening face of a walnut sliding 0.3 mm with two
+    corners pressed, (1 - D) k_s in shear and k_n in compression."""
+    qx = 0.0
+    qy = 0.0
+    qz = 0.0
+    for p in range(3):
+        dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+        # The law's force on B is -(sigma n + t) A/3.
+        fx = force[i, p, 0]
+        fy = force[i, p, 1]
+        fz = force[i, p, 2]
+        fn = fx * nx + fy * ny + fz * nz
+        qx += dn * (fx - fn * nx) - fn * sx
+        qy += dn * (fy - fn * ny) - fn * sy
+        qz += dn * (fz - fn * nz) - fn * sz
+    turning_forces(x, na, nb, i, nx, ny, nz, qx, qy, qz, force_mid)
+
+
 @block_kernel
 def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     """Interfaces lo..hi-1 (block blk): kinematics, the insertion check of tied (extrinsic) faces,
@@ -94,7 +119,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     # Unpacked once per block: attribute access per element costs reference counting.
     na, nb, area, pn_all, ps_all = ties.na_at, ties.nb_at, ifs.area, ifs.pn, ifs.ps
     na_copy, nb_copy = ifs.na, ifs.nb
-    state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
+    state, damage, force, force_mid, traction_t = ifs.state, ifs.damage, ifs.force, ifs.force_mid, ifs.traction_t
     slip_plastic, dn_shift, reading_offset, pair_entry = ifs.slip_plastic, ifs.dn_shift, ifs.reading_offset, ifs.pair_entry
     tied, tet_stress = ties.tied, ties.tet_stress
     released = False
@@ -119,12 +144,18 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             i, t, dt, x, v, na, nb, area[i], damage, state, fail_time, fail_mode, force, slip_plastic, e_damage,
             law, pn, ps, nx, ny, nz, dn_shift[i], reading_offset,
         ):
+            if damage[i] > 0.0:
+                _law_turning_forces(x, na, nb, i, nx, ny, nz, force, force_mid)
             continue
 
         # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
         mu = law[LAW_MU]
         reach2 = reach[i] * reach[i]
         depth = PASSED_THROUGH * reach[i]
+        # dE/dn of the pressed pairs' energy p_n (dn - entry)^2 A / 6: their slips turn it.
+        qx = 0.0
+        qy = 0.0
+        qz = 0.0
         for p in range(3):
             dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
             if not _pair_touching(dn, sx, sy, sz, reach2, depth):
@@ -140,6 +171,10 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             pair_entry[i, p] = entry
             sigma = pn * (dn - entry)
             e_friction[i] += _pair_traction(i, p, sigma, -mu * sigma, nx, ny, nz, dt, ps, a3, na, nb, v, traction_t, force)
+            qx += sigma * a3 * sx
+            qy += sigma * a3 * sy
+            qz += sigma * a3 * sz
+        turning_forces(x, na, nb, i, nx, ny, nz, qx, qy, qz, force_mid)
     if released:
         released_blocks[blk] = 1
 
@@ -238,7 +273,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
     x, v, mass = nodes.x, nodes.v, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
-    na, nb, if_force, if_state = ifs.na, ifs.nb, ifs.force, ifs.state
+    na, nb, if_force, force_mid, if_state, if_damage = ifs.na, ifs.nb, ifs.force, ifs.force_mid, ifs.state, ifs.damage
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
@@ -272,6 +307,14 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
                         f[g, 0] -= if_force[iface, p, 0]
                         f[g, 1] -= if_force[iface, p, 1]
                         f[g, 2] -= if_force[iface, p, 2]
+                if if_state[iface] != INTACT or if_damage[iface] > 0.0:
+                    # The force on both nodes of each pair alike (the face normal's turn).
+                    side = nb if face_side[e, face] == 1 else na
+                    for p in range(3):
+                        g = side[iface, p]
+                        f[g, 0] += force_mid[iface, p, 0]
+                        f[g, 1] += force_mid[iface, p, 1]
+                        f[g, 2] += force_mid[iface, p, 2]
                 if if_state[iface] == INTACT:
                     continue
             free_faces |= 1 << face

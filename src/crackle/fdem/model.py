@@ -36,7 +36,7 @@ Nodes = namedtuple("Nodes", BODY_FIELDS + " force")
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
-    "na nb area pn ps reach law law_table damage state fail_time fail_mode force traction_t slip_plastic dn_shift "
+    "na nb area pn ps reach law law_table damage state fail_time fail_mode force force_mid traction_t slip_plastic dn_shift "
     "reading_offset pair_entry e_damage e_friction e_inserted",
 )
 Controls = namedtuple("Controls", "gravity damping")
@@ -171,6 +171,8 @@ def build_fdem_model(
         fail_time=np.full(n_if, np.nan),
         fail_mode=np.zeros(n_if, dtype=np.int8),
         force=np.zeros((n_if, 3, 3)),
+        # Per point pair of a failed face: the force on both its nodes alike (interface.turning_forces).
+        force_mid=np.zeros((n_if, 3, 3)),
         traction_t=np.zeros((n_if, 3, 3)),
         slip_plastic=np.zeros((n_if, 3, 3)),
         dn_shift=np.zeros(n_if),
