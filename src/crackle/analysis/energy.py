@@ -5,6 +5,8 @@ place that turns them into an imbalance."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 EXTERNAL = "energy.external"
@@ -89,3 +91,70 @@ def created_fraction(row) -> float:
     external, accounted = row[EXTERNAL], _accounted(row) - row.get(CONTACT, 0.0)
     scale = max(abs(external), abs(accounted))
     return 0.0 if scale < ENERGY_NOISE else (accounted - external) / scale
+
+
+# The imbalance's growth window: from the last row below the first fraction of its final value to
+# the first row at or beyond the second.
+GROWTH_FROM, GROWTH_TO = 0.1, 0.9
+
+
+@dataclass(frozen=True)
+class ImbalanceGrowth:
+    """Where the imbalance grew: it went from GROWTH_FROM to GROWTH_TO of its final value between
+    `start` and `end` (s), by `change` (J). `term` (energy.NAME) is the term it grew most nearly in
+    proportion to over the run: imbalance - its first value ~ `ratio` x (term - its first value),
+    with coefficient of determination `r2`; None with fewer than 3 rows or no term that moved."""
+
+    start: float
+    end: float
+    change: float
+    term: str | None
+    ratio: float
+    r2: float
+
+    def describe(self, time_scale: float = 1e3, unit: str = "ms") -> str:
+        text = (f"it went from {GROWTH_FROM:.0%} to {GROWTH_TO:.0%} of its final value between "
+                f"{self.start * time_scale:.4g} and {self.end * time_scale:.4g} {unit}")
+        if self.term is not None:
+            text += (f", in proportion to {self.term} ({self.ratio:+.1%} of its change, "
+                     f"R^2 {self.r2:.2f}; a pointer to the mechanism, not a proof)")
+        return text
+
+
+def imbalance_growth(history: dict[str, np.ndarray]) -> ImbalanceGrowth | None:
+    """When the imbalance grew and which energy term it grew with, from the history's `time` and
+    `energy.*` columns (None without them or without an imbalance). The term points at the
+    mechanism without proving it: a force that is not the gradient of the energy booked for it
+    shows in the term its motion also feeds (a walnut's crushed faces, pressed and sliding over
+    turning faces: the friction, docs/validation.md)."""
+    if "time" not in history or EXTERNAL not in history:
+        return None
+    time = np.asarray(history["time"], float)
+    gap = np.asarray(imbalance(history), float)
+    if len(gap) < 2 or abs(gap[-1]) < ENERGY_NOISE:
+        return None
+    share = gap / gap[-1]
+    below = np.flatnonzero(share < GROWTH_FROM)
+    first = int(below[-1]) if len(below) else 0
+    reached = np.flatnonzero((share >= GROWTH_TO) & (np.arange(len(share)) > first))
+    last = int(reached[0]) if len(reached) else len(share) - 1
+    # The term it grew with over the whole run: a window alone cannot tell it from any term that
+    # happens to grow steadily there.
+    term, ratio, best = None, 0.0, -np.inf
+    grown = gap - gap[0]
+    spread = float(np.sum((grown - grown.mean()) ** 2))
+    if len(gap) >= 3 and spread > 0.0:
+        for name in history:
+            if not name.startswith(PREFIX):
+                continue
+            values = np.asarray(history[name], float)
+            moved = values - values[0]
+            norm = float(moved @ moved)
+            if norm == 0.0:
+                continue
+            c = float(moved @ grown) / norm
+            r2 = 1.0 - float(np.sum((grown - c * moved) ** 2)) / spread
+            if r2 > best:
+                term, ratio, best = name, c, r2
+    return ImbalanceGrowth(float(time[first]), float(time[last]), float(gap[last] - gap[first]), term, ratio,
+                           best if term is not None else 0.0)

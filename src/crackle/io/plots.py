@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.energy import imbalance
+from ..analysis.energy import ENERGY_NOISE, imbalance, imbalance_growth
 from ._units import time_unit
 from .outputs import read_events_csv, read_history_csv
 
@@ -139,15 +139,17 @@ def plot_stress_strain(history, path, stress: str = "platen.stress", strain: str
 
 
 def plot_energies(history, path) -> Path:
-    """Every ``energy.*`` column against time, plus the imbalance (dashed).
+    """Every ``energy.*`` column against time, plus the imbalance (dashed); below, the imbalance
+    as a share of the largest energy, the span where it grew shaded and the term it grew with
+    named (analysis.energy.imbalance_growth).
 
     imbalance = external - sum of all other energy terms; it should stay
     near zero in a well-resolved run.
     """
     cols = _columns(history)
     energy_names = [n for n in cols if n.startswith("energy.")]
-    fig = _new_figure(figsize=(7, 4.5))
-    ax = fig.add_subplot()
+    fig = _new_figure(figsize=(7, 6))
+    ax, share_ax = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
     time = np.asarray(cols.get("time", np.zeros(0)), float)
     scale, unit = time_unit(np.nanmax(np.abs(time)) if time.size else 0.0)
     if energy_names and time.size:
@@ -155,14 +157,26 @@ def plot_energies(history, path) -> Path:
             ax.plot(time * scale, np.asarray(cols[name], float), label=name[7:])
         if "energy.external" in cols:
             terms = {n: np.asarray(cols[n], float) for n in energy_names}
-            ax.plot(time * scale, imbalance(terms), "k--", label="imbalance")
+            gap = imbalance(terms)
+            ax.plot(time * scale, gap, "k--", label="imbalance")
+            # energy_error's scale: the largest external work or sum of the other terms.
+            largest = max(float(np.max(np.abs(terms["energy.external"]))),
+                          float(np.max(np.abs(terms["energy.external"] - gap))), ENERGY_NOISE)
+            share_ax.plot(time * scale, 100.0 * gap / largest, "k-")
+            growth = imbalance_growth({"time": time, **terms})
+            if growth is not None:
+                label = "grew here" + (f" with {growth.term[7:]}" if growth.term is not None else "")
+                share_ax.axvspan(growth.start * scale, growth.end * scale, color="tab:red", alpha=0.15, label=label)
+                share_ax.legend(fontsize="small")
         ax.legend(fontsize="small", ncol=2)
     else:
         ax.text(0.5, 0.5, "no energy data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel(axis_label("time", unit))
+    share_ax.set_xlabel(axis_label("time", unit))
     ax.set_ylabel(axis_label("energy", "J"))
+    share_ax.set_ylabel(axis_label("imbalance / largest energy", "%"))
     ax.set_title("Energy history")
     ax.grid(True, alpha=0.3)
+    share_ax.grid(True, alpha=0.3)
     return _save(fig, path)
 
 

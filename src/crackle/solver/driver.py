@@ -25,9 +25,9 @@ import numpy as np
 from .. import __version__
 from ..loading.arrays import LOAD_CELL_RING, STARTS_INSIDE
 from .checkpoint import CHECKPOINT_FILE, Checkpoint, save_checkpoint
-from ..analysis.energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error
+from ..analysis.energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error, imbalance_growth
 from .simulation import Simulation
-from ..io._units import duration_text
+from ..io._units import duration_text, time_unit
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
 from ..io.plots import RUN_PLOTS
 
@@ -454,10 +454,14 @@ def _summary(sim, control: RunControl, state: _DriverState, scenario_name: str, 
     for warning in summary.get("warnings", [])[len(sim.warnings):]:  # those only the end of the run can tell
         control.report(f"  warning: {warning}")
     if abs(summary["energy_error"]) > ENERGY_WARNING and sim.steps >= AUDIT_MIN_STEPS:
+        growth = imbalance_growth(hist)
+        scale, unit = time_unit(sim.time)
+        where = f": {growth.describe(scale, unit)}" if growth is not None else ""
         warning = (
             f"the energy balance is off by {summary['energy_error']:.1%} of the largest energy (more than "
             f"{ENERGY_WARNING:.0%}): results may not be trustworthy; "
-            f"{_advice(sim, 'reduce run.safety or check the contact penalties')} (energies.png shows when the imbalance grew)"
+            f"{_advice(sim, 'reduce run.safety or check the contact penalties')} (plots/energies.png shows when the "
+            f"imbalance grew{where})"
         )
         summary["warnings"] = [*summary.get("warnings", []), warning]
         control.report(f"  warning: {warning}")
