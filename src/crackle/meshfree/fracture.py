@@ -102,7 +102,7 @@ class LinkBreaking:
         self.broken_links = 0  # removed pairs {I, J}, I != J, that were linked
         self.precut = np.zeros(0, dtype=np.int64)  # sorted keys of the links the pre-cracks removed
         self.precut_pairs = 0  # pairs {I, J} of linked particles the pre-cracks separated
-        self._step_warned = False
+        self.stable_estimate = None  # s, the stable step after the last rebuild (_check_step)
         self._bounds = None  # Gershgorin's per-particle bounds (_check_step), once computed
         # The stable-step check after rebuilds (_check_step): the tool penalties (N/m per
         # particle) and the set-up ratio of the Lanczos omega_max^2 to Gershgorin's bound.
@@ -305,22 +305,19 @@ class LinkBreaking:
         return len(np.unique(np.minimum(a[keep], b[keep]) * n + np.maximum(a[keep], b[keep])))
 
     def _check_step(self, sim, dt: float, rows) -> None:
-        """Warn once if the stable step of the rebuilt links fell below the step in use: one-sided
-        gradients at crack faces can be stiffer. The estimate is Gershgorin's bound (cheap, numpy)
-        times its set-up ratio to the Lanczos value (step.stable_step), the tools as at set-up:
-        a Lanczos run per rebuild would cost ~100 force passes. The per-particle bounds are
-        kept and refreshed where the rebuild of `rows` changed them, not recomputed."""
-        if self._step_warned or self.detached.all():
+        """The stable step of the rebuilt links into `stable_estimate` (s): one-sided gradients at
+        crack faces can be stiffer, and the simulation sub-steps where it fell below its step
+        (MeshfreeSimulation._follow_stable_step). The estimate is Gershgorin's bound (cheap,
+        numpy) times its set-up ratio to the Lanczos value (step.stable_step), the tools as at
+        set-up: a Lanczos run per rebuild would cost ~100 force passes. The per-particle bounds
+        are kept and refreshed where the rebuild of `rows` changed them, not recomputed."""
+        if self.detached.all():
             return
         if self._bounds is None:
             self._bounds = gershgorin_bounds(sim.particles, sim.links, self.row, sim.law, self.tool_k)
         else:
             refresh_gershgorin_bounds(self._bounds, sim.particles, sim.links, sim.law, self.tool_k, np.sort(rows))
-        estimate = STEP_MARGIN * 2.0 / np.sqrt(self.step_ratio * float(np.max(self._bounds[2])))
-        if estimate < dt:
-            self._step_warned = True
-            sim.warnings.append(f"link breaking at t = {sim.time:.4g} s left an estimated stable step of "
-                                f"{estimate:.3g} s, below the step {dt:.3g} s: reduce run.safety if the run blows up")
+        self.stable_estimate = STEP_MARGIN * 2.0 / np.sqrt(self.step_ratio * float(np.max(self._bounds[2])))
 
     def _gauss_strains(self, sim, x, rows) -> np.ndarray:
         """Per particle of `rows`, the Green-Lagrange strains (xx yy zz xy yz xz) at its two Gauss

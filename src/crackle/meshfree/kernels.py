@@ -289,8 +289,8 @@ def _contact_block(lo, hi, x, contact):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressed, pressures, contact, tool_v_prev, tool_v_next,
-                    gravity, alpha):
+def _particle_block(lo, hi, slot, t_now, dt, kick, p, links, tools, pressed, pressures, contact, tool_v_prev,
+                    tool_v_next, gravity, alpha):
     x, v, mass = p.x, p.v, p.mass
     pairs = contact.other.shape[0] > 0
     for g in range(lo, hi):
@@ -309,8 +309,8 @@ def _particle_block(lo, hi, slot, t_now, dt, p, links, tools, pressed, pressures
             ey += py
             ez += pz
         cx, cy, cz, tool_work = contact_with_tools(g, p, dt, slot, tools, tool_v_prev, tool_v_next)
-        update_velocity(g, p, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next,
-                        slot)
+        update_velocity(g, p, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), tool_work, m, alpha, kick, tools,
+                        tool_v_next, slot)
         move(g, x, v, dt)
 
 
@@ -368,10 +368,13 @@ def _stress_passes(dt, particles, links, columns, law):
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressed, pressures, contact, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pressed, pressures, contact, gravity, alpha,
+            first_kick=-1.0):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place. contact: the pairs of the
-    particle contact (PairContact; none: no pass)."""
+    particle contact (PairContact; none: no pass). first_kick (s, if positive): the first step's
+    velocity update spans that time instead of dt, the central difference where the step changes
+    (v(t + dt_new / 2) = v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2)."""
     n_tool = tools.kind.shape[0]
     n = particles.x.shape[0]
     n_block = (n + BLOCK - 1) // BLOCK
@@ -379,6 +382,7 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
     tool_v_next = np.zeros((max(n_tool, 1), 3))
     for step in range(n_steps):
         t = (first_step + step) * dt
+        kick = first_kick if step == 0 and first_kick > 0.0 else dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
         _stress_passes(dt, particles, links, columns, law)
         if contact.other.shape[0] > 0:
@@ -387,8 +391,8 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
                 _contact_block(lo, min(lo + BLOCK, n), particles.x, contact)
         for blk in prange(n_block):
             lo = blk * BLOCK
-            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, particles, links, tools, pressed, pressures,
-                            contact, tool_v_prev, tool_v_next, gravity, alpha)
+            _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), t, dt, kick, particles, links, tools, pressed,
+                            pressures, contact, tool_v_prev, tool_v_next, gravity, alpha)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)
 

@@ -201,7 +201,9 @@ class SimulationBase:
 
     def sample(self, dt: float) -> dict[str, float]:
         row = tool_columns(self._tool_names, self.tool_forces(), self.tools)
-        row = {**row, **self.energies(dt), "broken": self.broken, **self.history_columns(dt)}
+        # dt: the step the method takes now (less than the driver's where it sub-steps: FDEM after
+        # its tied phase, the meshfree after a rebuild stiffened it), which `sample` is given.
+        row = {**row, **self.energies(dt), "broken": self.broken, "dt": dt, **self.history_columns(dt)}
         for probe in self.probes:
             row.update(probe.columns(self, row))
         return row
