@@ -25,7 +25,8 @@ def test_slow_impact_stays_nearly_whole_and_rebounds(tmp_path):
 
 def test_fast_impact_fragments_with_energy_balance(tmp_path):
     """100 m/s: many fragments (>= 50; measured 409 of 672 tets), none holding half the mass, and
-    |energy_error| < 3 % (the contact issue's acceptance; measured 0.69 %)."""
+    |energy_error| < 3 % (the contact issue's acceptance; measured +0.30 %, 2026-12-06; +0.69 % before
+    the turning forces of failed faces)."""
     s = _summary(tmp_path, "sphere-impact-fast")
     assert s["fragments"] >= 50
     assert s["largest_fragment_mass_fraction"] < 0.5
