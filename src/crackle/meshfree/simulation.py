@@ -57,8 +57,8 @@ class MeshfreeSimulation(SimulationBase):
         # One failure per particle (the particle where a crack plane was put).
         self._failures = FailureRecorder(len(particles.x))
         # Compiled steps per driver step: 1, until link breaking lowers the estimated stable step
-        # below the step in use (_follow_stable_step); the velocity span of the next compiled step
-        # where the step changed.
+        # to within SUBSTEP_ABOVE of the step in use (_follow_stable_step); the velocity span of
+        # the next compiled step where the step changed.
         self.substeps = 1
         self._first_kick = -1.0
         # Energy present at t = 0 (an initial velocity) counts as work put in.
@@ -96,10 +96,10 @@ class MeshfreeSimulation(SimulationBase):
         """Sub-step where a rebuild lowered the estimated stable step (fracture.LinkBreaking
         .stable_estimate) to within SUBSTEP_ABOVE of the step in use: k compiled steps of dt / k
         per driver step, k the least that restores the set-up's margin (dt / stable_dt, the
-        run's safety) on the new estimate, never fewer than before. Decided at the fracture checks' fixed step numbers, so a run stays
-        the same whatever its split into calls, its thread count or a resume; the driver's
-        step, rows and times do not change. The first short step's velocity update spans the
-        mean of the two steps (kernels.advance)."""
+        run's safety) on the new estimate, never fewer than before. Decided at the fracture
+        checks' fixed step numbers, so a run stays the same whatever its split into calls, its
+        thread count or a resume; the driver's step, rows and times do not change. The first
+        short step's velocity update spans the mean of the two steps (kernels.advance)."""
         estimate = self.breaking.stable_estimate
         if estimate is None or dt / self.substeps <= SUBSTEP_ABOVE * estimate:
             return
