@@ -28,7 +28,7 @@ from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
                         copies_block, regroup_released, state_row, try_insert)
-from .interface import mid_normal, opening, opening_earlier, turning_forces
+from .interface import MID_FACE_MIN, mid_face, opening, opening_earlier, turning_forces
 from .laws import LAW_MU, intact_energy, intact_step
 from .topology import INTACT, face_corners, twice_area_vector
 
@@ -131,7 +131,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         pn = pn_all[i]
         ps = ps_all[i]
         a3 = area[i] / 3.0
-        nx, ny, nz = mid_normal(x, na, nb, i)
+        nx, ny, nz, mid_area = mid_face(x, na, nb, i)
 
         if tied[i] == TIED:
             # A tied face carries no force; once its tets' traction reaches the strength it is
@@ -148,7 +148,9 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
                 _law_turning_forces(x, na, nb, i, nx, ny, nz, force, force_mid)
             continue
 
-        # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair.
+        # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair,
+        # while the two faces still face each other (interface.MID_FACE_MIN).
+        facing = mid_area >= MID_FACE_MIN * area[i]
         mu = law[LAW_MU]
         reach2 = reach[i] * reach[i]
         depth = PASSED_THROUGH * reach[i]
@@ -158,7 +160,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         qz = 0.0
         for p in range(3):
             dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
-            if not _pair_touching(dn, sx, sy, sz, reach2, depth):
+            if not (facing and _pair_touching(dn, sx, sy, sz, reach2, depth)):
                 pair_entry[i, p] = OUT_OF_CONTACT
                 traction_t[i, p, 0] = 0.0
                 traction_t[i, p, 1] = 0.0
@@ -503,7 +505,7 @@ def interface_energy(x, ifs, cohesive, contact):
     """Stored energy per interface: cohesive (intact) or contact penalty (failed / pre-crack)."""
     for i in prange(ifs.na.shape[0]):
         law = ifs.law_table[ifs.law[i]]
-        nx, ny, nz = mid_normal(x, ifs.na, ifs.nb, i)
+        nx, ny, nz, mid_area = mid_face(x, ifs.na, ifs.nb, i)
         pn = ifs.pn[i]
         a3 = ifs.area[i] / 3.0
         cohesive[i] = 0.0
@@ -514,10 +516,11 @@ def interface_energy(x, ifs, cohesive, contact):
         else:
             reach2 = ifs.reach[i] * ifs.reach[i]
             depth = PASSED_THROUGH * ifs.reach[i]
+            facing = mid_area >= MID_FACE_MIN * ifs.area[i]
             for p in range(3):
                 dn, sx, sy, sz = opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
                 entry = ifs.pair_entry[i, p]
-                if entry != OUT_OF_CONTACT and _pair_touching(dn, sx, sy, sz, reach2, depth):
+                if facing and entry != OUT_OF_CONTACT and _pair_touching(dn, sx, sy, sz, reach2, depth):
                     pressed = min(dn - entry, 0.0)
                     t2 = ifs.traction_t[i, p, 0] ** 2 + ifs.traction_t[i, p, 1] ** 2 + ifs.traction_t[i, p, 2] ** 2
                     contact[i] += (0.5 * pn * pressed * pressed + 0.5 * t2 / ifs.ps[i]) * a3
