@@ -642,6 +642,45 @@ def test_a_pressed_pair_sliding_over_a_turning_face_does_no_work_around_a_loop(c
     assert abs(work) < 1e-4 * abs(scale)
 
 
+def test_a_failed_face_turned_half_a_turn_keeps_its_turning_forces_bounded():
+    """Issue 63, the walnut crushed by six plates at 1 mm (unstable at 37.75 ms): a loose tet
+    whose failed face had turned about its normal relative to its neighbour got 675 m/s in one
+    step, from turning forces of 1,232 N on a pair pressed with 2 N. The pairs press along the
+    normal of their mid-point triangle, which shrinks to a point as the faces turn half a turn,
+    and the turning forces go as dE/dn over its area: 163 x p_n dn A / 3 at 179.5 degrees, here
+    on a pair slid 0.2 reach and pressed 1e-4 reach. Once that triangle is below half the face
+    (interface.MID_FACE_MIN: a quarter turn) the faces no longer face each other and the pairs
+    leave paired contact; up to there the turning forces stay below the pressed pair's own."""
+    cell = Cell(rock(friction=0.0))
+    for dn in np.linspace(0.0, 4.0 * GF / FT, 2001):
+        cell.set(dn=dn)
+    assert cell.state == 1
+    reach = float(cell.ifs.reach[0])
+    pressed = 1e-4 * reach
+    cell.set(dn=-pressed)
+    scale = cell.pn * pressed * cell.A / 3.0
+    nb = cell.nb
+    centre = cell.model.x0[nb].mean(axis=0)
+    turned = np.linspace(0.0, 179.5, 360)  # degrees about the face's normal
+    largest, pressing = 0.0, []
+    for angle in np.radians(turned):
+        x = cell.model.x0.copy()
+        r = x[nb] - centre
+        c, s_ = math.cos(angle), math.sin(angle)
+        r = r * c + np.cross(cell.n, r) * s_ + np.outer(r @ cell.n, cell.n) * (1.0 - c)
+        x[nb] = centre + r - pressed * cell.n + 0.2 * reach * cell.t
+        cell.v[:] = 0.0
+        interface_forces(0.0, DT, x, cell.v, cell.ifs, cell.model.ties)
+        largest = max(largest, float(np.abs(cell.ifs.force_mid[0]).max()))
+        pressing.append(bool(np.any(cell.ifs.force[0] != 0.0)))
+    pressing = np.array(pressing)
+    print(f"largest turning force {largest / scale:.3f} x p_n dn A / 3; pressed to {turned[pressing].max():.1f} deg")
+    assert largest < scale
+    # Pressed while the mid triangle holds half the face (cos^2 of half the turn): to 90 degrees.
+    away = np.abs(turned - 90.0) > 1.0
+    assert np.array_equal(pressing[away], turned[away] < 90.0)
+
+
 BAR_PULLED_APART = """
 name = "bar-pulled-apart"
 method = "fdem"
