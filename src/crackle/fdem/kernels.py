@@ -8,7 +8,7 @@ races and no atomics:
    contact with Coulomb friction; the traction force on each of the 3 B-side
    nodes goes to ``ifs.force`` (the A side gets its negative), and on a failed face the part that
    acts on both nodes of a pair alike (its normal's turn, ``interface.turning_forces``) to
-   ``ifs.force_mid`` (failed and damaged faces);
+   ``ifs.force_mid`` (failed and damaged faces, flagged in ``ifs.turning``);
 2. over tets: St Venant-Kirchhoff forces, gather of the interface forces of the tet's 4 faces,
    pressures, tool contact, damping, gravity, central-difference update of the tet's 4 nodes.
 
@@ -119,7 +119,8 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     # Unpacked once per block: attribute access per element costs reference counting.
     na, nb, area, pn_all, ps_all = ties.na_at, ties.nb_at, ifs.area, ifs.pn, ifs.ps
     na_copy, nb_copy = ifs.na, ifs.nb
-    state, damage, force, force_mid, traction_t = ifs.state, ifs.damage, ifs.force, ifs.force_mid, ifs.traction_t
+    state, damage, force, traction_t = ifs.state, ifs.damage, ifs.force, ifs.traction_t
+    force_mid, turning = ifs.force_mid, ifs.turning
     slip_plastic, dn_shift, reading_offset, pair_entry = ifs.slip_plastic, ifs.dn_shift, ifs.reading_offset, ifs.pair_entry
     tied, tet_stress = ties.tied, ties.tet_stress
     released = False
@@ -146,6 +147,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         ):
             if damage[i] > 0.0:
                 _law_turning_forces(x, na, nb, i, nx, ny, nz, force, force_mid)
+                turning[i] = 1
             continue
 
         # Failed (or pre-cracked) faces: penalty contact with Coulomb friction between the pair,
@@ -177,6 +179,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             qy += sigma * a3 * sy
             qz += sigma * a3 * sz
         turning_forces(x, na, nb, i, nx, ny, nz, qx, qy, qz, force_mid)
+        turning[i] = 1
     if released:
         released_blocks[blk] = 1
 
@@ -275,7 +278,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
     x, v, mass = nodes.x, nodes.v, nodes.mass
     dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
-    na, nb, if_force, force_mid, if_state, if_damage = ifs.na, ifs.nb, ifs.force, ifs.force_mid, ifs.state, ifs.damage
+    na, nb, if_force, force_mid, turning, if_state = ifs.na, ifs.nb, ifs.force, ifs.force_mid, ifs.turning, ifs.state
     node_slot = contact.node_slot
     any_contact = contact.counts[1] > 0
     gx, gy, gz = ctrl.gravity[0], ctrl.gravity[1], ctrl.gravity[2]
@@ -309,7 +312,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
                         f[g, 0] -= if_force[iface, p, 0]
                         f[g, 1] -= if_force[iface, p, 1]
                         f[g, 2] -= if_force[iface, p, 2]
-                if if_state[iface] != INTACT or if_damage[iface] > 0.0:
+                if turning[iface]:
                     # The force on both nodes of each pair alike (the face normal's turn).
                     side = nb if face_side[e, face] == 1 else na
                     for p in range(3):

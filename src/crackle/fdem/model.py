@@ -36,7 +36,7 @@ Nodes = namedtuple("Nodes", BODY_FIELDS + " force")
 Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
 Interfaces = namedtuple(
     "Interfaces",
-    "na nb area pn ps reach law law_table damage state fail_time fail_mode force force_mid traction_t slip_plastic dn_shift "
+    "na nb area pn ps reach law law_table damage state fail_time fail_mode force force_mid turning traction_t slip_plastic dn_shift "
     "reading_offset pair_entry e_damage e_friction e_inserted",
 )
 Controls = namedtuple("Controls", "gravity damping")
@@ -173,6 +173,9 @@ def build_fdem_model(
         force=np.zeros((n_if, 3, 3)),
         # Per point pair of a failed face: the force on both its nodes alike (interface.turning_forces).
         force_mid=np.zeros((n_if, 3, 3)),
+        # 1 where force_mid holds this step's forces (failed faces, damaged intact ones): one byte
+        # for the tet pass's gather to read, not the state and the damage of every face.
+        turning=np.zeros(n_if, dtype=np.uint8),
         traction_t=np.zeros((n_if, 3, 3)),
         slip_plastic=np.zeros((n_if, 3, 3)),
         dn_shift=np.zeros(n_if),
