@@ -644,10 +644,10 @@ def test_a_pressed_pair_sliding_over_a_turning_face_does_no_work_around_a_loop(c
 
 def test_a_failed_face_turned_half_a_turn_keeps_its_turning_forces_bounded():
     """Issue 63, the walnut crushed by six plates at 1 mm (unstable at 37.75 ms): a loose tet
-    whose failed face had turned about its normal relative to its neighbour got 675 m/s in one
-    step, from turning forces of 1,232 N on a pair pressed with 2 N. The pairs press along the
+    whose failed face had slid and turned against its neighbour got 675 m/s in one step, from
+    turning forces of 1,960 N on a face whose pairs pressed with 3 N. The pairs press along the
     normal of their mid-point triangle, which shrinks to a point as the faces turn half a turn,
-    and the turning forces go as dE/dn over its area: 163 x p_n dn A / 3 at 179.5 degrees, here
+    and the turning forces go as dE/dn over its area: 164 x p_n dn A / 3 at 179.5 degrees, here
     on a pair slid 0.2 reach and pressed 1e-4 reach. Once that triangle is below half the face
     (interface.MID_FACE_MIN: a quarter turn) the faces no longer face each other and the pairs
     leave paired contact; up to there the turning forces stay below the pressed pair's own."""
