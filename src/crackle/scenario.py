@@ -508,6 +508,9 @@ class RunSpec(Strict):
     back; a second body always meets the specimen so)"""
     gravity: Vec3 = (0.0, 0.0, 0.0)
     """m/s^2"""
+    seed: Annotated[int, Field(ge=0)] = 0
+    """of the random material properties ([material.random]): the same seed, the same values on any machine and
+    thread count; `crackle sweep --seeds N` runs seeds 0 .. N-1"""
     history_samples: Annotated[int, Field(ge=1)] = 400
     """rows of history.csv over end_time"""
     field_frames: Annotated[int, Field(ge=0)] = 10

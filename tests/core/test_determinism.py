@@ -13,11 +13,16 @@ IMPACT = ["sphere-impact-fast", "--set", "run.end_time=4e-5"]
 # Extrinsic interfaces: insertions, the serial regrouping of clusters, the node pass over points.
 EXTRINSIC = ["three-point-bending", "--set", "run.end_time=1e-3", "--set", "material.interface.insertion=extrinsic"]
 # Glued grips pulling a bar apart, faces inserted by either tet's traction, the effective mixed mode
-# (the example's); the bar separates at ~0.96 ms.
-TENSION = ["direct-tension", "--set", "material.interface.insertion=extrinsic", "--set", "run.end_time=1e-3"]
+# (the example's), Weibull face strengths in a random field (one law row per face); the bar
+# separates before 1 ms.
+TENSION = ["direct-tension", "--set", "material.interface.insertion=extrinsic", "--set", "run.end_time=1e-3",
+           "--set", 'material.random.tensile_strength={distribution="weibull", modulus=6, correlation_length=0.005}']
 # Bonded-particle DEM: bonds breaking, contact lists rebuilt, the sample pulled by a moving
-# support (its reaction summed from every block's slot) against a still one.
-DEM = ["dem-tension", "--set", "run.end_time=3.5e-4"]
+# support (its reaction summed from every block's slot) against a still one; bond strengths
+# drawn per bond.
+DEM = ["dem-tension", "--set", "run.end_time=3.5e-4",
+       "--set", 'material.random.tensile_strength={distribution="lognormal", cv=0.3}',
+       "--set", 'material.random.cohesion={distribution="normal", cv=0.2, correlation_length=0.004}']
 
 
 def _run(tmp_path, threads, case=BENDING):

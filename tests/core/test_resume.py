@@ -86,9 +86,11 @@ def test_extrinsic_run_continued_from_its_half_is_bit_identical(tmp_path):
     """The quick sphere impact with extrinsic faces (clusters of tied copies moving on their
     leaders within a step, the tied phase ending at the first insertion) run to half its end
     time, then resumed to the end: the rows after the half, the events and the results equal
-    the uninterrupted run's (the checkpoint holds every copy's state and the clusters')."""
+    the uninterrupted run's (the checkpoint holds every copy's state and the clusters', and the
+    face strengths drawn at set-up, here from a random field)."""
     args = ["sphere-impact-slow", "--quick", "--set", "material.interface.insertion=extrinsic", "--set",
-            "run.field_frames=0"]
+            "run.field_frames=0", "--set",
+            'material.random.tensile_strength={distribution="weibull", modulus=8, correlation_length=0.01}']
     whole, half = tmp_path / "whole", tmp_path / "half"
     assert main(["run", *args, "--out", str(whole)]) == 0
     end = _summary(whole)["end_time"]

@@ -8,7 +8,7 @@ import numpy as np
 from ..loading.arrays import seat_on_tools, tool_arrays
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK
-from .model import BondLaw, Joint, bond_gamma, bonds, make_particles, normal_stiffness, stable_dt, with_joints
+from .model import BondLaw, Joint, bond_gamma, bonds, draw_bond_strengths, make_particles, normal_stiffness, stable_dt, with_joints
 from .simulation import DemSimulation
 
 # The contact list holds the pairs closer than Ra + Rb + SKIN x the mean radius: rebuilt when a
@@ -20,13 +20,15 @@ NEW_CONTACTS = 6
 def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per_particle: float | None = None,
                          gamma: float | None = None, tools=(), supports=(), damping: float = 0.0,
                          gravity=(0.0, 0.0, 0.0), velocity=None, loaded_area: float | None = None,
-                         joint: Joint | None = None) -> DemSimulation:
+                         joint: Joint | None = None, random: dict | None = None, seed: int = 0,
+                         material: str = "rock") -> DemSimulation:
     """Particles at `centers` (m) with `radii` (m) and `density` (kg/m^3), bonded to every
     neighbour within gamma (Ra + Rb), gamma given or chosen for `bonds_per_particle`.
     `damping`: the local non-viscous damping alpha (0 to 1, paper 003 eq. 5). `tools`,
     `supports`: loading.Tool, loading.Support (a support holds the particles it selects).
     `loaded_area` (m^2): the cross-section the platen stress is taken over. `joint`: a closed
-    flaw, the bonds across it made smooth joints."""
+    flaw, the bonds across it made smooth joints. `random`: the bond strengths drawn per bond
+    ({property: RandomProperty}) from `seed` and the `material`'s name."""
     centers = np.ascontiguousarray(centers, dtype=float)
     radii = np.asarray(radii, dtype=float)
     if gamma is None:
@@ -36,6 +38,7 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     scale = float(np.max(np.ptp(centers, axis=0) + 2.0 * radii.max()))
     particles = make_particles(centers, radii, density, support_constraints(supports, centers, scale), velocity)
     inter = bonds(particles, law, gamma)
+    drawn, drawn_statistics = draw_bond_strengths(particles, inter, law, random or {}, seed, material)
     if joint is not None:
         inter = with_joints(particles, inter, joint)
     mean_radius = float(np.mean(radii))
@@ -55,4 +58,5 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     sim.proven_dt = stable_dt(particles, inter, tool_k)
     sim.warnings.extend(seating)
     sim.gamma = gamma
+    sim.drawn, sim.random_properties = drawn, ({material: drawn_statistics} if drawn else None)
     return sim

@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..materials.random_properties import draw, statistics
 from scipy.spatial import cKDTree
 
 from ..solver.body import body_arrays
@@ -172,6 +174,27 @@ def bonds(particles: Particles, law: BondLaw, gamma: float) -> Interactions:
     pairs = _pairs_within(x, r, gamma, 0.0)
     d0 = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
     return interactions(particles, law, pairs, np.full(len(pairs), BONDED), d0)
+
+
+# What [material.random] may draw per bond: the property and the bond array it scales.
+RANDOM_BOND_PROPERTIES = {"tensile_strength": "fn_max", "cohesion": "cohesion"}
+
+
+def draw_bond_strengths(particles: Particles, inter: Interactions, law: BondLaw, random: dict, seed: int,
+                        material: str) -> tuple[dict, dict]:
+    """The bonds' strengths drawn per bond at its mid-point (Material.random: property ->
+    RandomProperty, the law's value the mean), written into the bond arrays; returns the drawn
+    values and their statistics per property."""
+    x = particles.x
+    mid = 0.5 * (x[inter.a] + x[inter.b])
+    drawn, stats_of = {}, {}
+    for name, spec in random.items():
+        mean = getattr(law, name)
+        values = draw(spec, mean, mid, seed, material, name)
+        column = getattr(inter, RANDOM_BOND_PROPERTIES[name])
+        column *= values / mean  # strength x Aint, per bond
+        drawn[name], stats_of[name] = values, statistics(spec, mid, values)
+    return drawn, stats_of
 
 
 def with_contacts(particles: Particles, law: BondLaw, current: Interactions, n_bonds: int, skin: float) -> Interactions:

@@ -18,9 +18,10 @@ from pydantic import Field, model_validator
 from ..analysis.strength import TensionTest, pulling_grip
 from ..loading.build import build_loading, touch_tools
 from ..scenario import FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, refuse_unused_keys, resolve_path
+from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
-from .model import BondLaw, Joint
+from .model import RANDOM_BOND_PROPERTIES, BondLaw, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
 from ..solver.simulation import PeakForceProbe
 from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe
@@ -104,9 +105,13 @@ class DemMaterial(Strict):
     """N: the mean bond count the interaction range gamma_int is chosen for (paper 003: 12)"""
     local_damping: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.2
     """alpha: local non-viscous damping (paper 003 eq. 5; 0.2 in the paper), a numerical device"""
+    random: dict[str, RandomProperty] = {}
+    """[material.random.NAME]: bond strengths drawn per bond (NAME: tensile_strength, cohesion), the value above
+    their mean; each bond's at its mid-point, from run.seed"""
 
     @model_validator(mode="after")
     def _plausible(self):
+        check_names(self.random, tuple(RANDOM_BOND_PROPERTIES), "material")
         if not 100.0 <= self.density <= 30000.0:
             raise ValueError(f"density = {self.density:g} kg/m^3 is outside 100-30000 (in g/cm^3? 2.5 g/cm^3 is 2500)")
         if not 1e6 <= self.bond_modulus <= 1e13:
@@ -247,6 +252,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
             tools=tools, supports=supports, damping=mat.local_damping, gravity=scenario.run.gravity,
             velocity=np.asarray(scenario.specimen.initial_velocity, float), loaded_area=loaded_area,
             joint=flaw.joint() if flaw is not None and flaw.kind == "closed" else None,
+            random=dict(mat.random), seed=scenario.run.seed, material=mat.name,
         )
     except ValueError as err:
         field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"

@@ -40,6 +40,8 @@ class DemSimulation(SimulationBase):
         # m^3, the region the packing fills (set-up sets the specimen's; else the particles' box)
         self.sample_volume = float(np.prod(np.ptp(particles.x, axis=0) + 2.0 * np.mean(particles.radius)))
         self.x0 = particles.x.copy()
+        # Bond strengths drawn per bond ([material.random]): {property: values}, and their statistics
+        self.drawn, self.random_properties = {}, None
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
         self._failures = FailureRecorder(n_bonds)
@@ -218,7 +220,7 @@ class DemSimulation(SimulationBase):
             "component_names": {"stress": STRESS_COMPONENTS, "homogenised_stress": STRESS_COMPONENTS},
             "blocks": [("line", np.stack([s.a[:n], s.b[:n]], axis=1),
                         {"intact": (s.state[:n] == BONDED).astype(np.int64), "state": s.state[:n].astype(np.int64),
-                         "normal_force": normal, "shear_force": shear}),
+                         "normal_force": normal, "shear_force": shear, **self.drawn}),
                        ("hexahedron", hexes, {"homogenised_stress": grid.reshape(-1, 6)})],
         }
 
@@ -251,6 +253,7 @@ class DemSimulation(SimulationBase):
             "bonds_per_particle": 2.0 * self.n_bonds / n,
             "broken_by_mode": self.broken_by_mode(),
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
+            "random_properties": self.random_properties,
             "warnings": list(self.warnings),
         }
         if self.loaded_area:

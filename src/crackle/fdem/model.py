@@ -19,6 +19,7 @@ from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.body import BODY_FIELDS, body_arrays
 from ..solver.integrator import support_constraints
 from ..materials import Material
+from ..materials.random_properties import draw, statistics
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
 from .kernels import TET_BLOCK
 from .laws import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT
@@ -68,6 +69,9 @@ class FdemModel:
     corner_point: np.ndarray  # mesh point of each exploded node
     contact_enabled: bool = False
     contact_skin: float = 0.0  # m; the candidate lists stay valid for half of it
+    # {material: {property: statistics}} of the properties drawn per face (their values: the
+    # faces' own law rows, ifs.law_table[ifs.law])
+    random_properties: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -114,6 +118,7 @@ def build_fdem_model(
     safety: float = 1.0,
     max_added_mass: float = 0.01,
     penalty_keys: dict[str, str] | None = None,
+    random_seed: int = 0,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -129,6 +134,7 @@ def build_fdem_model(
     it (time_step.scale_masses); refused (ValueError) when that adds more than `max_added_mass` of the mass.
     `penalty_keys` ({tool name: scenario key}) names the key that sets a tool's penalty in the
     advice when it is not tools.NAME.penalty (the [plates]: plates.penalty).
+    `random_seed`: of the properties a material draws per face (Material.random).
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -139,6 +145,7 @@ def build_fdem_model(
 
     bulk = _exploded_tets(mesh, materials, tet_material)
     pairs = _interfaces(mesh, materials, tet_material, bulk)
+    random_properties = _draw_per_face(pairs, materials, bulk.x0, random_seed)
     precrack = _precracks(precracks, bulk.x0, pairs, scale)
     pairs.state[precrack] = PRECRACK
     pairs.damage[precrack] = 1.0
@@ -233,6 +240,7 @@ def build_fdem_model(
         contact_penalty=default_penalty,
         tet_friction=np.array([mat.interface.friction for mat in materials])[tet_material],
         corner_point=bulk.corner_point.astype(np.int64),
+        random_properties=random_properties,
         contact_enabled=contact,
         contact_skin=0.25 * element_size,
         warnings=model_warnings,
@@ -300,7 +308,7 @@ class _Pairs:
     nb: np.ndarray  # (k, 3) B nodes on the same mesh points
     boundary_faces: np.ndarray  # (tet, local face) of the outer boundary
     area: np.ndarray
-    law: np.ndarray  # row of law_table governing each interface
+    law: np.ndarray  # row of law_table governing each interface (int32: one row per face where properties are drawn)
     law_table: np.ndarray
     pn: np.ndarray  # N/m^3
     ps: np.ndarray
@@ -328,7 +336,7 @@ def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk) -> _Pairs:
     law_table = np.array([mat.interface.table_row() for mat in materials]).reshape(-1, LAW_COLUMNS)
     mat_a, mat_b = tet_material[ta], tet_material[tb]
     ft_of = law_table[:, LAW_FT]
-    iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int16)
+    iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int32)
     pn = np.zeros(n_if)
     ps = np.zeros(n_if)
     E_min = np.minimum(bulk.E[ta], bulk.E[tb])
@@ -342,6 +350,34 @@ def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk) -> _Pairs:
         area=bulk.face_area[ta, fa], law=iface_law, law_table=law_table, pn=pn, ps=ps,
         reach=edge.max(axis=1), state=np.full(n_if, INTACT, dtype=np.int8), damage=np.zeros(n_if),
     )
+
+
+def _draw_per_face(pairs: _Pairs, materials, x0: np.ndarray, seed: int) -> dict:
+    """Where a material draws properties per face ([material.random]), every interface gets its
+    own law row with its drawn values (the kernels read a face's row whatever the table's size, so
+    a uniform model keeps one row per material and its speed). Returns the drawn values'
+    statistics per material and property."""
+    if not any(mat.random for mat in materials):
+        return {}
+    centroid = x0[pairs.na].mean(axis=1)
+    rows = pairs.law_table[pairs.law]
+    stats_of = {}
+    for index, mat in enumerate(materials):
+        faces = np.flatnonzero(pairs.law == index)
+        law = mat.interface
+        for name, spec in mat.random.items():
+            column = law.RANDOM[name]
+            values = draw(spec, float(pairs.law_table[index, column]), centroid[faces], seed, mat.name, name)
+            rows[faces, column] = values
+            if name == "fracture_energy" and "fracture_energy_shear" not in mat.random and law.fracture_energy_shear is None:
+                rows[faces, law.RANDOM["fracture_energy_shear"]] = values  # mode II follows Gf where it defaults to it
+            stats_of.setdefault(mat.name, {})[name] = statistics(spec, centroid[faces], values)
+        problem = law.drawn_rows_problem(rows[faces], pairs.pn[faces], pairs.ps[faces]) if mat.random else None
+        if problem:
+            raise ValueError(f"[material.random] of {mat.name}: {problem}")
+    pairs.law_table = rows
+    pairs.law = np.arange(len(rows), dtype=np.int32)
+    return stats_of
 
 
 def _precracks(precracks, x0, pairs: _Pairs, scale: float) -> np.ndarray:

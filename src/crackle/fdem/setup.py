@@ -16,6 +16,7 @@ from ..budget import ModelTooLarge, check_model_size
 from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
+from ..materials.random_properties import RandomProperty, check_names
 from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
 from .laws import LAWS
 from .model import build_fdem_model
@@ -44,6 +45,15 @@ InterfaceSpec = Annotated[
 class FdemMaterialSpec(ElasticSpec):
     interface: InterfaceSpec
     """[material.interface]: the interface law between tets, by `law`"""
+    random: dict[str, RandomProperty] = {}
+    """[material.random.NAME]: properties of the interface law drawn per face (NAME: tensile_strength, cohesion
+    (guo-munjiza) or shear_strength (bilinear), fracture_energy, fracture_energy_shear), the law's value their mean;
+    each face's value at its centroid, from run.seed"""
+
+    @model_validator(mode="after")
+    def _random_names(self):
+        check_names(self.random, tuple(type(self.interface).RANDOM), "material")
+        return self
 
 
 class Scenario(ScenarioBase):
@@ -85,6 +95,7 @@ def build_material(spec: FdemMaterialSpec) -> Material:
         poissons_ratio=spec.poissons_ratio,
         name=spec.name,
         interface=spec.interface,
+        random=dict(spec.random),
     )
 
 
@@ -155,6 +166,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 safety=scenario.run.safety,
                 max_added_mass=scenario.run.max_added_mass,
                 penalty_keys=scenario.plates.penalty_keys() if scenario.plates is not None else None,
+                random_seed=scenario.run.seed,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None

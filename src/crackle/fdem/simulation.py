@@ -216,13 +216,21 @@ class FdemSimulation(SimulationBase):
             "blocks": [
                 ("tetra", np.arange(4 * n_tets).reshape(-1, 4),
                  {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels}),
-                ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64)}),
+                ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64),
+                                        **self._drawn_face_values()}),
             ],
             "component_names": {"stress": STRESS_COMPONENTS},
         }
 
     def bounds(self):
         return self.model.mesh.bounds()
+
+    def _drawn_face_values(self) -> dict:
+        """Each property some material draws per face, on every face (the faces' law rows)."""
+        m = self.model
+        rows = m.ifs.law_table[m.ifs.law]
+        columns = {name: type(mat.interface).RANDOM[name] for mat in m.materials for name in mat.random}
+        return {name: rows[:, column].copy() for name, column in sorted(columns.items())}
 
     def extra_plots(self, out_dir) -> None:
         plot_fragment_sizes(self.fragments().masses, run_plot_path(out_dir, "fragment_sizes"))
@@ -258,6 +266,7 @@ class FdemSimulation(SimulationBase):
             "contact_rebuilds": self.rebuilds,
             **self.probe_summary(),
             "process_zones": self._process_zones(),
+            "random_properties": m.random_properties or None,
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,

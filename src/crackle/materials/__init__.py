@@ -8,7 +8,7 @@ Every quantity is SI: Pa, kg/m^3, J/m^2, m.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 @dataclass(frozen=True)
@@ -20,6 +20,8 @@ class Material:
     poissons_ratio: float
     interface: Any = None
     name: str = "material"
+    # {property: materials.random_properties.RandomProperty}: what is drawn per fracture site
+    random: dict = field(default_factory=dict)
 
     @property
     def lame_lambda(self) -> float:

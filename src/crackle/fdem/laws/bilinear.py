@@ -118,6 +118,9 @@ class BilinearLaw:
     """picks this law"""
 
     kind: ClassVar[int] = 1
+    # What [material.random] may draw per face: the property and its column of the law row.
+    RANDOM: ClassVar[dict[str, int]] = {"tensile_strength": LAW_FT, "shear_strength": LAW_TS,
+                                        "fracture_energy": LAW_GF1, "fracture_energy_shear": LAW_GF2}
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -137,6 +140,18 @@ class BilinearLaw:
     @property
     def gf_shear(self) -> float:
         return self.fracture_energy if self.fracture_energy_shear is None else self.fracture_energy_shear
+
+    def drawn_rows_problem(self, rows: np.ndarray, kn: np.ndarray, ks: np.ndarray) -> str | None:
+        """Why faces with drawn strengths and energies (their law rows) would snap back, or None."""
+        if self.insertion != "intrinsic":
+            return None
+        for g, t0, k, what in ((rows[:, LAW_GF1], rows[:, LAW_FT], kn, "mode I"), (rows[:, LAW_GF2], rows[:, LAW_TS], ks, "mode II")):
+            snaps = g <= t0 * t0 / (2.0 * k)
+            if snaps.any():
+                return (f"{int(snaps.sum()):,} of {len(rows):,} faces drew a {what} strength and fracture energy whose "
+                        "softening snaps back (Gc <= t0^2 / 2k): lower the strength's spread or raise the fracture "
+                        "energy or the interface stiffness")
+        return None
 
     @property
     def mixed_mode_exponent(self) -> float:

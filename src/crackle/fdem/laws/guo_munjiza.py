@@ -123,6 +123,14 @@ class GuoMunjizaLaw:
     """picks this law (the default)"""
 
     kind: ClassVar[int] = 0
+    # What [material.random] may draw per face: the property and its column of the law row.
+    RANDOM: ClassVar[dict[str, int]] = {"tensile_strength": LAW_FT, "cohesion": LAW_C, "fracture_energy": LAW_GF1,
+                                        "fracture_energy_shear": LAW_GF2}
+
+    def drawn_rows_problem(self, rows: np.ndarray, pn: np.ndarray, ps: np.ndarray) -> str | None:
+        """Why faces with drawn strengths and energies (their law rows) cannot be run, or None: any
+        positive values soften (the critical opening follows Gf / ft)."""
+        return None
 
     @property
     def gf_shear(self) -> float:
