@@ -57,11 +57,11 @@ def _cmd_sweep(args) -> int:
     from .sweep import make_plan, run_sweep
     from .sweep.runner import COMPLETED
 
-    if not _counts_at_least_one(args, ("workers", "threads_per_run")):
+    if not _counts_at_least_one(args, ("workers", "threads_per_run", "seeds")):
         return 2
     out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
     try:
-        plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick)
+        plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick, args.seeds)
         result = run_sweep(plan, out, args.scheduler, args.workers, args.threads_per_run, args.plot,
                            report=lambda text: print(text, flush=True))
     except ScenarioError as err:
@@ -75,6 +75,8 @@ def _cmd_sweep(args) -> int:
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
     print(f"  table in {result.out_dir / 'sweep.csv'} (and sweep.parquet), plots in {result.out_dir / 'plots'}")
+    for line in result.seed_lines:
+        print(f"  {line}")
     return 0 if all(s in COMPLETED for s in statuses) else 1
 
 
@@ -167,10 +169,12 @@ def main(argv=None) -> int:
                        "--vary values, each in its own folder under --out, on a Dask cluster; then sweep.csv, "
                        "sweep.parquet and plots/sweep_KEY.png. Rerun the same command to finish an interrupted sweep.")
     p.add_argument("sweep", help="a scenario (file or shipped example), a sweep file, or a shipped sweep "
-                   "(brazilian-angles, walnut-layouts, mesh-ladder, tube-shots)")
+                   "(brazilian-angles, walnut-layouts, mesh-ladder, tube-shots, tension-size-effect)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a key and its values, e.g. --vary loading.angle=0,30,60,90 (repeat for more keys)")
     p.add_argument("--zip", action="store_true", help="the i-th values of every key together (not every combination)")
+    p.add_argument("--seeds", type=int, metavar="N", help="every run with run.seed = 0 .. N-1 (random material "
+                   "properties drawn anew); sweep_seeds.csv: each summary scalar's mean and standard deviation over the seeds")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an override every run gets")
     p.add_argument("--quick", action="store_true", help="every run in its example's quick form")
     p.add_argument("--out", help="the sweep's folder (default crackle-out/sweep-NAME)")

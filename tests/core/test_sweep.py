@@ -66,14 +66,49 @@ def test_bad_plans_are_refused_naming_the_problem(vary, zip_, message):
 
 def test_every_shipped_sweep_is_a_valid_family_of_scenarios():
     """brazilian-angles (4 runs), walnut-layouts (6 zipped layouts), mesh-ladder (3 sizes),
-    tube-shots (3 zipped notches): every run's scenario validates."""
-    assert set(list_sweeps()) == {"brazilian-angles", "walnut-layouts", "mesh-ladder", "tube-shots"}
+    tube-shots (3 zipped notches), tension-size-effect (3 zipped sizes x 10 seeds): every run's
+    scenario validates."""
+    assert set(list_sweeps()) == {"brazilian-angles", "walnut-layouts", "mesh-ladder", "tube-shots",
+                                  "tension-size-effect"}
     sizes = {}
     for name in list_sweeps():
         plan = make_plan(name, [], [], False, False)
         assert check_runs(plan, plan.runs()) == {}
         sizes[name] = len(plan.runs())
-    assert sizes == {"brazilian-angles": 4, "walnut-layouts": 6, "mesh-ladder": 3, "tube-shots": 3}
+    assert sizes == {"brazilian-angles": 4, "walnut-layouts": 6, "mesh-ladder": 3, "tube-shots": 3,
+                     "tension-size-effect": 30}
+
+
+def test_seeds_repeat_every_run_with_each_seed():
+    """--seeds N adds run.seed = 0 .. N-1: a product with the other keys, and with --zip every
+    zipped position N times (the seed varying fastest); varying or setting run.seed as well is
+    refused."""
+    plan = make_plan("three-point-bending", ["a.x=1,2"], [], False, False, seeds=3)
+    assert [r.varied for r in plan.runs()] == [{"a.x": x, "run.seed": s} for x in (1, 2) for s in range(3)]
+    zipped = make_plan("three-point-bending", ["a.x=1,2", "b.y=3,4"], [], True, False, seeds=2)
+    assert [tuple(r.varied.values()) for r in zipped.runs()] == [(1, 3, 0), (1, 3, 1), (2, 4, 0), (2, 4, 1)]
+    assert len(make_plan("three-point-bending", [], [], False, False, seeds=4).runs()) == 4
+    for vary, fixed in ((["run.seed=1,2"], []), ([], ["run.seed=3"])):
+        with pytest.raises(ScenarioError, match="run.seed"):
+            make_plan("three-point-bending", vary, fixed, False, False, seeds=2)
+
+
+def test_seed_statistics_are_the_mean_and_deviation_over_seeds(tmp_path):
+    """sweep_seeds.csv: per value of the other keys, a scalar's mean and sample standard
+    deviation (n - 1) over the finished seeds; a failed run is left out."""
+    from crackle.sweep.table import write_seed_statistics
+
+    peaks = {1: [10.0, 12.0, 14.0], 2: [20.0, 20.0, 26.0]}
+    rows = [{"a.x": x, "run.seed": s, "run": f"{x}-{s}", "status": "completed", "message": "",
+             "summary": {"peak_force": peak}} for x, values in peaks.items() for s, peak in enumerate(values)]
+    rows.append({"a.x": 1, "run.seed": 3, "run": "1-3", "status": "unstable", "message": "", "summary": {"peak_force": 1e9}})
+    lines = write_seed_statistics(tmp_path, ["a.x", "run.seed"], rows)
+    with open(tmp_path / "sweep_seeds.csv", newline="") as fh:
+        table = {(r["a.x"], r["quantity"]): r for r in csv.DictReader(fh)}
+    assert float(table["1", "peak_force"]["mean"]) == 12.0 and float(table["1", "peak_force"]["sd"]) == 2.0
+    assert float(table["2", "peak_force"]["mean"]) == 22.0 and float(table["2", "peak_force"]["sd"]) == pytest.approx(12.0**0.5)
+    assert table["1", "peak_force"]["runs"] == "3"
+    assert len(lines) == 2 and "over 3 seeds at x=1: peak_force 12 +- 2" in lines[0]
 
 
 def test_sweep_on_two_workers_equals_the_runs_one_by_one(tmp_path):

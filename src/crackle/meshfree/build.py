@@ -47,8 +47,8 @@ class MeshfreeBody:
 def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
                               stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
                               gravity=(0.0, 0.0, 0.0), velocity=None,
-                              fracture_stress: float = math.inf, precracks=(), pressures=(),
-                              failure_plastic_strain: float = math.inf, bodies=(),
+                              fracture_stress: float | np.ndarray = math.inf, precracks=(), pressures=(),
+                              failure_plastic_strain: float | np.ndarray = math.inf, bodies=(),
                               self_contact: bool = False, support: str = "uniform") -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (`support`
     "uniform"; "local": dilation x each particle's own spacing, WallParticles.local_spacing, for
@@ -58,7 +58,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py), the
-    equivalent plastic strain that fails one (failure_plastic_strain; inf: none) and
+    equivalent plastic strain that fails one (failure_plastic_strain; inf: none), each one value
+    or one per particle of `plate` (drawn per particle: fracture.draw_thresholds), and
     the pre-cracks (loading.Precrack: the links across them removed at the start) and the pressures
     on the wall faces (loading.Pressure, pressure_arrays). `bodies`: more bodies (MeshfreeBody,
     after the specimen's particles in that order), met by the particle contact (contact.py), as
@@ -117,7 +118,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
     c_p = math.sqrt((table[0, 0] + 2.0 * table[0, 1]) / density)
     breaking = None
-    if math.isfinite(fracture_stress) or math.isfinite(failure_plastic_strain) or precracks:
+    if np.isfinite(fracture_stress).any() or np.isfinite(failure_plastic_strain).any() or precracks:
         cells = merge_cells([d.plate.cells for d in shapes])
         frame = plate.wall_frame
         if frame is not None and bodies:

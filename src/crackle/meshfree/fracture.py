@@ -33,6 +33,12 @@ no stress and no pressure and moves as a free particle (mass, tools, supports an
 act on it), and
 its neighbours are rebuilt without it (which may detach more, repeated until none is left).
 
+Random strengths ([material.random]): the fracture stress and the failure strain are thresholds
+per particle (`draw_thresholds`: the tensile strength and the failure plastic strain drawn at each
+particle's reference position from `run.seed`, materials.random_properties); at uniform strength
+every particle's threshold is the one value, so the criterion compares the same numbers as with
+a scalar and a uniform run stays bit-identical.
+
 The stored energy that the removal releases (the jump of the elastic plus stabilisation energy
 at the rebuild, at the mid-step positions the audit uses) is booked as damage. Checks run on a
 fixed grid of step numbers (FRACTURE_CHECK), so the state does not depend on how a run is split
@@ -45,6 +51,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..materials.random_properties import draw, statistics
 from ..solver.stability import STEP_MARGIN
 from .kernels import gauss_strains, stabilisation_stiffness
 from .material import thermal_strain
@@ -72,6 +79,23 @@ FRACTURE_CHECK = 3
 # A particle this close to a crack plane (relative to the support radius) is on it.
 _ON_PLANE = 1e-9
 
+# What [material.random] may draw per particle: the properties of the material (meshfree/setup.py
+# MeshfreeMaterial) whose values set a particle's thresholds, the fracture stress (fracture_factor
+# x tensile_strength) and the failure plastic strain.
+RANDOM_PARTICLE_PROPERTIES = ("tensile_strength", "failure_plastic_strain")
+
+
+def draw_thresholds(X: np.ndarray, random: dict, means: dict, seed: int, material: str) -> tuple[dict, dict]:
+    """The properties `random` ({name: RandomProperty}, names from RANDOM_PARTICLE_PROPERTIES)
+    drawn per particle at the reference positions X (m, the specimen's particles), each with the
+    material's value `means[name]` as its mean, from the run's `seed` and the `material`'s name:
+    ({name: values}, {name: statistics for summary.json})."""
+    drawn, stats_of = {}, {}
+    for name, spec in random.items():
+        values = draw(spec, float(means[name]), X, seed, material, name)
+        drawn[name], stats_of[name] = values, statistics(spec, X, values)
+    return drawn, stats_of
+
 
 class LinkBreaking:
     """The crack state of a MeshfreeSimulation and the check that extends it."""
@@ -87,8 +111,11 @@ class LinkBreaking:
         self.X, self.volume, self.cells = X, volume, cells
         # The support radius and the crack discs' radius: numbers, or one per particle (a graded set).
         self.radius, self.terms, self.stab_scale = radius, terms, float(stab_scale)
-        self.fracture_stress = float(fracture_stress)
-        self.failure_strain = float(failure_strain)  # equivalent plastic strain that fails a particle
+        # Per particle: the maximum principal stress that fails it (Pa) and the equivalent plastic
+        # strain that fails it, given as one value for all or one per fracturing particle (drawn:
+        # draw_thresholds); inf on the particles that cannot fail (another body's).
+        self.fracture_stress = _per_particle(fracture_stress, n, self.fracturing)
+        self.failure_strain = _per_particle(failure_strain, n, self.fracturing)
         crack_radius = np.asarray(crack_radius, dtype=float)  # a number or one per fracturing particle
         self.crack_radius = np.zeros(n)
         self.crack_radius[:self.fracturing] = crack_radius
@@ -132,7 +159,7 @@ class LinkBreaking:
         s = s[near]
         sigma = np.stack([s[:, [0, 3, 5]], s[:, [3, 1, 4]], s[:, [5, 4, 2]]], axis=1)
         values, vectors = np.linalg.eigh(sigma)
-        over = (values[:, 2] > self.fracture_stress) | strained[near]
+        over = (values[:, 2] > self.fracture_stress[near]) | strained[near]
         ids = near[over]
         n_current = vectors[over, :, 2]
         F = deformation[ids].reshape(-1, 3, 3)
@@ -219,7 +246,7 @@ class LinkBreaking:
         """At a check step: fail the particles over the criterion, remove the links across their
         cracks, rebuild the affected particles and book the released energy. True if links
         changed."""
-        if not (np.isfinite(self.fracture_stress) or np.isfinite(self.failure_strain)):  # pre-cracks only
+        if not (np.isfinite(self.fracture_stress).any() or np.isfinite(self.failure_strain).any()):  # pre-cracks only
             return False
         cauchy = sim.cauchy_stress()
         # Blown up (non-finite stresses; numpy's eigen-solve raised on one such state of a tube run):
@@ -400,6 +427,14 @@ class LinkBreaking:
         if len(self.blocked) == 0:
             return np.zeros(len(keys), dtype=bool)
         return self.blocked[np.minimum(np.searchsorted(self.blocked, keys), len(self.blocked) - 1)] == keys
+
+
+def _per_particle(threshold, n: int, fracturing: int) -> np.ndarray:
+    """A threshold (a number, or one per fracturing particle) on all n particles: inf past the
+    fracturing ones."""
+    out = np.full(n, np.inf)
+    out[:fracturing] = threshold
+    return out
 
 
 def _gradient_sums(row, grad, n) -> np.ndarray:

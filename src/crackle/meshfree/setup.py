@@ -27,6 +27,8 @@ from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
 from ..geometry.meshes import MeshError, gmsh_sphere, read_mesh
 from ..geometry.specimens import check_file_units
+from ..materials.random_properties import RandomProperty, check_names
+from .fracture import RANDOM_PARTICLE_PROPERTIES, draw_thresholds
 from .particles import graded_plate_particles, plate_particles, shell_particles, tet_node_particles, tube_particles
 from .simulation import MeshfreeSimulation
 
@@ -221,6 +223,19 @@ class MeshfreeMaterial(ElasticSpec):
     """a particle also fails when its equivalent plastic strain reaches this (a ductile criterion, Abaqus's ductile
     damage initiation at a constant strain; the crack plane's normal is the maximum principal direction, as for the
     stress; inf: off, the paper's criterion alone)"""
+    random: dict[str, RandomProperty] = {}
+    """[material.random.NAME]: fracture thresholds drawn per particle (NAME: tensile_strength (the fracture stress is
+    fracture_factor x the drawn value), failure_plastic_strain), the value above their mean; each particle's at its
+    reference position, from run.seed"""
+
+    @model_validator(mode="after")
+    def _random_names(self):
+        check_names(self.random, RANDOM_PARTICLE_PROPERTIES, "material")
+        for name in self.random:
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"random.{name}: the drawn values' mean is {name}, which is inf (off); give a finite "
+                                 f"{name} or remove [material.random.{name}]")
+        return self
 
     @model_validator(mode="after")
     def _keys_of_the_model(self):
@@ -253,7 +268,7 @@ class BodyMaterial(MeshfreeMaterial):
 
     @model_validator(mode="after")
     def _no_fracture(self):
-        for key in ("tensile_strength", "failure_plastic_strain", "fracture_factor"):
+        for key in ("tensile_strength", "failure_plastic_strain", "fracture_factor", "random"):
             if key in self.model_fields_set:
                 raise ValueError(f"{key}: a body besides the specimen does not fracture (paper 000's sphere is "
                                  "\"not allowed to fracture\"); remove it")
@@ -391,19 +406,28 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             raise ScenarioError(str(err)) from None
     mat = scenario.material
     bodies = [_body(body, f"bodies.{i}", base) for i, body in enumerate(scenario.bodies)]
+    # The thresholds per particle where [material.random] draws them (the specimen's particles,
+    # at their reference positions; the bodies do not fracture), else the material's values.
+    drawn, drawn_statistics = draw_thresholds(plate.X, mat.random, {name: getattr(mat, name) for name in mat.random},
+                                              scenario.run.seed, mat.name)
+    fracture_stress = mat.fracture_factor * drawn["tensile_strength"] if "tensile_strength" in drawn \
+        else mat.fracture_stress
     try:
-        return build_meshfree_simulation(
+        sim = build_meshfree_simulation(
             plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
-            velocity=spec.initial_velocity, fracture_stress=mat.fracture_stress,
+            velocity=spec.initial_velocity, fracture_stress=fracture_stress,
             precracks=build_precracks(scenario.precracks), pressures=pressures,
-            failure_plastic_strain=mat.failure_plastic_strain, bodies=bodies, self_contact=scenario.run.contact,
+            failure_plastic_strain=drawn.get("failure_plastic_strain", mat.failure_plastic_strain), bodies=bodies,
+            self_contact=scenario.run.contact,
             support=particles.support or ("local" if particles.refine is not None else "uniform"),
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
+    sim.drawn, sim.random_properties = drawn, ({mat.name: drawn_statistics} if drawn else None)
+    return sim
 
 
 def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:

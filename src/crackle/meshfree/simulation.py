@@ -56,6 +56,10 @@ class MeshfreeSimulation(SimulationBase):
                                      np.zeros(0), np.zeros(0), np.zeros((0, 3)))
         # One failure per particle (the particle where a crack plane was put).
         self._failures = FailureRecorder(len(particles.x))
+        # The properties drawn per particle ([material.random], fracture.draw_thresholds): {property:
+        # values on the specimen's particles}, and their statistics per material (summary.json); the
+        # thresholds they set are the link breaking's (LinkBreaking.fracture_stress, failure_strain).
+        self.drawn, self.random_properties = {}, None
         # Compiled steps per driver step: 1, until link breaking lowers the estimated stable step
         # to within SUBSTEP_ABOVE of the step in use (_follow_stable_step); the velocity span of
         # the next compiled step where the step changed.
@@ -174,7 +178,8 @@ class MeshfreeSimulation(SimulationBase):
         `failed` (1 where a crack plane passes through the particle), `crack_normal` (its normal
         in the current configuration, F^-T N normalised; 0 elsewhere: glyphs show the crack) and
         `detached` (1: a free particle, all its links removed); with the thermo law the
-        `temperature` (K)."""
+        `temperature` (K); each property drawn per particle ([material.random]) by its name (nan
+        on the particles of other bodies, which do not fracture)."""
         p = self.particles
         n = len(p.x)
         b = self.breaking
@@ -190,10 +195,19 @@ class MeshfreeSimulation(SimulationBase):
             "points": p.x,
             "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
                            "plastic_strain": self.per_particle(p.eq_plastic), "failed": failed, "crack_normal": normal,
-                           "detached": detached, **self._temperature()},
+                           "detached": detached, **self._temperature(), **self._drawn_values()},
             "component_names": {"stress": STRESS_COMPONENTS},
             "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
         }
+
+    def _drawn_values(self) -> dict:
+        """Each property drawn per particle, on every particle (nan past the specimen's)."""
+        out = {}
+        for name, values in sorted(self.drawn.items()):
+            column = np.full(len(self.particles.x), np.nan)
+            column[:len(values)] = values
+            out[name] = column
+        return out
 
     @property
     def thermo(self) -> bool:
@@ -232,6 +246,7 @@ class MeshfreeSimulation(SimulationBase):
             **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])))} if self.thermo else {}),
             **self.perforation(),
             **self.bodies(),
+            "random_properties": self.random_properties,
             "warnings": list(self.warnings),
         }
 

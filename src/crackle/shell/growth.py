@@ -33,6 +33,21 @@ edge the stress across it is zero, so that tangential stress is the largest prin
 and the crack runs into the sheet normal to it. The edge's vertex opens (the crack's mouth) and
 the first edge inward, turned onto the normal first, is cut; its far end is the new tip, which
 grows by Griffith and the speed law like any other.
+
+Random fracture properties ([material.random]: `toughness` per edge, `strength` per free-edge
+vertex, each material its own, `RandomSites`): the mesh changes as the crack grows (cut_edge
+splits vertices and rebuilds the edge table, align_ahead moves the tip's neighbours in the
+reference), so values are not stored per edge, which the rebuilds renumber, but kept as a
+function of the reference position (`SiteField`) evaluated where they are needed: an edge's Gc
+at its mid-point, a vertex's strength at the vertex. A cut copies vertices to their exact
+positions, so every edge keeps its mid-point, and its value, through any number of cuts and
+rebuilds; an edge that align_ahead turns has a new mid-point and takes the field's value there.
+A correlated field (correlation_length) is GSTools' randomisation method, a deterministic
+function of position for its seed (materials.random_properties.standard_normal); independent
+sites take their standard normal value from a hash of the mid-point's coordinates (their bits)
+with the seed, so a value does not depend on the order in which sites are evaluated, on the
+thread count or on a resume. Griffith's check reads the Gc of the edge ahead of the tip (along
+the heading the kink criterion gives) and, before each further cut, of the edge about to be cut.
 """
 
 from __future__ import annotations
@@ -40,8 +55,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy import special
 
 from ..loading.tools import NO_TOOL
+from ..materials.random_properties import FIELD_MODES, RandomProperty, statistics, stream_seed, to_marginal
 from ..solver.integrator import FREE
 from .mesh import altitudes, split_along
 from .model import Shell, build_shell
@@ -49,6 +66,135 @@ from .model import Shell, build_shell
 GROWTH_CHECK = 20  # steps between checks
 ALTITUDE_KEPT = 0.7  # x the starting mesh's smallest altitude: no move makes a triangle thinner (the step)
 ALIGNED_ANGLE = np.radians(0.5)  # rad, an edge this close to the heading is not turned
+
+
+# What [material.random] may draw on a shell: [fracture]'s toughness (Gc, per edge) and strength
+# (per free-edge vertex), by their names there.
+RANDOM_SITE_PROPERTIES = ("toughness", "strength")
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mix(h: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser on uint64 values (wrapping arithmetic)."""
+    h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return h ^ (h >> np.uint64(31))
+
+
+def hashed_normal(points: np.ndarray, seed: int) -> np.ndarray:
+    """Independent standard normal values, one per point (m, (k, 3)), each a function of the
+    point's coordinates (their bits; -0.0 counted as 0.0) and the seed alone."""
+    bits = (np.ascontiguousarray(points, dtype=float).reshape(-1, 3) + 0.0).view(np.uint64)
+    h = np.full(len(bits), np.uint64(seed), dtype=np.uint64)
+    for c in range(3):
+        h = _mix((h + _GOLDEN) ^ bits[:, c])
+    h = _mix(h + _GOLDEN)
+    return special.ndtri(((h >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53)
+
+
+class SiteField:
+    """One property of one material as a function of the reference position: the value `spec`'s
+    marginal takes (mean `mean`) at a point, from the stream `seed` (stream_seed of the run's seed
+    and the names): a GSTools random field with a correlation length, else an independent value
+    per point from its hash (hashed_normal). Values already asked for are remembered by point."""
+
+    def __init__(self, spec: RandomProperty, mean: float, seed: int):
+        self.spec, self.mean, self.seed = spec, float(mean), int(seed)
+        self._known: dict[bytes, float] = {}
+        self._field = None  # the GSTools field, built once (its modes take ~0.3 s)
+
+    def __getstate__(self):
+        # A checkpoint keeps the definition; values and the field are functions of it, made again.
+        return {**self.__dict__, "_known": {}, "_field": None}
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """The values at the points (m, (k, 3))."""
+        points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3) + 0.0
+        keys = [point.tobytes() for point in points]
+        new = [i for i, key in enumerate(keys) if key not in self._known]
+        if new:
+            fresh = dict(zip((keys[i] for i in new), self._values(points[new])))
+            self._known.update(fresh)
+        return np.array([self._known[key] for key in keys], dtype=float)
+
+    def _values(self, points: np.ndarray) -> np.ndarray:
+        model = self.spec.covariance_model()
+        if model is None:
+            z = hashed_normal(points, self.seed)
+        else:
+            if self._field is None:
+                import gstools
+
+                # materials.random_properties.standard_normal's field, kept for the next points
+                self._field = gstools.SRF(model, mean=0.0, seed=self.seed, mode_no=FIELD_MODES)
+            z = np.asarray(self._field(points.T, mesh_type="unstructured"), float)
+        return to_marginal(self.spec, self.mean, z)
+
+
+@dataclass
+class RandomSites:
+    """The shell's properties drawn per fracture site ([material.random]): per property (a name
+    of RANDOM_SITE_PROPERTIES) one SiteField per material (ShellMesh.region indexes them; None
+    where that material does not draw it: [fracture]'s value, the mean, everywhere). A site
+    between materials (an edge on two regions' triangles, a vertex on several) takes the lowest
+    of their values: the weaker side breaks."""
+
+    fields: dict[str, list[SiteField | None]]
+    means: dict[str, float]
+
+    @classmethod
+    def of(cls, randoms: list[dict], names: list[str], means: dict[str, float], seed: int) -> RandomSites | None:
+        """From each material's [material.random] (`randoms`, in region order) and name, [fracture]'s
+        values (`means`) and the run's seed; None where no material draws anything."""
+        if not any(randoms):
+            return None
+        fields = {}
+        for prop in RANDOM_SITE_PROPERTIES:
+            if any(prop in random for random in randoms):
+                fields[prop] = [SiteField(random[prop], means[prop], stream_seed(seed, name, prop)) if prop in random
+                                else None for random, name in zip(randoms, names)]
+        return cls(fields, {prop: float(means[prop]) for prop in fields})
+
+    def values(self, prop: str, points: np.ndarray, regions: np.ndarray) -> np.ndarray:
+        """The property at the points (m, (k, 3)) whose materials are `regions` ((k, r), -1 for
+        none): the lowest over them."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        regions = np.asarray(regions).reshape(len(points), -1)
+        out = np.full(len(points), np.inf)
+        for r, site_field in enumerate(self.fields[prop]):
+            here = np.flatnonzero(np.any(regions == r, axis=1))
+            if len(here):
+                value = self.means[prop] if site_field is None else site_field(points[here])
+                out[here] = np.minimum(out[here], value)
+        return out
+
+    def statistics(self, mesh, names: list[str]) -> dict:
+        """summary.json's {material: {property: statistics}} on `mesh` (the set-up's): toughness
+        over the edges of each material's triangles (at their mid-points), strength over the
+        vertices of its triangles on the boundary (the free edges' nucleation sites), each
+        material's own values."""
+        out: dict = {}
+        boundary_vertex = np.zeros(len(mesh.X), dtype=bool)
+        boundary_vertex[mesh.edge[mesh.boundary].ravel()] = True
+        for prop, site_fields in self.fields.items():
+            for r, site_field in enumerate(site_fields):
+                if site_field is None:
+                    continue
+                if prop == "toughness":
+                    edges = np.flatnonzero(np.any((mesh.edge_face >= 0) & (mesh.region[mesh.edge_face] == r), axis=1))
+                    points = edge_midpoints(mesh, edges)
+                else:
+                    vertices = np.unique(mesh.tri[mesh.region == r])
+                    points = mesh.X[vertices[boundary_vertex[vertices]]]
+                out.setdefault(names[r], {})[prop] = statistics(site_field.spec, points, site_field(points))
+        return out
+
+
+def edge_midpoints(mesh, edges) -> np.ndarray:
+    """The edges' mid-points in the reference (m): the same for an edge and its copies after a cut
+    (split vertices keep their positions; 0.5 (a + b) is symmetric in its ends)."""
+    return 0.5 * (mesh.X[mesh.edge[edges, 0]] + mesh.X[mesh.edge[edges, 1]])
 
 
 @dataclass
@@ -59,12 +205,42 @@ class GrowthLaw:
     criterion: str = "j"  # "j": the domain J; "g": G by virtual crack extension
     kink: str = "mts"  # the turn's criterion: a key of jintegral.KINK_CRITERIA
     strength: float = float("inf")  # Pa, a free edge's tangential membrane stress that starts a crack (inf: none)
+    # Gc and the strength drawn per site ([material.random]); None: the values above everywhere.
+    sites: RandomSites | None = None
 
-    def speed(self, j: float) -> float:
-        """V (m/s) at J (J/m^2): 0 below Gc."""
-        if not j >= self.toughness:
+    @property
+    def random_toughness(self) -> bool:
+        """Gc differs from edge to edge: Griffith reads each edge's (edge_toughness)."""
+        return self.sites is not None and "toughness" in self.sites.fields
+
+    def speed(self, j: float, toughness: float | None = None) -> float:
+        """V (m/s) at J (J/m^2): 0 below Gc (`toughness`, an edge's; default the law's)."""
+        gc = self.toughness if toughness is None else toughness
+        if not j >= gc:
             return 0.0
-        return self.max_speed * min(1.0, (j / self.toughness - 1.0) ** self.exponent)
+        return self.max_speed * min(1.0, (j / gc - 1.0) ** self.exponent)
+
+    def edge_toughness(self, mesh, edges) -> np.ndarray:
+        """Gc (J/m^2) of the mesh's `edges`: drawn at their reference mid-points, the lowest of
+        their triangles' materials' (RandomSites), or the law's value."""
+        edges = np.atleast_1d(np.asarray(edges, dtype=np.int64))
+        if not self.random_toughness:
+            return np.full(len(edges), self.toughness)
+        faces = mesh.edge_face[edges]
+        regions = np.where(faces >= 0, mesh.region[faces], -1)
+        return self.sites.values("toughness", edge_midpoints(mesh, edges), regions)
+
+    def vertex_strength(self, mesh, vertices) -> np.ndarray:
+        """The nucleation strength (Pa) at the mesh's `vertices`: drawn at their reference
+        positions, the lowest of their triangles' materials', or the law's value."""
+        vertices = np.atleast_1d(np.asarray(vertices, dtype=np.int64))
+        if self.sites is None or "strength" not in self.sites.fields:
+            return np.full(len(vertices), self.strength)
+        materials = len(self.sites.fields["strength"])
+        regions = np.full((len(mesh.X), materials), -1, dtype=np.int64)  # column r: r where a triangle of r has the vertex
+        for r in range(materials):
+            regions[np.unique(mesh.tri[mesh.region == r]), r] = r
+        return self.sites.values("strength", mesh.X[vertices], regions[vertices])
 
 
 @dataclass
@@ -131,6 +307,12 @@ def step_ahead(shell: Shell, vertex: int, direction: np.ndarray) -> tuple[int, f
         if cos > best_cos + 1e-12:
             best, best_cos, best_length = other, cos, length
     return None if best is None else (best, best_length)
+
+
+def edge_between(mesh, a: int, b: int) -> int:
+    """The index of the mesh's edge joining vertices a and b (the first where a cut left two)."""
+    ends = mesh.edge
+    return int(np.flatnonzero(((ends[:, 0] == a) & (ends[:, 1] == b)) | ((ends[:, 0] == b) & (ends[:, 1] == a)))[0])
 
 
 def cut_edge(shell: Shell, a: int, b: int) -> tuple[Shell, np.ndarray]:

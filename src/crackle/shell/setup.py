@@ -27,12 +27,13 @@ from ..loading.arrays import HistoryTable, default_tool_penalty, history_tables,
 from ..loading.build import build_loading, selection
 from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
 from ..materials import Material
+from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK, LoadFactor
 from .mesh import SurfaceError, cylinder, edge_path, rectangle, shell_mesh, split_along
 from .model import ShellMaterial, build_shell, edge_loads
-from .growth import GrowthLaw
+from .growth import RANDOM_SITE_PROPERTIES, GrowthLaw, RandomSites
 from .simulation import CrackTip, ShellSimulation
 
 
@@ -81,6 +82,20 @@ class ShellSpec(Strict):
         return self
 
 
+class ShellMaterialSpec(ElasticSpec):
+    """[material] (and [regions.material]): density, elastic constants and the fracture properties drawn per site."""
+
+    random: dict[str, RandomProperty] = {}
+    """[material.random.NAME]: [fracture]'s values drawn per site, [fracture]'s value their mean (NAME: toughness, Gc
+    per edge at its mid-point; strength, the nucleation strength per vertex of a free edge, at the vertex), in the
+    reference configuration, from run.seed; a site between two materials takes the lower value"""
+
+    @model_validator(mode="after")
+    def _random_names(self):
+        check_names(self.random, RANDOM_SITE_PROPERTIES, "material")
+        return self
+
+
 class RegionSpec(Strict):
     """[[regions]]: triangles with a thickness or material of their own (a later region wins where
     two overlap)."""
@@ -89,8 +104,8 @@ class RegionSpec(Strict):
     """selects the triangles whose three corners it selects"""
     thickness: Positive | None = None
     """m; default [shell] thickness"""
-    material: ElasticSpec | None = None
-    """density and elastic constants; default [material]"""
+    material: ShellMaterialSpec | None = None
+    """density, elastic constants and [regions.material.random]; default [material]"""
 
 
 class CrackSpec(Strict):
@@ -149,8 +164,8 @@ class Scenario(ScenarioBase):
     unread_keys = FDEM_ONLY_KEYS
     shell: ShellSpec
     """the mid-surface and its thickness"""
-    material: ElasticSpec
-    """density and elastic constants"""
+    material: ShellMaterialSpec
+    """density, elastic constants and the fracture properties drawn per site"""
     regions: list[RegionSpec] = []
     """parts of the surface with their own thickness or material"""
     cracks: list[CrackSpec] = []
@@ -180,6 +195,13 @@ class Scenario(ScenarioBase):
                                                                 or len(self.cracks) != 1 or len(self.pressures) != 1):
             raise ValueError('fracture.reference = "axial-crack-folias" needs surface = "cylinder", one crack and one '
                              "pressure")
+        for key, material in [("material", self.material)] + [(f"regions.{i}.material", region.material)
+                                                               for i, region in enumerate(self.regions)
+                                                               if region.material is not None]:
+            for name in material.random:
+                if not math.isfinite(getattr(self.fracture, name)):
+                    raise ValueError(f"{key}.random.{name}: its mean is fracture.{name}, which is inf (off); give a "
+                                     f"finite fracture.{name} or remove [{key}.random.{name}]")
         return self
 
 
@@ -251,13 +273,19 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     if math.isfinite(fracture.strength) and not math.isfinite(fracture.toughness):
         raise ScenarioError("fracture.strength: a crack started at an edge grows by Griffith; give fracture.toughness "
                             "(J/m^2) too, or remove fracture.strength")
+    # The materials in region order (_regions) and the properties they draw per site.
+    materials = [mat] + [region.material for region in scenario.regions if region.material is not None]
+    sites = RandomSites.of([dict(m.random) for m in materials], [m.name for m in materials],
+                           {"toughness": fracture.toughness, "strength": fracture.strength}, scenario.run.seed)
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
-                           fracture.criterion, fracture.kink, fracture.strength)
+                           fracture.criterion, fracture.kink, fracture.strength, sites)
     sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
     sim.warnings.extend(seating)
     sim.pre_cracks = pre_cracks
+    if sites is not None:
+        sim.random_properties = sites.statistics(sim.shell.mesh, [m.name for m in materials])
     if fracture.reference != "none" and len(tips) != 2:
         raise ScenarioError(f'fracture.reference = "{fracture.reference}": the crack must have two tips inside the '
                             "surface")

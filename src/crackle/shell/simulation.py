@@ -11,7 +11,7 @@ from ..io.fields import STRESS_COMPONENTS
 from ..io.plots import EDGE_LOAD_DISPLACEMENT, EDGE_LOAD_FORCE, plot_crack_pattern, plot_j_history, run_plot_path
 from ..solver.failures import MODE_NAMES, failure_mode
 from ..solver.simulation import SimulationBase
-from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_stresses, step_ahead
+from .growth import GROWTH_CHECK, Advance, GrowthLaw, align_ahead, cut_edge, edge_between, edge_stresses, step_ahead
 from .jintegral import (KINK_CRITERIA, VirtualExtension, bending_density, branch_pairs, j_integral, stress_intensity,
                         vertex_normal)
 from .kernels import advance
@@ -70,6 +70,9 @@ class ShellSimulation(SimulationBase):
         self.fracture_energy = 0.0  # J: what the cuts and the moves at the tip changed at once (_replace_shell)
         self._thinnest = float(np.min(altitudes(shell.mesh.X, shell.mesh.tri)))  # the step's length: moves keep to it
         self._extensions: dict = {}  # (tip vertex, direction, ring) -> VirtualExtension of the current shell
+        # {material: {property: statistics}} of the properties drawn per site ([material.random];
+        # their values: growth.sites, functions of the reference position), or None (set-up).
+        self.random_properties: dict | None = None
 
     def __getstate__(self):
         # the virtual extensions are rebuilt on demand: a checkpoint need not carry them
@@ -104,9 +107,18 @@ class ShellSimulation(SimulationBase):
         if not np.isfinite(self.growth.strength):
             return
         vertices, stress, inward = edge_stresses(self.shell, self.nodes.x)
-        if not len(vertices) or stress.max() < self.growth.strength:
+        if self.growth.sites is not None and "strength" in self.growth.sites.fields:
+            # Each vertex's own strength (drawn at its reference position): the most overstressed starts.
+            if not len(vertices):
+                return
+            ratio = stress / self.growth.vertex_strength(self.shell.mesh, vertices)
+            k = int(np.argmax(ratio))
+            if ratio[k] < 1.0:
+                return
+        elif not len(vertices) or stress.max() < self.growth.strength:
             return
-        k = int(np.argmax(stress))
+        else:
+            k = int(np.argmax(stress))
         mouth, heading = int(vertices[k]), inward[k]
         self._replace_shell(align_ahead(self.shell, mouth, heading, self._thinnest), dt)
         ahead = step_ahead(self.shell, mouth, heading)
@@ -128,11 +140,19 @@ class ShellSimulation(SimulationBase):
             if not tip.active:
                 continue
             j = float(np.mean(self._tip_g(tip) if self.growth.criterion == "g" else self._tip_j(tip)))
-            speed = self.growth.speed(j)
+            drawn = self.growth.random_toughness
+            if drawn:
+                # Gc drawn per edge: the speed from the Gc of the edge ahead along the heading.
+                heading, mode = self._heading(tip, j)
+                ahead = step_ahead(self.shell, tip.vertex, heading)
+                speed = self.growth.speed(j, None if ahead is None else self._edge_gc(tip.vertex, ahead[0]))
+            else:
+                speed = self.growth.speed(j)
             if speed == 0.0:
                 continue
             tip.pending += speed * GROWTH_CHECK * dt
-            heading, mode = self._heading(tip, j)
+            if not drawn:
+                heading, mode = self._heading(tip, j)
             while tip.active:
                 ahead = step_ahead(self.shell, tip.vertex, heading)
                 if ahead is None:
@@ -142,6 +162,10 @@ class ShellSimulation(SimulationBase):
                     break
                 self._replace_shell(align_ahead(self.shell, tip.vertex, heading, self._thinnest), dt)
                 vertex, _ = step_ahead(self.shell, tip.vertex, heading)
+                if drawn and not j >= self._edge_gc(tip.vertex, vertex):
+                    # The edge to cut (the next one, or the one the move turned) is tougher than J: the tip stops there.
+                    tip.pending = 0.0
+                    break
                 through = self._cut(tip.vertex, vertex, dt)
                 direction = self.shell.mesh.X[vertex] - self.shell.mesh.X[tip.vertex]
                 length = float(np.linalg.norm(direction))  # the move may have shortened it
@@ -169,6 +193,11 @@ class ShellSimulation(SimulationBase):
         angle = KINK_CRITERIA[self.growth.kink](k1, k2, k3)
         side = np.cross(normal, tip.direction)
         return np.cos(angle) * tip.direction + np.sin(angle) * side, mode
+
+    def _edge_gc(self, a: int, b: int) -> float:
+        """Gc (J/m^2) of the edge (a, b) of the current mesh (drawn: growth.GrowthLaw.edge_toughness)."""
+        mesh = self.shell.mesh
+        return float(self.growth.edge_toughness(mesh, edge_between(mesh, a, b))[0])
 
     def _cut(self, a: int, b: int, dt: float) -> bool:
         """Cut the edge (a, b); True when that opened b (the crack reached a boundary)."""
@@ -310,25 +339,40 @@ class ShellSimulation(SimulationBase):
         bending moment (global xx yy zz xy yz xz) and the bending energy per area; the crack
         faces as lines (cell_kind 1: both faces of every cut edge, pre-cracks and grown) with the
         crack's opening there, the distance between the two faces' midpoints (m); per vertex
-        the displacement, velocity."""
+        the displacement, velocity. With [material.random]: per triangle `toughness`, the mean of
+        its three edges' Gc, and per vertex `strength`, the nucleation strength at it."""
         n, mesh = self.nodes, self.shell.mesh
         strain, force = self.shell.membrane_state(n.x)
         pairs = mesh.crack_faces()
         middle = 0.5 * (n.x[mesh.edge[pairs, 0]] + n.x[mesh.edge[pairs, 1]])  # (p, 2, 3)
         opening = np.linalg.norm(middle[:, 0] - middle[:, 1], axis=1)
+        drawn_faces, drawn_points = self._drawn_values()
         blocks = [("triangle", mesh.tri, {"thickness": mesh.thickness.copy(), "region": mesh.region.copy(),
                                           "membrane_strain": strain, "membrane_force": force,
                                           "bending_moment": self.shell.bending_moment_state(n.x),
-                                          "bending_energy": bending_density(self.shell, n.x)})]
+                                          "bending_energy": bending_density(self.shell, n.x), **drawn_faces})]
         if len(pairs):
             blocks.append(("line", mesh.edge[pairs.ravel()], {"crack_opening": np.repeat(opening, 2)}))
         return {
             "points": n.x,
-            "point_data": {"displacement": n.x - mesh.X, "velocity": n.v},
+            "point_data": {"displacement": n.x - mesh.X, "velocity": n.v, **drawn_points},
             "component_names": {"membrane_strain": STRESS_COMPONENTS, "membrane_force": STRESS_COMPONENTS,
                                 "bending_moment": STRESS_COMPONENTS},
             "blocks": blocks,
         }
+
+    def _drawn_values(self) -> tuple[dict, dict]:
+        """The drawn properties on the current mesh: ({"toughness": per triangle, the mean of its
+        edges' Gc}, {"strength": per vertex}), each where some material draws it."""
+        growth, mesh = self.growth, self.shell.mesh
+        if growth is None or growth.sites is None:
+            return {}, {}
+        faces, points = {}, {}
+        if growth.random_toughness:
+            faces["toughness"] = growth.edge_toughness(mesh, np.arange(len(mesh.edge)))[mesh.face_edge].mean(axis=1)
+        if "strength" in growth.sites.fields:
+            points["strength"] = growth.vertex_strength(mesh, np.arange(len(mesh.X)))
+        return faces, points
 
     def describe(self) -> str:
         return f"{len(self.shell.mesh.tri):,} triangles, {len(self.shell.mesh.X):,} vertices, {len(self.tips)} crack tips"
@@ -351,6 +395,7 @@ class ShellSimulation(SimulationBase):
             "j_integral": float(np.mean(j[0])) if len(self.tips) else None,
             "g_tips": g.tolist(),
             "energy_release_rate": float(np.mean(g[0])) if len(self.tips) else None,
+            "random_properties": self.random_properties,
             "warnings": list(self.warnings),
         }
         if self.tips:

@@ -10,6 +10,10 @@ TOML file with a [sweep] table (shipped ones by name: `crackle sweep brazilian-a
     "run.end_time" = 2e-3
     [sweep.vary]                       # the values each key takes
     "loading.angle" = [0, 30, 60, 90]
+
+`seeds = N` in [sweep] (or `--seeds N`) varies run.seed over 0 .. N-1 as well (every combination
+of the other keys N times, with random material properties drawn anew): the table then gets the
+mean and standard deviation of every summary scalar over the seeds (sweep_seeds.csv).
 """
 
 from __future__ import annotations
@@ -23,6 +27,9 @@ from pathlib import Path
 from typing import Any
 
 from ..scenario import ScenarioError, split_override
+
+# The key a sweep over seeds varies: the seed of every random draw of a run ([run] seed).
+SEED_KEY = "run.seed"
 
 
 @dataclass
@@ -38,7 +45,10 @@ class SweepPlan:
         position (zip)."""
         keys = list(self.vary)
         if self.zip:
-            combos = list(zip(*self.vary.values()))
+            # Seeds (SEED_KEY, last) repeat every zipped position.
+            zipped = [k for k in keys if k != SEED_KEY]
+            seeds = [(v,) for v in self.vary[SEED_KEY]] if SEED_KEY in self.vary else [()]
+            combos = [position + seed for position in zip(*(self.vary[k] for k in zipped)) for seed in seeds]
         else:
             combos = list(itertools.product(*self.vary.values()))
         return [SweepRun(i, dict(zip(keys, values))) for i, values in enumerate(combos)]
@@ -131,8 +141,8 @@ def is_sweep_file(source: str) -> bool:
         return False
 
 
-def read_sweep_file(source: str) -> tuple[str, dict[str, list[Any]], bool, dict[str, Any]]:
-    """(scenario, vary, zip, fixed overrides) of a sweep file or shipped sweep."""
+def read_sweep_file(source: str) -> tuple[str, dict[str, list[Any]], bool, dict[str, Any], int | None]:
+    """(scenario, vary, zip, fixed overrides, seeds) of a sweep file or shipped sweep."""
     shipped = sweeps_dir() / f"{source}.toml"
     path, base = (shipped, None) if shipped.is_file() else (Path(source), Path(source).resolve().parent)
     try:
@@ -142,43 +152,53 @@ def read_sweep_file(source: str) -> tuple[str, dict[str, list[Any]], bool, dict[
     sweep = data.get("sweep")
     if not isinstance(sweep, dict):
         raise ScenarioError(f"{source}: no [sweep] table; a sweep file names its scenario and [sweep.vary]")
-    unknown = sorted(set(sweep) - {"scenario", "vary", "zip", "set"})
+    unknown = sorted(set(sweep) - {"scenario", "vary", "zip", "set", "seeds"})
     if unknown:
-        raise ScenarioError(f"{source}: sweep.{unknown[0]}: not a sweep field (scenario, vary, zip, set)")
+        raise ScenarioError(f"{source}: sweep.{unknown[0]}: not a sweep field (scenario, vary, zip, set, seeds)")
+    seeds = sweep.get("seeds")
+    if seeds is not None and (not isinstance(seeds, int) or isinstance(seeds, bool) or seeds < 1):
+        raise ScenarioError(f"{source}: sweep.seeds: give the number of seeds, an integer >= 1 (e.g. 10)")
     scenario = sweep.get("scenario")
     if not isinstance(scenario, str):
         raise ScenarioError(f"{source}: sweep.scenario: give a shipped example's name or a scenario file")
     if base is not None and scenario.endswith(".toml") and not Path(scenario).is_absolute():
         scenario = str(base / scenario)
-    vary = sweep.get("vary")
-    if not isinstance(vary, dict) or not vary:
+    vary = sweep.get("vary", {} if seeds else None)
+    if not isinstance(vary, dict) or not (vary or seeds):
         raise ScenarioError(f"{source}: sweep.vary: give at least one key and its values, e.g. \"loading.angle\" = [0, 30]")
     for key, values in vary.items():
         if not isinstance(values, list):
             raise ScenarioError(f"{source}: sweep.vary.{key}: give a list of values, e.g. [0, 30]")
-    return scenario, dict(vary), bool(sweep.get("zip", False)), dict(sweep.get("set", {}))
+    return scenario, dict(vary), bool(sweep.get("zip", False)), dict(sweep.get("set", {})), seeds
 
 
-def make_plan(source: str, vary_texts: list[str], set_texts: list[str], zip_: bool, quick: bool) -> SweepPlan:
+def make_plan(source: str, vary_texts: list[str], set_texts: list[str], zip_: bool, quick: bool,
+              seeds: int | None = None) -> SweepPlan:
     """The plan from a scenario (with --vary) or a sweep file (its own vary, to which --vary
-    adds); every mistake a ScenarioError naming the field."""
+    adds); `seeds` (or the file's): run.seed over 0 .. seeds-1 as well; every mistake a
+    ScenarioError naming the field."""
     if is_sweep_file(source):
-        scenario, vary, file_zip, fixed = read_sweep_file(source)
+        scenario, vary, file_zip, fixed, file_seeds = read_sweep_file(source)
         zip_ = zip_ or file_zip
+        seeds = seeds or file_seeds
     else:
         scenario, vary, fixed = source, {}, {}
     for key, values in parse_vary(vary_texts).items():
         vary[key] = values
     fixed.update(split_override(text) for text in set_texts)
+    if seeds:
+        if SEED_KEY in vary or SEED_KEY in fixed:
+            raise ScenarioError(f"{SEED_KEY}: --seeds varies it; drop its --vary or --set")
+        vary[SEED_KEY] = list(range(seeds))
     if not vary:
-        raise ScenarioError("nothing to vary: give --vary key=v1,v2,... (or a sweep file with [sweep.vary])")
+        raise ScenarioError("nothing to vary: give --vary key=v1,v2,... or --seeds N (or a sweep file with [sweep.vary])")
     for key, values in vary.items():
         if not values:
             raise ScenarioError(f"--vary {key}: the list of values is empty; give at least one")
         if key in fixed:
             raise ScenarioError(f"{key}: both varied and set; drop one")
     if zip_:
-        lengths = {key: len(values) for key, values in vary.items()}
+        lengths = {key: len(values) for key, values in vary.items() if key != SEED_KEY}
         if len(set(lengths.values())) > 1:
             listed = ", ".join(f"{k} ({n})" for k, n in lengths.items())
             raise ScenarioError(f"--zip: every varied key needs as many values; got {listed}")

@@ -14,13 +14,13 @@ import os
 import signal
 import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..scenario import ScenarioError
 from ..solver.checkpoint import CHECKPOINT_FILE
 from .plan import SweepPlan, SweepRun
-from .table import write_table
+from .table import write_seed_statistics, write_table
 
 MANIFEST = "sweep.json"
 # A run folder whose summary has one of these is finished (interrupted runs are run again).
@@ -33,6 +33,7 @@ class SweepResult:
     out_dir: Path
     rows: list[dict]  # one per run, in the plan's order
     ran: int  # runs made by this call (the rest were finished before)
+    seed_lines: list[str] = field(default_factory=list)  # the means and deviations over seeds (--seeds)
 
 
 def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, plots: bool = True) -> dict:
@@ -125,10 +126,11 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None
             row.update(status=got["status"], message=got["message"], summary={})
         rows.append(row)
     unknown = write_table(out, list(plan.vary), rows, plots, plan.scenario)
+    seed_lines = write_seed_statistics(out, list(plan.vary), rows, list(plots))
     if unknown:
         raise ScenarioError(f"--plot {'; '.join(unknown)}: no such scalar in the runs' summaries; the table and the "
                             "other plots are written, and rerunning with the right name reuses the finished runs")
-    return SweepResult(out, rows, len(todo))
+    return SweepResult(out, rows, len(todo), seed_lines)
 
 
 def _claim_folder(out: Path, plan: SweepPlan) -> None:

@@ -84,6 +84,48 @@ def write_table(out: Path, varied_keys: list[str], rows: list[dict], plotted: li
             for name in unknown]
 
 
+def write_seed_statistics(out: Path, varied_keys: list[str], rows: list[dict], shown: list[str] = ()) -> list[str]:
+    """sweep_seeds.csv, when the sweep varies run.seed: per combination of the other varied keys,
+    every numeric summary scalar's mean, standard deviation (n - 1), CV and number of finished
+    runs over the seeds. Returns one line per combination for the `shown` scalars (and
+    DEFAULT_PLOTTED) to print."""
+    from .plan import SEED_KEY
+
+    if SEED_KEY not in varied_keys:
+        return []
+    others = [key for key in varied_keys if key != SEED_KEY]
+    columns, records = table_rows(varied_keys, rows)
+    groups: dict[tuple, list[dict]] = {}
+    for record in records:
+        if record.get("status") in ("completed", "stopped"):
+            groups.setdefault(tuple(repr(record[key]) for key in others), []).append(record)
+    numeric = [c for c in columns if c not in (*varied_keys, "run", "status", "message")
+               and any(isinstance(r.get(c), (int, float)) and not isinstance(r.get(c), bool) for r in records)]
+    table, lines = [], []
+    for group in groups.values():
+        head = {key: group[0][key] for key in others}
+        described = []
+        for name in numeric:
+            values = [float(r[name]) for r in group if isinstance(r.get(name), (int, float)) and r.get(name) is not None
+                      and math.isfinite(float(r[name]))]
+            if not values:
+                continue
+            mean = sum(values) / len(values)
+            sd = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else float("nan")
+            cv = sd / abs(mean) if mean else float("nan")
+            table.append({**head, "quantity": name, "mean": mean, "sd": sd, "cv": cv, "runs": len(values)})
+            if name in (*DEFAULT_PLOTTED, *shown):
+                described.append(f"{name} {mean:.4g} +- {sd:.3g} (CV {cv:.1%})")
+        where = ", ".join(f"{key.split('.')[-1]}={_csv_value(v)}" for key, v in head.items())
+        lines.append(f"over {len(group)} seeds{' at ' + where if where else ''}: " + "; ".join(described))
+    with open(out / "sweep_seeds.csv", "w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, [*others, "quantity", "mean", "sd", "cv", "runs"])
+        writer.writeheader()
+        for record in table:
+            writer.writerow({k: _csv_value(v) for k, v in record.items()})
+    return lines
+
+
 def _csv_value(value):
     if isinstance(value, list):
         return "[" + ", ".join(str(v) for v in value) + "]"
