@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import subprocess
 import sys
 from dataclasses import replace
@@ -57,14 +58,16 @@ def test_meshfree_thresholds_follow_the_distribution_and_the_seed(example, prop,
     thresholds are the drawn values (x fracture_factor for the strength), with the requested
     mean within 3 standard errors and KS p > 0.01 against the marginal; the summary's statistics
     are theirs; the same run.seed draws the same values, another seed others."""
-    spec = RandomProperty.model_validate_json(json.dumps(_table(table)))
+    spec = RandomProperty(**_table(table))
     sim, scenario = _meshfree(example, f"material.random.{prop}={table}")
     n = sim.body_start[1]
     values = sim.drawn[prop]
     assert len(values) == n
     b = sim.breaking
-    threshold = b.fracture_stress / scenario.material.fracture_factor if prop == "tensile_strength" else b.failure_strain
-    assert np.array_equal(threshold[:n], values)
+    if prop == "tensile_strength":
+        assert np.array_equal(b.fracture_stress[:n], scenario.material.fracture_factor * values)
+    else:
+        assert np.array_equal(b.failure_strain[:n], values)
     dist = spec.marginal(mean)
     assert _within_three_standard_errors(values, dist)
     assert stats.kstest(values, dist.cdf).pvalue > 0.01
@@ -103,16 +106,22 @@ def test_meshfree_criterion_reads_each_particles_threshold():
                        'material.random.failure_plastic_strain={distribution="normal", cv=0.2}')
     b, p = sim.breaking, sim.particles
     n = len(p.x)
-    level = float(np.median(b.fracture_stress))
+    level = _between_the_middle_two(b.fracture_stress)
     cauchy = np.zeros((n, 6))
     cauchy[:, 0] = level
     ids, normals = b.newly_failed(cauchy, p.deformation, cauchy)
     expected = np.flatnonzero(b.fracture_stress < level)
     assert np.array_equal(ids, expected) and 0.4 * n < len(ids) < 0.6 * n
     assert np.allclose(np.abs(normals[:, 0]), 1.0)  # the crack plane normal to the pull
-    strain = float(np.median(b.failure_strain))
+    strain = _between_the_middle_two(b.failure_strain)
     ids, _ = b.newly_failed(np.zeros((n, 6)), p.deformation, np.zeros((n, 6)), np.full(n, strain))
-    assert np.array_equal(ids, np.flatnonzero(b.failure_strain <= strain)) and 0.4 * n < len(ids) < 0.6 * n
+    assert np.array_equal(ids, np.flatnonzero(b.failure_strain < strain)) and 0.4 * n < len(ids) < 0.6 * n
+
+
+def _between_the_middle_two(values) -> float:
+    """A level halfway between the two middle values (no site exactly at it)."""
+    ordered = np.sort(values)
+    return float(0.5 * (ordered[len(values) // 2 - 1] + ordered[len(values) // 2]))
 
 
 def test_meshfree_summary_and_fields_carry_the_draws(tmp_path):
@@ -176,7 +185,7 @@ def test_shell_edge_toughness_follows_the_distribution_and_the_seed():
 
 def test_shell_site_values_are_functions_of_position():
     """A SiteField's values depend on the point alone: the same points in another order and
-    among others give the same values; a correlated field is materials.random_properties'
+    among others give the same values, also from a pickled copy (a checkpoint); a correlated field is materials.random_properties'
     (standard_normal at the same points and stream, mapped through the marginal) bit for bit;
     independent hashed values are standard normal (KS p > 0.01) and a moved point draws anew."""
     points = np.random.default_rng(3).random((400, 3)) * 0.1
@@ -185,7 +194,8 @@ def test_shell_site_values_are_functions_of_position():
     field = SiteField(spec, 300.0, seed)
     values = field(points)
     assert np.array_equal(values, to_marginal(spec, 300.0, standard_normal(spec, points, seed)))
-    fresh = SiteField(spec, 300.0, seed)
+    fresh = pickle.loads(pickle.dumps(field))  # a checkpoint's copy: the definition, no remembered values
+    assert fresh._known == {} and fresh._field is None
     order = np.random.default_rng(4).permutation(400)
     mixed = np.concatenate([points[order], np.random.default_rng(5).random((50, 3))])
     assert np.array_equal(fresh(mixed)[:400], values[order])
@@ -206,6 +216,7 @@ def test_shell_values_follow_the_edges_through_cuts_and_moves():
                         'material.random.toughness={distribution="normal", cv=0.3, correlation_length=0.01}')
     growth = sim.growth
     mesh = sim.shell.mesh
+    edges = len(mesh.edge)
     before = dict(zip(map(bytes, edge_midpoints(mesh, np.arange(len(mesh.edge)))),
                       growth.edge_toughness(mesh, np.arange(len(mesh.edge)))))
     tip = sim.tips[0]
@@ -213,7 +224,7 @@ def test_shell_values_follow_the_edges_through_cuts_and_moves():
     cut_gc = sim._edge_gc(tip.vertex, vertex)
     sim._cut(tip.vertex, vertex, 1e-7)
     mesh = sim.shell.mesh
-    assert len(mesh.edge) == len(before) + 1
+    assert len(mesh.edge) == edges + 1
     mid = edge_midpoints(mesh, np.arange(len(mesh.edge)))
     after = growth.edge_toughness(mesh, np.arange(len(mesh.edge)))
     assert np.array_equal(after, [before[bytes(m)] for m in mid])
@@ -234,8 +245,8 @@ def test_shell_growth_reads_the_gc_of_the_edge_ahead():
     """The quick centre crack suddenly loaded (Gc far above J, no growth) for 300 steps; then a
     Griffith law with Weibull (m = 4) Gc per edge whose mean puts the J of one tip above the Gc
     of the edge ahead of it and the J of the other below its own: one growth check cuts at the
-    first tip only (each may run two edges). With the first tip's Gc on every edge (uniform),
-    both tips cut: it is the drawn value at the edge ahead that holds the second tip."""
+    first tip only (each may run two edges). With one Gc below both tips' J on every edge
+    (uniform), both tips cut: it is the drawn value at the edge ahead that holds the second tip."""
     spec = '{distribution="weibull", modulus=4}'
     sim = _centre_crack("fracture.toughness=1e9", f"material.random.toughness={spec}", "edge_loads.0.ramp_time=0",
                         "edge_loads.1.ramp_time=0")
@@ -243,12 +254,14 @@ def test_shell_growth_reads_the_gc_of_the_edge_ahead():
     sim.advance(300, dt)
     assert not sim.advances
     growth = sim.growth
+    site = growth.sites.fields["toughness"][0]  # the drawn field itself, apart from the growth code
     j, ratio = [], []
     for tip in sim.tips:
         j.append(float(np.mean(sim._tip_j(tip))))
         heading, _ = sim._heading(tip, j[-1])
         ahead, _ = step_ahead(sim.shell, tip.vertex, heading)
-        ratio.append(sim._edge_gc(tip.vertex, ahead) / 1e9)  # the edge's Gc over the mean
+        middle = 0.5 * (sim.shell.mesh.X[tip.vertex] + sim.shell.mesh.X[ahead])
+        ratio.append(float(site(middle)[0]) / 1e9)  # the edge's Gc over the mean
     weak = int(np.argmax(np.array(j) / ratio))
     tough = 1 - weak
     mean = float(np.sqrt(j[weak] / ratio[weak] * j[tough] / ratio[tough]))
@@ -270,7 +283,7 @@ def test_shell_growth_reads_the_gc_of_the_edge_ahead():
     assert drawn.edge_toughness(sim.shell.mesh, [0]).shape == (1,)
     grown = cuts(drawn)
     assert grown and set(grown) == {weak}
-    uniform = cuts(replace(growth, toughness=mean * ratio[weak] * (1.0 - 1e-9), sites=None))
+    uniform = cuts(replace(growth, toughness=0.99 * min(j), sites=None))
     assert set(uniform) == {0, 1}
 
 
@@ -294,11 +307,10 @@ def test_shell_region_material_draws_its_own_values():
     assert list(sim.summary()["random_properties"]) == ["weak"]
 
 
-def test_shell_nucleation_reads_each_vertexs_strength():
-    """With fracture.strength drawn per vertex (lognormal), the nucleation compares each free
-    edge vertex's stress with its own strength: the vertex strengths at the free-edge vertices
-    are the drawn ones (not one value), with the requested mean within 3 standard errors over the
-    boundary vertices."""
+def test_shell_strength_is_drawn_per_vertex():
+    """With fracture.strength drawn per vertex (lognormal), the strengths the nucleation compares
+    each free-edge vertex's stress with are the drawn ones (not one value), with the requested
+    mean within 3 standard errors over the boundary vertices, which the summary counts."""
     sim = _centre_crack("fracture.toughness=300", "fracture.strength=300e6",
                         'material.random.strength={distribution="lognormal", cv=0.3}')
     mesh = sim.shell.mesh
