@@ -162,3 +162,29 @@ def test_bad_random_properties_are_refused_up_front(tmp_path, capsys, setting, m
     assert main(["run", "direct-tension", "--quick", "--out", str(tmp_path / "x"), "--set", setting]) == 2
     err = capsys.readouterr().err
     assert "random" in err and message in err
+
+
+def test_dem_bonds_carry_their_drawn_strengths():
+    """A packed box with lognormal bond tensile strengths (CV 0.3) and correlated normal
+    cohesions: every bond's strength force is its drawn value x pi min(Ra, Rb)^2, the tensile
+    values pass the KS test against the lognormal, and the summary holds their statistics."""
+    import math
+
+    from crackle.dem.build import build_dem_simulation
+    from crackle.dem.model import BondLaw
+    from crackle.dem.packing import Box, pack_spheres
+
+    law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
+    packing = pack_spheres(Box(np.zeros(3), np.full(3, 8e-3)), porosity=0.45, mean_radius=4e-4, seed=1)
+    random = {"tensile_strength": RandomProperty(distribution="lognormal", cv=0.3),
+              "cohesion": RandomProperty(distribution="normal", cv=0.2, correlation_length=0.003)}
+    sim = build_dem_simulation(packing.centers, packing.radii, 2500.0, law, bonds_per_particle=12, random=random,
+                               seed=2, material="rock")
+    s, r = sim.inter, sim.particles.radius
+    n = sim.n_bonds
+    area = math.pi * np.minimum(r[s.a[:n]], r[s.b[:n]]) ** 2
+    assert np.allclose(s.fn_max[:n], sim.drawn["tensile_strength"] * area, rtol=1e-12)
+    assert np.allclose(s.cohesion[:n], sim.drawn["cohesion"] * area, rtol=1e-12)
+    assert stats.kstest(sim.drawn["tensile_strength"], random["tensile_strength"].marginal(4.5e6).cdf).pvalue > 0.01
+    summary = sim.summary()["random_properties"]["rock"]
+    assert summary["tensile_strength"]["sites"] == n and summary["cohesion"]["correlation_length"] == 0.003
