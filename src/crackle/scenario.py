@@ -336,6 +336,72 @@ class LoadingSpec(Strict):
         return v
 
 
+class Zone(Strict):
+    """A part of space a material fills (by the cell's centroid, the particle's centre): a box, a
+    sphere, the half-space a normal points into, or a layer about a plane (with `spacing`, a stack
+    of parallel layers: bedding)."""
+
+    shape: Literal["box", "sphere", "half-space", "layer"]
+    """box (box_min, box_max), sphere (center, radius), half-space (point, normal: the side the normal points to),
+    layer (point, normal, thickness; spacing for a stack)"""
+    box_min: Vec3 | None = None
+    """m, box: the lower corner"""
+    box_max: Vec3 | None = None
+    """m, box: the upper corner"""
+    center: Vec3 | None = None
+    """m, sphere"""
+    radius: Positive | None = None
+    """m, sphere"""
+    point: Vec3 | None = None
+    """m, half-space and layer: a point on the plane (a layer's mid-plane)"""
+    normal: Vec3 | None = None
+    """half-space and layer: the plane's normal"""
+    thickness: Positive | None = None
+    """m, layer: its thickness"""
+    spacing: Positive | None = None
+    """m, layer: the distance between the mid-planes of a stack of such layers (unset: one layer)"""
+
+    _NEEDS: ClassVar[dict[str, tuple[str, ...]]] = {
+        "box": ("box_min", "box_max"), "sphere": ("center", "radius"), "half-space": ("point", "normal"),
+        "layer": ("point", "normal", "thickness"),
+    }
+
+    @model_validator(mode="after")
+    def _complete(self):
+        needs = self._NEEDS[self.shape]
+        missing = [key for key in needs if getattr(self, key) is None]
+        if missing:
+            raise ValueError(f"a {self.shape} zone needs {', '.join(missing)}")
+        extra = sorted(set(self.model_fields_set) - {"shape", *needs, *(("spacing",) if self.shape == "layer" else ())})
+        if extra:
+            raise ValueError(f"{', '.join(extra)}: not a key of a {self.shape} zone (it takes {', '.join(needs)})")
+        if self.normal is not None and not any(self.normal):
+            raise ValueError("normal must be a non-zero vector")
+        if self.shape == "box" and not all(lo < hi for lo, hi in zip(self.box_min, self.box_max)):
+            raise ValueError("box_min must be below box_max in x, y and z")
+        if self.spacing is not None and self.spacing <= self.thickness:
+            raise ValueError(f"spacing = {self.spacing:g} m is not above thickness = {self.thickness:g} m: the layers "
+                             "would fill everything; give a larger spacing or drop it")
+        return self
+
+    def contains(self, x) -> "np.ndarray":
+        """Which of the points x (m, (k, 3)) lie inside (a box and a layer with their bounds)."""
+        import numpy as np
+
+        x = np.asarray(x, dtype=float).reshape(-1, 3)
+        if self.shape == "box":
+            return np.all((x >= np.asarray(self.box_min)) & (x <= np.asarray(self.box_max)), axis=1)
+        if self.shape == "sphere":
+            return np.linalg.norm(x - np.asarray(self.center), axis=1) <= self.radius
+        n = np.asarray(self.normal, float) / np.linalg.norm(self.normal)
+        height = (x - np.asarray(self.point, float)) @ n
+        if self.shape == "half-space":
+            return height >= 0.0
+        if self.spacing is not None:
+            height = (height + 0.5 * self.spacing) % self.spacing - 0.5 * self.spacing
+        return np.abs(height) <= 0.5 * self.thickness
+
+
 class Where(Strict):
     """Nodes or faces chosen by geometry: on a plane and/or inside an axis-aligned box."""
 

@@ -22,7 +22,7 @@ from ..materials import Material
 from ..materials.random_properties import draw, statistics
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
 from .kernels import TET_BLOCK
-from .laws import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT
+from .laws import LAW_COLUMNS, LAW_EXTRINSIC
 from .time_step import MassScaling, TimeStepReport, scale_masses, time_step, tool_penalty_advice
 from .topology import FACE_CORNERS, INTACT, PRECRACK
 
@@ -119,6 +119,7 @@ def build_fdem_model(
     max_added_mass: float = 0.01,
     penalty_keys: dict[str, str] | None = None,
     random_seed: int = 0,
+    pair_laws: dict | None = None,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -135,6 +136,8 @@ def build_fdem_model(
     `penalty_keys` ({tool name: scenario key}) names the key that sets a tool's penalty in the
     advice when it is not tools.NAME.penalty (the [plates]: plates.penalty).
     `random_seed`: of the properties a material draws per face (Material.random).
+    `pair_laws`: {(material a, material b): law} for the faces between two materials (both ways
+    round); without one, such a face takes the law of the side with the lower tensile strength.
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -144,7 +147,7 @@ def build_fdem_model(
     scale = float(np.max(mesh.bounds()[1] - mesh.bounds()[0]))
 
     bulk = _exploded_tets(mesh, materials, tet_material)
-    pairs = _interfaces(mesh, materials, tet_material, bulk)
+    pairs = _interfaces(mesh, materials, tet_material, bulk, pair_laws or {})
     random_properties = _draw_per_face(pairs, materials, bulk.x0, random_seed)
     precrack = _precracks(precracks, bulk.x0, pairs, scale)
     pairs.state[precrack] = PRECRACK
@@ -317,7 +320,7 @@ class _Pairs:
     damage: np.ndarray
 
 
-def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk) -> _Pairs:
+def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk, pair_laws: dict) -> _Pairs:
     conn = mesh.tets
     topo = internal_faces(conn)
     order = np.lexsort((topo.face_local[:, 0], topo.face_tet[:, 0]))
@@ -332,18 +335,24 @@ def _interfaces(mesh: TetMesh, materials, tet_material, bulk: _Bulk) -> _Pairs:
     n_if = len(ta)
     h_if = np.minimum(bulk.altitude[ta, fa], bulk.altitude[tb, fb])
 
-    # One law row per material; the weaker side's law governs an interface between two.
-    law_table = np.array([mat.interface.table_row() for mat in materials]).reshape(-1, LAW_COLUMNS)
+    # One law row per material, then one per pair of materials with a law of its own; without
+    # one, the weaker side's law governs an interface between two.
+    laws = [mat.interface for mat in materials]
     mat_a, mat_b = tet_material[ta], tet_material[tb]
-    ft_of = law_table[:, LAW_FT]
+    ft_of = np.array([law.tensile_strength for law in laws])
     iface_law = np.where(ft_of[mat_a] <= ft_of[mat_b], mat_a, mat_b).astype(np.int32)
+    for (a, b), law in pair_laws.items():
+        if a < b:
+            iface_law[((mat_a == a) & (mat_b == b)) | ((mat_a == b) & (mat_b == a))] = len(laws)
+            laws.append(law)
+    law_table = np.array([law.table_row() for law in laws]).reshape(-1, LAW_COLUMNS)
     pn = np.zeros(n_if)
     ps = np.zeros(n_if)
     E_min = np.minimum(bulk.E[ta], bulk.E[tb])
     G_min = np.minimum(bulk.G[ta], bulk.G[tb])
-    for row, mat in enumerate(materials):
+    for row, law in enumerate(laws):
         sel = iface_law == row
-        pn[sel], ps[sel] = mat.interface.stiffness(E_min[sel], G_min[sel], h_if[sel])
+        pn[sel], ps[sel] = law.stiffness(E_min[sel], G_min[sel], h_if[sel])
     edge = np.stack([np.linalg.norm(bulk.x0[na[:, i]] - bulk.x0[na[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
     return _Pairs(
         ta=ta, fa=fa, tb=tb, fb=fb, na=na, nb=nb, boundary_faces=topo.boundary_faces,

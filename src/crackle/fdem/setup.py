@@ -17,7 +17,7 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.simulation import PeakForceProbe
@@ -56,15 +56,37 @@ class FdemMaterialSpec(ElasticSpec):
         return self
 
 
+class FdemNamedMaterial(FdemMaterialSpec):
+    """[materials.NAME]: one of several materials (the keys of [material]), and where it is: a group of the mesh
+    file's or zones; the one with neither fills the rest."""
+
+    group: str | None = None
+    """specimen.shape = "mesh": the file's group of tets this material fills (a gmsh physical volume's name, an
+    Abaqus *Elset, a meshio cell set)"""
+    zones: list[Zone] = []
+    """the zones this material fills (a tet by its centroid); a later material wins where two claim a tet"""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if self.group is not None and self.zones:
+            raise ValueError("give group or zones, not both")
+        return self
+
+
 class Scenario(ScenarioBase):
-    """An FDEM scenario: a tet specimen, its material with an interface law, pre-cracks."""
+    """An FDEM scenario: a tet specimen, its material(s) with an interface law, pre-cracks."""
 
     method: Literal["fdem"] = "fdem"
     """picks this method (the default)"""
     specimen: Specimen
     """the solid and its mesh"""
-    material: FdemMaterialSpec
-    """the bulk's elasticity and the interface law"""
+    material: FdemMaterialSpec | None = None
+    """the bulk's elasticity and the interface law (one material; [materials.NAME] for several)"""
+    materials: dict[str, FdemNamedMaterial] = {}
+    """[materials.NAME]: several materials, each where its group or zones say (instead of [material])"""
+    interfaces: dict[str, InterfaceSpec] = {}
+    """[interfaces."A-B"]: the law of the faces between materials A and B (an interfacial zone, a bedding plane);
+    default: the law of the one with the lower tensile strength"""
     suture: FdemMaterialSpec | None = None
     """walnut and shell: the suture band's own material (same keys as [material]); without it the suture is
     [material] too and differs only by its wall thickness"""
@@ -73,6 +95,15 @@ class Scenario(ScenarioBase):
 
     @model_validator(mode="after")
     def _fdem_checks(self):
+        if (self.material is None) == (not self.materials):
+            raise ValueError("give [material] (one material) or [materials.NAME] tables (several), not both"
+                             if self.materials else "[material] is missing (or give [materials.NAME] for several)")
+        if self.materials:
+            self._check_materials()
+        elif self.interfaces:
+            raise ValueError("[interfaces] names pairs of [materials.NAME]; with one [material] there is none")
+        if self.suture is not None and self.materials:
+            raise ValueError("[suture] goes with one [material]; with [materials.NAME] give the suture its own zone")
         if self.suture is not None and self.specimen.shape not in ("walnut", "shell"):
             raise ValueError(f"[suture] is for specimen shapes 'walnut' and 'shell' (this one is '{self.specimen.shape}')")
         if any(p.faces == "precrack" for p in self.pressures) and not self.precracks:
@@ -88,12 +119,78 @@ class Scenario(ScenarioBase):
         return self
 
 
-def build_material(spec: FdemMaterialSpec) -> Material:
+    def _check_materials(self) -> None:
+        rest = [name for name, m in self.materials.items() if m.group is None and not m.zones]
+        if len(rest) > 1:
+            raise ValueError(f"materials {', '.join(rest)}: only one material may fill the rest (no group, no zones); "
+                             "give the others a group or zones")
+        grouped = [name for name, m in self.materials.items() if m.group is not None]
+        if grouped and self.specimen.shape != "mesh":
+            raise ValueError(f"materials.{grouped[0]}.group: groups come from a mesh file (specimen.shape = \"mesh\"); "
+                             "for a built-in shape give zones")
+        for key in self.interfaces:
+            material_pair(key, list(self.materials))
+
+    def pair_laws(self) -> dict[tuple[int, int], object]:
+        """[interfaces."A-B"] by the materials' indices (in [materials] order), both ways round."""
+        names = list(self.materials)
+        laws = {}
+        for key, law in self.interfaces.items():
+            a, b = material_pair(key, names)
+            laws[names.index(a), names.index(b)] = laws[names.index(b), names.index(a)] = law
+        return laws
+
+    def weakest_tensile_strength(self) -> float:
+        """Pa: the lowest tensile strength of the materials' and the pairs' laws (a bar's nominal strength's reference)."""
+        if self.material is not None:
+            return self.material.interface.tensile_strength
+        laws = [m.interface for m in self.materials.values()] + list(self.interfaces.values())
+        return min(law.tensile_strength for law in laws)
+
+
+def material_pair(key: str, names: list[str]) -> tuple[str, str]:
+    """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
+    for cut in (i for i, ch in enumerate(key) if ch == "-"):
+        a, b = key[:cut], key[cut + 1:]
+        if a in names and b in names and a != b:
+            return a, b
+    raise ValueError(f'interfaces."{key}": not two different materials joined by "-" (materials: {", ".join(names)})')
+
+
+def assign_materials(mesh, scenario: Scenario) -> np.ndarray:
+    """Each tet's material (its index in [materials]): the rest material, then each material's
+    group or zones in table order (a later one wins); ValueError naming what does not match."""
+    names = list(scenario.materials)
+    centroid = mesh.points[mesh.tets].mean(axis=1)
+    rest = [i for i, m in enumerate(scenario.materials.values()) if m.group is None and not m.zones]
+    tet_material = np.full(mesh.n_tets, rest[0] if rest else -1, dtype=np.int64)
+    asked = {m.group for m in scenario.materials.values() if m.group is not None}
+    if asked:
+        found = set(mesh.groups or {})
+        if asked - found or found - asked:
+            raise ValueError(
+                "materials.*.group and the mesh file's groups of tets do not match: "
+                f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
+                f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
+                f"(the file's groups: {', '.join(sorted(found)) or 'none'})")
+    for index, m in enumerate(scenario.materials.values()):
+        if m.group is not None:
+            tet_material[mesh.groups[m.group]] = index
+        for zone in m.zones:
+            tet_material[zone.contains(centroid)] = index
+    unassigned = int(np.sum(tet_material < 0))
+    if unassigned:
+        raise ValueError(f"{unassigned:,} of {mesh.n_tets:,} tets lie in no material's group or zones: give one of "
+                         f"[materials] ({', '.join(names)}) neither group nor zones, to fill the rest")
+    return tet_material
+
+
+def build_material(spec: FdemMaterialSpec, name: str | None = None) -> Material:
     return Material(
         density=spec.density,
         youngs_modulus=spec.youngs_modulus,
         poissons_ratio=spec.poissons_ratio,
-        name=spec.name,
+        name=spec.name if name is None else name,
         interface=spec.interface,
         random=dict(spec.random),
     )
@@ -139,8 +236,16 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
         except ValueError as err:
             raise ScenarioError(str(err)) from None
     tools = touch_tools(tools, scenario.all_tools(), lambda tool: mesh.points)
-    material = build_material(scenario.material)
-    tet_material = None
+    tet_material, pair_laws = None, {}
+    if scenario.materials:
+        material = [build_material(spec, name) for name, spec in scenario.materials.items()]
+        try:
+            tet_material = assign_materials(mesh, scenario)
+        except ValueError as err:
+            raise ScenarioError(str(err)) from None
+        pair_laws = scenario.pair_laws()
+    else:
+        material = build_material(scenario.material)
     if region is not None and scenario.suture is not None:
         # Material 1 on the suture tets; a face-suture interface takes the weaker law.
         material = [material, build_material(scenario.suture)]
@@ -167,6 +272,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 max_added_mass=scenario.run.max_added_mass,
                 penalty_keys=scenario.plates.penalty_keys() if scenario.plates is not None else None,
                 random_seed=scenario.run.seed,
+                pair_laws=pair_laws,
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None
@@ -198,7 +304,7 @@ def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mes
     grip = pulling_grip(tools, mesh.points, supports, float(np.max(mesh.bounds()[1] - mesh.bounds()[0])))
     if grip is not None:
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
-        sim.probes.append(PeakForceProbe(TensionTest(grip, section, scenario.material.interface.tensile_strength)))
+        sim.probes.append(PeakForceProbe(TensionTest(grip, section, scenario.weakest_tensile_strength())))
     elif spec.shape == "disc":
         moving = [t for t in tools if t.moves]
         if moving:

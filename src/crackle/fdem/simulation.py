@@ -215,7 +215,8 @@ class FdemSimulation(SimulationBase):
             "point_data": {"displacement": n.x - m.x0, "velocity": n.v},
             "blocks": [
                 ("tetra", np.arange(4 * n_tets).reshape(-1, 4),
-                 {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels}),
+                 {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels,
+                  "material": np.asarray(m.tet_material, dtype=np.int64)}),
                 ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64),
                                         **self._drawn_face_values()}),
             ],
@@ -224,6 +225,23 @@ class FdemSimulation(SimulationBase):
 
     def bounds(self):
         return self.model.mesh.bounds()
+
+    def failures_by_material(self) -> dict[str, int] | None:
+        """Failed faces per material (both sides in it) and per pair of materials ("A-B", by
+        [materials] order); None with one material."""
+        m = self.model
+        if len(m.materials) < 2:
+            return None
+        ifs = m.ifs
+        failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
+        a, b = m.tet_material[ifs.na[failed, 0] // 4], m.tet_material[ifs.nb[failed, 0] // 4]
+        low, high = np.minimum(a, b), np.maximum(a, b)
+        names = [mat.name for mat in m.materials]
+        counts = {}
+        for i, j in zip(low.tolist(), high.tolist()):
+            key = names[i] if i == j else f"{names[i]}-{names[j]}"
+            counts[key] = counts.get(key, 0) + 1
+        return counts
 
     def _drawn_face_values(self) -> dict:
         """Each property some material draws per face, on every face (the faces' law rows)."""
@@ -267,6 +285,7 @@ class FdemSimulation(SimulationBase):
             **self.probe_summary(),
             "process_zones": self._process_zones(),
             "random_properties": m.random_properties or None,
+            "failures_by_material": self.failures_by_material(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,

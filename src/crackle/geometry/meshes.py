@@ -89,6 +89,9 @@ class TetMesh:
     # The tets' numbers as the user knows them (an Abaqus file's element labels); None: counted
     # from 1 in this order.
     labels: np.ndarray | None = field(default=None, repr=False, compare=False)
+    # The file's named groups of tets (gmsh physical volumes, Abaqus *Elset, meshio cell sets):
+    # name -> the tets' indices; None: the file named none.
+    groups: dict[str, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def label(self, index: int) -> int:
         """The number the user knows tet `index` by."""
@@ -659,9 +662,30 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
     points, tets = _compact(points, tets)
     labels = _abaqus_tet_labels(path) if path.suffix.lower() == ".inp" else []
-    mesh = TetMesh(points, tets, labels=np.asarray(labels) if len(labels) == len(tets) else None)
+    mesh = TetMesh(points, tets, labels=np.asarray(labels) if len(labels) == len(tets) else None,
+                   groups=tet_groups(m) or None)
     check_tets(mesh, source=f"mesh file {path}", label=lambda i: _element_label(path, i))
     return mesh
+
+
+def tet_groups(m) -> dict[str, np.ndarray]:
+    """A meshio mesh's named groups that hold tetrahedra (cell sets: gmsh's physical groups by
+    name, Abaqus's *Elset), as indices into its tetra cells taken block after block (read_mesh's
+    order); gmsh's own bookkeeping sets and groups of other cells only are left out."""
+    offsets, start = {}, 0
+    for block, cells in enumerate(m.cells):
+        if cells.type == "tetra":
+            offsets[block] = start
+            start += len(cells.data)
+    groups = {}
+    for name, per_block in (m.cell_sets or {}).items():
+        if name.startswith("gmsh:"):
+            continue
+        ids = [np.asarray(per_block[block], dtype=np.int64) + offset for block, offset in offsets.items()
+               if block < len(per_block) and per_block[block] is not None and len(per_block[block])]
+        if ids:
+            groups[name] = np.unique(np.concatenate(ids))
+    return groups
 
 
 def _element_label(path: Path, index: int) -> str:
