@@ -402,6 +402,15 @@ class Zone(Strict):
         return np.abs(height) <= 0.5 * self.thickness
 
 
+def material_pair(key: str, names: list[str]) -> tuple[str, str]:
+    """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
+    for cut in (i for i, ch in enumerate(key) if ch == "-"):
+        a, b = key[:cut], key[cut + 1:]
+        if a in names and b in names and a != b:
+            return a, b
+    raise ValueError(f'interfaces."{key}": not two different materials joined by "-" (materials: {", ".join(names)})')
+
+
 class Where(Strict):
     """Nodes or faces chosen by geometry: on a plane and/or inside an axis-aligned box."""
 

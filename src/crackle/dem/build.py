@@ -8,7 +8,8 @@ import numpy as np
 from ..loading.arrays import seat_on_tools, tool_arrays
 from ..solver.integrator import support_constraints
 from .kernels import BLOCK
-from .model import BondLaw, Joint, bond_gamma, bonds, draw_bond_strengths, make_particles, normal_stiffness, stable_dt, with_joints
+from .model import (BondLaw, GroupedLaws, Joint, bond_gamma, bonds, draw_bond_strengths, make_particles, normal_stiffness,
+                    pair_parameters, stable_dt, with_joints)
 from .simulation import DemSimulation
 
 # The contact list holds the pairs closer than Ra + Rb + SKIN x the mean radius: rebuilt when a
@@ -17,12 +18,13 @@ SKIN = 0.3
 NEW_CONTACTS = 6
 
 
-def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per_particle: float | None = None,
+def build_dem_simulation(centers, radii, density, law: BondLaw | GroupedLaws, bonds_per_particle: float | None = None,
                          gamma: float | None = None, tools=(), supports=(), damping: float = 0.0,
                          gravity=(0.0, 0.0, 0.0), velocity=None, loaded_area: float | None = None,
                          joint: Joint | None = None, random: dict | None = None, seed: int = 0,
                          material: str = "rock") -> DemSimulation:
-    """Particles at `centers` (m) with `radii` (m) and `density` (kg/m^3), bonded to every
+    """Particles at `centers` (m) with `radii` (m) and `density` (kg/m^3; one per particle with
+    several materials, `law` then GroupedLaws), bonded to every
     neighbour within gamma (Ra + Rb), gamma given or chosen for `bonds_per_particle`.
     `damping`: the local non-viscous damping alpha (0 to 1, paper 003 eq. 5). `tools`,
     `supports`: loading.Tool, loading.Support (a support holds the particles it selects).
@@ -49,7 +51,12 @@ def build_dem_simulation(centers, radii, density: float, law: BondLaw, bonds_per
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     # Contacts that form later come on top of the bonds (the touching pairs are bonded at set-up,
     # so new ones replace broken bonds or close gaps): room for 6 more per particle.
-    contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
+    if isinstance(law, GroupedLaws):
+        own = np.arange(len(radii))
+        kn, kt = pair_parameters(law, radii, own, own)[:2]  # against a particle of its own kind
+        contact_k = 2.0 * NEW_CONTACTS * (kn + kt)
+    else:
+        contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
     dt = stable_dt(particles, inter, tool_k + contact_k)
     seating = seat_on_tools(tools, tool_table, particles, "particles")
     sim = DemSimulation(particles, inter, len(inter.a), law, tool_table, [t.name for t in tools], dt, gravity,

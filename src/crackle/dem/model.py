@@ -32,6 +32,62 @@ class BondLaw:
     contact_friction_angle: float  # rad, of the contacts that form during the run
 
 
+@dataclass(frozen=True)
+class GroupedLaws:
+    """Several materials' bond laws in one packing ([materials.NAME]): each particle's material
+    (`group`, an index into `laws`) and the laws of the bonds between two materials (`pairs`:
+    {(i, j): BondLaw} both ways round, from [interfaces."A-B"]; without one, the law of the side
+    with the lower tensile strength). A pair's springs are the two particles' half-springs in
+    series (2 Y R each, paper 003 eq. 3, and P times that in shear), its strengths and friction
+    its law's. The scalars below are what the set-up's bounds read (the stiffest material for the
+    tools' penalty and the wave transit)."""
+
+    laws: tuple
+    group: np.ndarray
+    pairs: dict
+
+    @property
+    def bond_modulus(self) -> float:
+        return max(law.bond_modulus for law in self.laws)
+
+    @property
+    def stiffness_ratio(self) -> float:
+        return max(law.stiffness_ratio for law in self.laws)
+
+    def governing(self, ga: np.ndarray, gb: np.ndarray) -> tuple[list, np.ndarray]:
+        """The laws in play (the materials', then the pairs') and each (ga, gb) pair's index among them."""
+        laws = list(self.laws)
+        ft = np.array([law.tensile_strength for law in laws])
+        which = np.where(ft[ga] <= ft[gb], ga, gb)
+        for (i, j), law in self.pairs.items():
+            if i < j:
+                which[((ga == i) & (gb == j)) | ((ga == j) & (gb == i))] = len(laws)
+                laws.append(law)
+        return laws, which
+
+
+def pair_parameters(law, radius: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """Per pair (a, b): kn, kt (N/m), the tensile strength and cohesion (Pa) and the tangents of
+    the bond's and the contacts' friction angles, of one BondLaw or of GroupedLaws."""
+    ra, rb = radius[a], radius[b]
+    if not isinstance(law, GroupedLaws):
+        kn = normal_stiffness(law, ra, rb)
+        return (kn, law.stiffness_ratio * kn, law.tensile_strength, law.cohesion, math.tan(law.friction_angle),
+                math.tan(law.contact_friction_angle))
+    ga, gb = law.group[a], law.group[b]
+    ya = np.array([m.bond_modulus for m in law.laws])[ga] * ra
+    yb = np.array([m.bond_modulus for m in law.laws])[gb] * rb
+    pa = np.array([m.stiffness_ratio for m in law.laws])[ga] * ya
+    pb = np.array([m.stiffness_ratio for m in law.laws])[gb] * yb
+    laws, which = law.governing(ga, gb)
+
+    def column(name, f=float):
+        return np.array([f(getattr(m, name)) for m in laws])[which]
+
+    return (2.0 * ya * yb / (ya + yb), 2.0 * pa * pb / (pa + pb), column("tensile_strength"), column("cohesion"),
+            column("friction_angle", math.tan), column("contact_friction_angle", math.tan))
+
+
 def bond_gamma(centers: np.ndarray, radii: np.ndarray, bonds_per_particle: float) -> float:
     """The interaction range gamma_int that gives `bonds_per_particle` bonds per particle on
     average (each bond counts for both its particles): the ratio D0 / (Ra + Rb) of the
@@ -86,15 +142,15 @@ def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: n
     k = len(pairs)
     a, b = pairs[:, 0].copy(), pairs[:, 1].copy()
     ra, rb = particles.radius[a], particles.radius[b]
-    kn = normal_stiffness(law, ra, rb)
+    kn, kt, strength, cohesion, tan_bond, tan_contact = pair_parameters(law, particles.radius, a, b)
     area = math.pi * np.minimum(ra, rb) ** 2
     bonded = state == BONDED
-    tan_phi = np.where(state == CONTACT, math.tan(law.contact_friction_angle), math.tan(law.friction_angle))
+    tan_phi = np.where(state == CONTACT, tan_contact, tan_bond)
     start, entry, sign = _particle_csr(len(particles.radius), a, b)
     return Interactions(
-        a=a, b=b, state=state.astype(np.int8), d0=d0.astype(float), kn=kn, kt=law.stiffness_ratio * kn,
-        fn_max=np.where(bonded, law.tensile_strength * area, 0.0),
-        cohesion=np.where(bonded, law.cohesion * area, 0.0),
+        a=a, b=b, state=state.astype(np.int8), d0=d0.astype(float), kn=kn, kt=kt,
+        fn_max=np.where(bonded, strength * area, 0.0),
+        cohesion=np.where(bonded, cohesion * area, 0.0),
         tan_phi=tan_phi,
         shear=np.zeros((k, 3)) if shear is None else shear,
         transfer=np.zeros((k, TRANSFER_COLUMNS)),

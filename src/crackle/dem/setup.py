@@ -17,11 +17,12 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import TensionTest, pulling_grip
 from ..loading.build import build_loading, touch_tools
-from ..scenario import FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, refuse_unused_keys, resolve_path
+from ..scenario import (FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, Zone, material_pair, refuse_unused_keys,
+                        resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
-from .model import RANDOM_BOND_PROPERTIES, BondLaw, Joint
+from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
 from ..solver.simulation import PeakForceProbe
 from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe
@@ -165,6 +166,26 @@ class FlawSpec(Strict):
         return np.array([math.cos(theta), 0.0, math.sin(theta)]), np.array([-math.sin(theta), 0.0, math.cos(theta)])
 
 
+class DemNamedMaterial(DemMaterial):
+    """[materials.NAME]: one of several particle groups (the keys of [material]) and the zones its
+    particles fill (by their centres); the one without zones fills the rest."""
+
+    zones: list[Zone] = []
+    """the zones whose particles are of this material; a later material wins where two claim a particle"""
+
+
+class DemPairBond(Strict):
+    """[interfaces."A-B"]: the bonds between a particle of material A and one of B (their stiffness
+    is the two half-springs in series)."""
+
+    tensile_strength: Positive
+    """Pa, t of these bonds"""
+    cohesion: Positive
+    """Pa, c of these bonds"""
+    friction_angle: Annotated[float, Field(ge=0.0, lt=90.0)] = 18.0
+    """degrees, of these bonds and of the contacts between the two materials"""
+
+
 class Scenario(ScenarioBase):
     method: Literal["dem"]
     """picks this method"""
@@ -174,10 +195,69 @@ class Scenario(ScenarioBase):
     """the region the particles fill"""
     packing: PackingSpec
     """the particles"""
-    material: DemMaterial
-    """the bonds and contacts"""
+    material: DemMaterial | None = None
+    """the bonds and contacts (one material; [materials.NAME] for several)"""
+    materials: dict[str, DemNamedMaterial] = {}
+    """[materials.NAME]: several particle groups, each in its zones (instead of [material])"""
+    interfaces: dict[str, DemPairBond] = {}
+    """[interfaces."A-B"]: the bonds between groups A and B; default: those of the group with the lower tensile
+    strength"""
     flaw: FlawSpec | None = None
     """a pre-existing crack (optional)"""
+
+    @model_validator(mode="after")
+    def _one_or_several_materials(self):
+        if (self.material is None) == (not self.materials):
+            raise ValueError("give [material] (one material) or [materials.NAME] tables (several), not both"
+                             if self.materials else "[material] is missing (or give [materials.NAME] for several)")
+        if self.interfaces and not self.materials:
+            raise ValueError("[interfaces] names pairs of [materials.NAME]; with one [material] there is none")
+        if self.materials:
+            rest = [name for name, m in self.materials.items() if not m.zones]
+            if len(rest) != 1:
+                raise ValueError(f"[materials]: exactly one material fills the rest (no zones); found {len(rest)}"
+                                 f"{': ' + ', '.join(rest) if rest else ''}")
+            for key in ("local_damping", "bonds_per_particle"):
+                values = {getattr(m, key) for m in self.materials.values()}
+                if len(values) > 1:
+                    raise ValueError(f"materials.*.{key}: one value for the whole packing (it is the packing's, not a "
+                                     f"group's); got {', '.join(f'{v:g}' for v in sorted(values))}")
+            drawn = [name for name, m in self.materials.items() if m.random]
+            if drawn:
+                raise ValueError(f"materials.{drawn[0]}.random: random bond strengths go with one [material] for now")
+            for key in self.interfaces:
+                material_pair(key, list(self.materials))
+        return self
+
+    def bond_law(self, centers: np.ndarray):
+        """The BondLaw of [material], or the GroupedLaws of [materials] with each particle's
+        group (by its centre; ValueError if none takes one) and the pairs' laws."""
+        if self.material is not None:
+            return self.material.law()
+        names = list(self.materials)
+        group = np.full(len(centers), next(i for i, m in enumerate(self.materials.values()) if not m.zones))
+        for index, m in enumerate(self.materials.values()):
+            for zone in m.zones:
+                group[zone.contains(centers)] = index
+        laws = tuple(m.law() for m in self.materials.values())
+        pairs = {}
+        for key, bond in self.interfaces.items():
+            a, b = (names.index(n) for n in material_pair(key, names))
+            # the contacts between the two: the weaker side's contact friction
+            weaker = laws[a] if laws[a].tensile_strength <= laws[b].tensile_strength else laws[b]
+            pairs[a, b] = pairs[b, a] = BondLaw(0.0, 0.0, bond.tensile_strength, bond.cohesion,
+                                                math.radians(bond.friction_angle), weaker.contact_friction_angle)
+        return GroupedLaws(laws, group, pairs)
+
+    def the_material(self) -> DemMaterial:
+        """[material], or the material filling the rest: the packing's own settings (damping, bonds per particle)."""
+        return self.material or next(m for m in self.materials.values() if not m.zones)
+
+    def weakest_tensile_strength(self) -> float:
+        """Pa: the lowest bond tensile strength of the materials and pairs."""
+        if self.material is not None:
+            return self.material.tensile_strength
+        return min(b.tensile_strength for b in [*self.materials.values(), *self.interfaces.values()])
 
     @model_validator(mode="after")
     def _no_clamped_supports(self):
@@ -245,10 +325,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
         platen = Platen(lead.name, direction, extent, _opposite(tools, lead, direction))
-    mat = scenario.material
+    mat = scenario.the_material()
+    law = scenario.bond_law(centers)
+    density = mat.density if scenario.material is not None else \
+        np.array([m.density for m in scenario.materials.values()])[law.group]
     try:
         sim = build_dem_simulation(
-            centers, radii, mat.density, mat.law(), bonds_per_particle=mat.bonds_per_particle,
+            centers, radii, density, law, bonds_per_particle=mat.bonds_per_particle,
             tools=tools, supports=supports, damping=mat.local_damping, gravity=scenario.run.gravity,
             velocity=np.asarray(scenario.specimen.initial_velocity, float), loaded_area=loaded_area,
             joint=flaw.joint() if flaw is not None and flaw.kind == "closed" else None,
@@ -258,6 +341,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"
         raise ScenarioError(f"{field}: {err}") from None
     sim.packing = packing
+    sim.material_names = list(scenario.materials) or None
     if scenario.packing.file is not None and scenario.packing.mean_radius is not None:
         sim.warnings.append(f"packing.file {scenario.packing.file} is used: packing.mean_radius, porosity, "
                             "radius_ratio, particle_density and seed do not apply")
@@ -272,7 +356,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     if scenario.specimen.shape == "disc" and loaded_area:
         sim.probes.append(BrazilianProbe(scenario.specimen.diameter, scenario.specimen.thickness))
     if grip is not None:
-        sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, mat.tensile_strength)))
+        sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, scenario.weakest_tensile_strength())))
     return sim
 
 

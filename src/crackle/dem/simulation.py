@@ -42,6 +42,7 @@ class DemSimulation(SimulationBase):
         self.x0 = particles.x.copy()
         # Bond strengths drawn per bond ([material.random]): {property: values}, and their statistics
         self.drawn, self.random_properties = {}, None
+        self.material_names: list[str] | None = None  # [materials] in order (set-up), None with one material
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
         self._failures = FailureRecorder(n_bonds)
@@ -214,7 +215,7 @@ class DemSimulation(SimulationBase):
             "points": np.concatenate([p.x, corners]),
             "point_data": {
                 "displacement": padded(p.x - self.x0), "velocity": padded(p.v), "spin": padded(p.spin),
-                "radius": padded(p.radius), "stress": padded(stress),
+                "radius": padded(p.radius), "stress": padded(stress), "material": padded(self.particle_material()),
                 "id": np.concatenate([np.arange(n_particles), np.full(len(corners), -1)]),
             },
             "component_names": {"stress": STRESS_COMPONENTS, "homogenised_stress": STRESS_COMPONENTS},
@@ -223,6 +224,26 @@ class DemSimulation(SimulationBase):
                          "normal_force": normal, "shear_force": shear, **self.drawn}),
                        ("hexahedron", hexes, {"homogenised_stress": grid.reshape(-1, 6)})],
         }
+
+    def particle_material(self) -> np.ndarray:
+        """Each particle's material (its index in [materials]; 0 with one [material])."""
+        return np.asarray(getattr(self.law, "group", np.zeros(len(self.particles.radius), dtype=np.int64)), np.int64)
+
+    def failures_by_material(self) -> dict[str, int] | None:
+        """Broken bonds per material (both particles in it) and per pair of materials ("A-B",
+        by [materials] order); None with one material."""
+        names = self.material_names
+        if not names or len(names) < 2:
+            return None
+        s, group = self.inter, self.particle_material()
+        broken = np.flatnonzero(np.isfinite(s.fail_time[:self.n_bonds]))
+        low = np.minimum(group[s.a[broken]], group[s.b[broken]])
+        high = np.maximum(group[s.a[broken]], group[s.b[broken]])
+        counts = {}
+        for i, j in zip(low.tolist(), high.tolist()):
+            key = names[i] if i == j else f"{names[i]}-{names[j]}"
+            counts[key] = counts.get(key, 0) + 1
+        return counts
 
     def bond_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Per bond (the first n_bonds interactions), the force it carried in the last step: its
@@ -254,6 +275,7 @@ class DemSimulation(SimulationBase):
             "broken_by_mode": self.broken_by_mode(),
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "random_properties": self.random_properties,
+            "failures_by_material": self.failures_by_material(),
             "warnings": list(self.warnings),
         }
         if self.loaded_area:

@@ -17,7 +17,7 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone, material_pair
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.simulation import PeakForceProbe
@@ -146,15 +146,6 @@ class Scenario(ScenarioBase):
             return self.material.interface.tensile_strength
         laws = [m.interface for m in self.materials.values()] + list(self.interfaces.values())
         return min(law.tensile_strength for law in laws)
-
-
-def material_pair(key: str, names: list[str]) -> tuple[str, str]:
-    """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
-    for cut in (i for i, ch in enumerate(key) if ch == "-"):
-        a, b = key[:cut], key[cut + 1:]
-        if a in names and b in names and a != b:
-            return a, b
-    raise ValueError(f'interfaces."{key}": not two different materials joined by "-" (materials: {", ".join(names)})')
 
 
 def assign_materials(mesh, scenario: Scenario) -> np.ndarray:
