@@ -218,3 +218,24 @@ def test_bad_material_tables_are_refused(tmp_path, capsys, change, message):
     path.write_text(BAR.replace("{pair}", "").replace(*change, 1))
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_several_materials_identical_for_1_and_2_threads(tmp_path):
+    """The two-material bar with a pair law on its junction, run to its break with 1 and with 2
+    numba threads: byte-identical history and events, with failures."""
+    import os
+    import subprocess
+    import sys
+
+    scenario = tmp_path / "bar.toml"
+    scenario.write_text(BAR.replace("{pair}", PAIR.replace("{ft}", "1.5e6")))
+    outs = []
+    for threads in (1, 2):
+        out = tmp_path / f"t{threads}"
+        subprocess.run([sys.executable, "-m", "crackle.cli", "run", str(scenario), "--out", str(out),
+                        "--set", "run.field_frames=0", "--set", "run.end_time=4e-4"],
+                       env=dict(os.environ, NUMBA_NUM_THREADS=str(threads)), check=True, capture_output=True)
+        outs.append(out)
+    assert (outs[0] / "history.csv").read_bytes() == (outs[1] / "history.csv").read_bytes()
+    events = (outs[0] / "events.csv").read_text()
+    assert events == (outs[1] / "events.csv").read_text() and len(events.strip().splitlines()) > 1
