@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder
+from ..solver.failures import FailureRecorder, failures_by_material
 from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, TRANSFER_FORCE, TRANSFER_LEVER_A, TRANSFER_LEVER_B, advance
 from .model import with_contacts
@@ -236,14 +236,8 @@ class DemSimulation(SimulationBase):
         if not names or len(names) < 2:
             return None
         s, group = self.inter, self.particle_material()
-        broken = np.flatnonzero(np.isfinite(s.fail_time[:self.n_bonds]))
-        low = np.minimum(group[s.a[broken]], group[s.b[broken]])
-        high = np.maximum(group[s.a[broken]], group[s.b[broken]])
-        counts = {}
-        for i, j in zip(low.tolist(), high.tolist()):
-            key = names[i] if i == j else f"{names[i]}-{names[j]}"
-            counts[key] = counts.get(key, 0) + 1
-        return counts
+        broken = self.failed_bonds()
+        return failures_by_material(group[s.a[:self.n_bonds][broken]], group[s.b[:self.n_bonds][broken]], names)
 
     def bond_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Per bond (the first n_bonds interactions), the force it carried in the last step: its

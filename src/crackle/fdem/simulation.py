@@ -7,7 +7,7 @@ import numpy as np
 from ..analysis import Fragments, find_fragments
 from ..io.plots import plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder
+from ..solver.failures import FailureRecorder, failures_by_material
 from ..solver.simulation import SimulationBase
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import advance, interface_energy, tet_energy_and_stress
@@ -234,14 +234,9 @@ class FdemSimulation(SimulationBase):
             return None
         ifs = m.ifs
         failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
-        a, b = m.tet_material[ifs.na[failed, 0] // 4], m.tet_material[ifs.nb[failed, 0] // 4]
-        low, high = np.minimum(a, b), np.maximum(a, b)
-        names = [mat.name for mat in m.materials]
-        counts = {}
-        for i, j in zip(low.tolist(), high.tolist()):
-            key = names[i] if i == j else f"{names[i]}-{names[j]}"
-            counts[key] = counts.get(key, 0) + 1
-        return counts
+        # an exploded node's tet: node // 4
+        return failures_by_material(m.tet_material[ifs.na[failed, 0] // 4], m.tet_material[ifs.nb[failed, 0] // 4],
+                                    [mat.name for mat in m.materials])
 
     def _drawn_face_values(self) -> dict:
         """Each property some material draws per face, on every face (the faces' law rows)."""

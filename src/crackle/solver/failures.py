@@ -41,6 +41,18 @@ def failure_mode(shear_share):
     return MODE_MIXED
 
 
+def failures_by_material(material_a: np.ndarray, material_b: np.ndarray, names: list[str]) -> dict[str, int]:
+    """Failures counted per material (both sides in it) and per pair of materials ("A-B", in the
+    order of `names`), from the materials (indices into `names`) on the two sides of each failure:
+    summary.json's `failures_by_material`, every method's."""
+    low, high = np.minimum(material_a, material_b), np.maximum(material_a, material_b)
+    counts: dict[str, int] = {}
+    for i, j in zip(low.tolist(), high.tolist()):
+        key = names[i] if i == j else f"{names[i]}-{names[j]}"
+        counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
 class FailureRecorder:
     """Reports each failure once: call `new` between chunks with the current failure arrays."""
 
