@@ -24,7 +24,8 @@ from crackle.materials.random_properties import RandomProperty, standard_normal,
 from crackle.meshfree import build_simulation as build_meshfree
 from crackle.scenario import load_scenario
 from crackle.shell import build_simulation as build_shell
-from crackle.shell.growth import RandomSites, SiteField, align_ahead, edge_midpoints, hashed_normal, step_ahead
+from crackle.materials.random_properties import hashed_normal
+from crackle.shell.growth import RandomSites, SiteField, align_ahead, edge_midpoints, step_ahead
 
 WEIBULL = '{distribution="weibull", modulus=6}'
 # The quick plate impact's aluminium: a particle fails at 3 x 150 MPa (material.fracture_factor).

@@ -123,13 +123,44 @@ def standard_normal(spec: RandomProperty, positions: np.ndarray, seed: int) -> n
     """One standard normal value per site: independent ones in the sites' order, or the random
     field at the sites' positions (m, (n, 3))."""
     positions = np.asarray(positions, float).reshape(-1, 3)
+    field = random_field(spec, seed)
+    if field is None:
+        return np.random.default_rng(seed).standard_normal(len(positions))
+    return np.asarray(field(positions.T, mesh_type="unstructured"), float)
+
+
+def random_field(spec: RandomProperty, seed: int):
+    """The GSTools field (unit variance, FIELD_MODES modes) of a correlated property, a function
+    of position for its seed; None for independent sites."""
     model = spec.covariance_model()
     if model is None:
-        return np.random.default_rng(seed).standard_normal(len(positions))
+        return None
     import gstools
 
-    field = gstools.SRF(model, mean=0.0, seed=seed, mode_no=FIELD_MODES)
-    return np.asarray(field(positions.T, mesh_type="unstructured"), float)
+    return gstools.SRF(model, mean=0.0, seed=seed, mode_no=FIELD_MODES)
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mix(h: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser on uint64 values (wrapping arithmetic)."""
+    h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return h ^ (h >> np.uint64(31))
+
+
+def hashed_normal(points: np.ndarray, seed: int) -> np.ndarray:
+    """Independent standard normal values, one per point (m, (k, 3)), each a function of the
+    point's coordinates (their bits; -0.0 counted as 0.0) and the seed alone: independent sites
+    whose numbering changes during a run (the shell's edges, which cracks cut and renumber)."""
+    bits = (np.ascontiguousarray(points, dtype=float).reshape(-1, 3) + 0.0).view(np.uint64)
+    h = np.full(len(bits), np.uint64(seed), dtype=np.uint64)
+    for c in range(3):
+        h = _mix((h + _GOLDEN) ^ bits[:, c])
+    h = _mix(h + _GOLDEN)
+    return special.ndtri(((h >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53)
+
 
 
 def to_marginal(spec: RandomProperty, mean: float, z: np.ndarray) -> np.ndarray:
@@ -183,5 +214,5 @@ def statistics(spec: RandomProperty, positions: np.ndarray, values: np.ndarray) 
     }
 
 
-__all__ = ["COVARIANCES", "RandomProperty", "check_names", "draw", "realised_correlation_length", "standard_normal",
-           "statistics", "stream_seed", "to_marginal"]
+__all__ = ["COVARIANCES", "RandomProperty", "check_names", "draw", "hashed_normal", "random_field",
+           "realised_correlation_length", "standard_normal", "statistics", "stream_seed", "to_marginal"]

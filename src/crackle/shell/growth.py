@@ -55,10 +55,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import special
 
 from ..loading.tools import NO_TOOL
-from ..materials.random_properties import FIELD_MODES, RandomProperty, statistics, stream_seed, to_marginal
+from ..materials.random_properties import (RandomProperty, hashed_normal, random_field, statistics, stream_seed,
+                                           to_marginal)
 from ..solver.integrator import FREE
 from .mesh import altitudes, split_along
 from .model import Shell, build_shell
@@ -71,27 +71,6 @@ ALIGNED_ANGLE = np.radians(0.5)  # rad, an edge this close to the heading is not
 # What [material.random] may draw on a shell: [fracture]'s toughness (Gc, per edge) and strength
 # (per free-edge vertex), by their names there.
 RANDOM_SITE_PROPERTIES = ("toughness", "strength")
-
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-
-
-def _mix(h: np.ndarray) -> np.ndarray:
-    """splitmix64's finaliser on uint64 values (wrapping arithmetic)."""
-    h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return h ^ (h >> np.uint64(31))
-
-
-def hashed_normal(points: np.ndarray, seed: int) -> np.ndarray:
-    """Independent standard normal values, one per point (m, (k, 3)), each a function of the
-    point's coordinates (their bits; -0.0 counted as 0.0) and the seed alone."""
-    bits = (np.ascontiguousarray(points, dtype=float).reshape(-1, 3) + 0.0).view(np.uint64)
-    h = np.full(len(bits), np.uint64(seed), dtype=np.uint64)
-    for c in range(3):
-        h = _mix((h + _GOLDEN) ^ bits[:, c])
-    h = _mix(h + _GOLDEN)
-    return special.ndtri(((h >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53)
-
 
 class SiteField:
     """One property of one material as a function of the reference position: the value `spec`'s
@@ -119,15 +98,11 @@ class SiteField:
         return np.array([self._known[key] for key in keys], dtype=float)
 
     def _values(self, points: np.ndarray) -> np.ndarray:
-        model = self.spec.covariance_model()
-        if model is None:
+        if self.spec.correlation_length is None:
             z = hashed_normal(points, self.seed)
         else:
-            if self._field is None:
-                import gstools
-
-                # materials.random_properties.standard_normal's field, kept for the next points
-                self._field = gstools.SRF(model, mean=0.0, seed=self.seed, mode_no=FIELD_MODES)
+            if self._field is None:  # kept for the next points
+                self._field = random_field(self.spec, self.seed)
             z = np.asarray(self._field(points.T, mesh_type="unstructured"), float)
         return to_marginal(self.spec, self.mean, z)
 
