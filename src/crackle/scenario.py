@@ -402,6 +402,14 @@ class Zone(Strict):
         return np.abs(height) <= 0.5 * self.thickness
 
 
+def check_material_names(names) -> None:
+    """ValueError for a [materials] name that events.csv's material column cannot carry."""
+    for name in names:
+        if not name or any(ch in name for ch in ',"\r\n'):
+            raise ValueError(f"materials.{name!r}: a material's name may not be empty or hold a comma, a quote or a "
+                             "line break (events.csv names the material of each failure); rename it")
+
+
 def material_pair(key: str, names: list[str]) -> tuple[str, str]:
     """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
     for cut in (i for i, ch in enumerate(key) if ch == "-"):

@@ -4,6 +4,7 @@ two-material sample in direct tension against each material alone on the same pa
 from __future__ import annotations
 
 import json
+from collections import Counter
 from importlib import resources
 
 import meshio
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 from crackle.cli import main
-from crackle.io import read_pvd
+from crackle.io import read_events_csv, read_pvd
 
 # The quick dem-tension sample (27 x 12 x 54 mm, ~3,200 spheres, pulled along z), its lower half
 # soft (Y = 25 GPa, t = 3 MPa), its upper half stiff and strong (50 GPa, 6 MPa).
@@ -99,6 +100,9 @@ def test_two_particle_groups_in_series_and_the_weaker_breaks(tmp_path):
     counts = two["failures_by_material"]
     assert counts.get("soft", 0) >= 0.9 * sum(counts.values()) > 0
     assert soft["failures_by_material"] is None
+    # events.csv names each broken bond's material (pair), a one-material run has no such column
+    assert Counter(read_events_csv(out_two / "events.csv")["material"]) == counts
+    assert "material" not in read_events_csv(out_soft / "events.csv")
 
 
 def test_bad_particle_groups_are_refused(tmp_path, capsys):

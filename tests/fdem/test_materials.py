@@ -5,6 +5,7 @@ mesh file's groups (gmsh physical volumes, Abaqus *Elset)."""
 from __future__ import annotations
 
 import json
+from collections import Counter
 
 import meshio
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 from crackle.cli import main
 from crackle.geometry.meshes import read_mesh, structured_box
-from crackle.io import read_history_csv, read_pvd
+from crackle.io import read_events_csv, read_history_csv, read_pvd
 
 # A 40 x 10 x 10 mm bar, x < 20 mm soft (E = 20 GPa, ft = 2 MPa), x > 20 mm stiff (40 GPa, 4 MPa),
 # pulled apart by glued grips at 0.01 m/s (the peak after ~20 wave transits of the bar); a low Gf so
@@ -134,6 +135,8 @@ def test_a_pair_law_moves_the_break(tmp_path, pair_ft, where):
     expected = min(pair_ft, 2e6)
     assert summary["nominal_strength"] == pytest.approx(expected, rel=0.10)
     assert summary["broken"] > 0 and set(summary["failures_by_material"]) == {where}
+    # events.csv names the material (pair) of each failure: the same counts
+    assert Counter(read_events_csv(out / "events.csv")["material"]) == summary["failures_by_material"]
     if pair_ft < 2e6:
         import os
         import subprocess
@@ -221,10 +224,11 @@ def test_unmatched_groups_stop_with_both_lists(tmp_path, capsys):
     (("[[tools]]", '[interfaces."soft-hard"]\ntensile_strength = 1e6\ncohesion = 1e6\nfriction_angle = 30.0\n'
       "fracture_energy = 2.0\n\n[[tools]]"), "soft-hard"),
     (('normal = [1.0, 0.0, 0.0]}]', 'normal = [1.0, 0.0, 0.0], radius = 0.01}]'), "radius"),
+    (("[materials.stiff]", '[materials."stiff,hard"]'), "may not be empty or hold a comma"),
 ])
 def test_bad_material_tables_are_refused(tmp_path, capsys, change, message):
     """[material] beside [materials], two materials filling the rest, a pair naming no material,
-    a zone key its shape does not take: exit 2 naming it."""
+    a zone key its shape does not take, a name events.csv cannot carry: exit 2 naming it."""
     path = tmp_path / "bad.toml"
     path.write_text(BAR.replace("{pair}", "").replace(*change, 1))
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2

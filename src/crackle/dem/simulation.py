@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder, failures_by_material
+from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, TRANSFER_FORCE, TRANSFER_LEVER_A, TRANSFER_LEVER_B, advance
 from .model import with_contacts
@@ -42,7 +42,6 @@ class DemSimulation(SimulationBase):
         self.x0 = particles.x.copy()
         # Bond strengths drawn per bond ([material.random]): {property: values}, and their statistics
         self.drawn, self.random_properties = {}, None
-        self.material_names: list[str] | None = None  # [materials] in order (set-up), None with one material
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
         self._failures = FailureRecorder(n_bonds)
@@ -229,15 +228,13 @@ class DemSimulation(SimulationBase):
         """Each particle's material (its index in [materials]; 0 with one [material])."""
         return np.asarray(getattr(self.law, "group", np.zeros(len(self.particles.radius), dtype=np.int64)), np.int64)
 
-    def failures_by_material(self) -> dict[str, int] | None:
-        """Broken bonds per material (both particles in it) and per pair of materials ("A-B",
-        by [materials] order); None with one material."""
-        names = self.material_names
-        if not names or len(names) < 2:
-            return None
-        s, group = self.inter, self.particle_material()
-        broken = self.failed_bonds()
-        return failures_by_material(group[s.a[:self.n_bonds][broken]], group[s.b[:self.n_bonds][broken]], names)
+    def failed_ids(self) -> np.ndarray:
+        return np.flatnonzero(self.failed_bonds())
+
+    def failure_materials(self, ids):
+        """The materials of the two particles of bonds `ids`."""
+        group = self.particle_material()
+        return group[self.inter.a[ids]], group[self.inter.b[ids]]
 
     def bond_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Per bond (the first n_bonds interactions), the force it carried in the last step: its

@@ -17,7 +17,7 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone, material_pair
+from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone, check_material_names, material_pair
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.simulation import PeakForceProbe
@@ -120,6 +120,7 @@ class Scenario(ScenarioBase):
 
 
     def _check_materials(self) -> None:
+        check_material_names(self.materials)
         rest = [name for name, m in self.materials.items() if m.group is None and not m.zones]
         if len(rest) > 1:
             raise ValueError(f"materials {', '.join(rest)}: only one material may fill the rest (no group, no zones); "

@@ -7,7 +7,7 @@ import numpy as np
 from ..analysis import Fragments, find_fragments
 from ..io.plots import plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder, failures_by_material
+from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import advance, interface_energy, tet_energy_and_stress
@@ -31,6 +31,7 @@ class FdemSimulation(SimulationBase):
         self._start_clock_and_tools(model.tools, [t.name for t in model.tool_specs], model.warnings)
         self.model = model
         self.body = model.nodes
+        self.material_names = [mat.name for mat in model.materials]
         self._failures = FailureRecorder(model.n_interfaces)
         self._tet_energy = np.zeros(model.n_tets)
         self._stress = np.zeros((model.n_tets, 6))
@@ -226,17 +227,14 @@ class FdemSimulation(SimulationBase):
     def bounds(self):
         return self.model.mesh.bounds()
 
-    def failures_by_material(self) -> dict[str, int] | None:
-        """Failed faces per material (both sides in it) and per pair of materials ("A-B", by
-        [materials] order); None with one material."""
+    def failed_ids(self) -> np.ndarray:
+        ifs = self.model.ifs
+        return np.flatnonzero((ifs.state != INTACT) & (ifs.state != PRECRACK))
+
+    def failure_materials(self, ids):
+        """The tets' materials on the two sides of faces `ids` (an exploded node's tet: node // 4)."""
         m = self.model
-        if len(m.materials) < 2:
-            return None
-        ifs = m.ifs
-        failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
-        # an exploded node's tet: node // 4
-        return failures_by_material(m.tet_material[ifs.na[failed, 0] // 4], m.tet_material[ifs.nb[failed, 0] // 4],
-                                    [mat.name for mat in m.materials])
+        return m.tet_material[m.ifs.na[ids, 0] // 4], m.tet_material[m.ifs.nb[ids, 0] // 4]
 
     def _drawn_face_values(self) -> dict:
         """Each property some material draws per face, on every face (the faces' law rows)."""

@@ -19,6 +19,9 @@ from typing import Any
 import numpy as np
 
 EVENT_COLUMNS = ("time", "x", "y", "z", "mode", "id")
+# events.csv's last column in a model of several materials: the material a failure happened in,
+# or the pair ("A-B") it parted.
+MATERIAL_COLUMN = "material"
 FAILURE_MODES = ("tension", "shear", "mixed")
 
 
@@ -98,18 +101,22 @@ class HistoryWriter:
 
 
 class EventWriter:
-    """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id``."""
+    """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id`` (and ``material`` in a
+    model of several materials)."""
 
-    def __init__(self, path: str | os.PathLike, keep_rows: int | None = None):
+    def __init__(self, path: str | os.PathLike, keep_rows: int | None = None, materials: bool = False):
         """`keep_rows`: continue an existing file (a resumed run) after its first keep_rows rows
         (the failures reported before the checkpoint; a failure in the step after it has that
-        step's start time, so a time cannot tell it apart)."""
+        step's start time, so a time cannot tell it apart). `materials`: rows carry the material
+        (or pair) of each failure."""
         self.path = Path(path)
-        kept = [] if keep_rows is None else _existing_rows(self.path, EVENT_COLUMNS)[:keep_rows]
-        self._file = _open_csv(self.path, EVENT_COLUMNS, kept)
+        self.columns = EVENT_COLUMNS + ((MATERIAL_COLUMN,) if materials else ())
+        kept = [] if keep_rows is None else _existing_rows(self.path, self.columns)[:keep_rows]
+        self._file = _open_csv(self.path, self.columns, kept)
 
-    def append_many(self, times, xyz, modes, ids) -> None:
-        """Append k events. ``modes`` may also be one string for all of them."""
+    def append_many(self, times, xyz, modes, ids, materials: Sequence[str] | None = None) -> None:
+        """Append k events. ``modes`` may also be one string for all of them; ``materials`` (one
+        label per event) when the file has the material column."""
         times = np.atleast_1d(np.asarray(times))
         xyz = np.asarray(xyz).reshape(-1, 3)
         k = len(times)
@@ -122,6 +129,9 @@ class EventWriter:
                 f"event arrays differ in length: times {k}, xyz {len(xyz)}, "
                 f"modes {len(modes)}, ids {len(ids)}"
             )
+        if (materials is not None) != (MATERIAL_COLUMN in self.columns) or (materials is not None and len(materials) != k):
+            raise ValueError(f"events.csv's columns are {','.join(self.columns)}: give one material per event exactly "
+                             "when it has the material column")
         bad = sorted(set(modes) - set(FAILURE_MODES))
         if bad:
             raise ValueError(f"unknown failure modes {bad}; expected {FAILURE_MODES}")
@@ -136,6 +146,8 @@ class EventWriter:
             )
             for t, p, m, i in zip(times, xyz, modes, ids)
         ]
+        if materials is not None:
+            lines = [f"{line},{material}" for line, material in zip(lines, materials)]
         self._file.write("\n".join(lines) + "\n")
         self._file.flush()
 
@@ -194,12 +206,13 @@ def read_history_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 
 def read_events_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read ``events.csv`` into arrays: time, x, y, z (float), mode (str), id (int)."""
-    _, lines = _complete_lines(Path(path))
+    """Read ``events.csv`` into arrays: time, x, y, z (float), mode (str), id (int), and material
+    (str) where the file has it."""
+    header, lines = _complete_lines(Path(path))
     rows = list(csv.reader(lines))
     floats = np.array([[float(v) for v in r[:4]] for r in rows], dtype=np.float64)
     floats = floats.reshape(-1, 4)
-    return {
+    events = {
         "time": floats[:, 0].copy(),
         "x": floats[:, 1].copy(),
         "y": floats[:, 2].copy(),
@@ -207,6 +220,9 @@ def read_events_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
         "mode": np.array([r[4] for r in rows], dtype=str),
         "id": np.array([int(r[5]) for r in rows], dtype=np.int64),
     }
+    if MATERIAL_COLUMN in header:
+        events[MATERIAL_COLUMN] = np.array([r[6] for r in rows], dtype=str)
+    return events
 
 
 def to_json_compatible(value: Any) -> Any:

@@ -302,7 +302,8 @@ class _Outputs:
         time); a new run writes its first row and frame, and its energy scale."""
         first = {"time": sim.time, **sim.sample(state.dt)}
         history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=resumed_from))
-        events = stack.enter_context(EventWriter(out / "events.csv", keep_rows=None if resumed_from is None else state.events))
+        events = stack.enter_context(EventWriter(out / "events.csv", keep_rows=None if resumed_from is None else state.events,
+                                                       materials=sim.several_materials))
         outputs = cls(history, events, FieldWriter(out, keep_until=resumed_from) if rows.field_every else None)
         state.written_until = sim.steps
         if resumed_from is None:
@@ -319,7 +320,7 @@ class _Outputs:
         state.written_until = sim.steps
         t, xyz, modes, ids = sim.new_events()
         if len(ids):
-            self.events.append_many(t, xyz, modes, ids)
+            self.events.append_many(t, xyz, modes, ids, sim.failure_labels(ids))
             state.events += len(ids)
         if self.fields is not None and sim.steps % rows.field_every == 0:
             _write_fields(self.fields, sim)

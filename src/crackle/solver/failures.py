@@ -41,16 +41,11 @@ def failure_mode(shear_share):
     return MODE_MIXED
 
 
-def failures_by_material(material_a: np.ndarray, material_b: np.ndarray, names: list[str]) -> dict[str, int]:
-    """Failures counted per material (both sides in it) and per pair of materials ("A-B", in the
-    order of `names`), from the materials (indices into `names`) on the two sides of each failure:
-    summary.json's `failures_by_material`, every method's."""
+def material_labels(material_a: np.ndarray, material_b: np.ndarray, names: list[str]) -> list[str]:
+    """The material of each failure from the materials (indices into `names`) on its two sides:
+    the material's name where both sides are in it, else the pair "A-B" (in the order of `names`)."""
     low, high = np.minimum(material_a, material_b), np.maximum(material_a, material_b)
-    counts: dict[str, int] = {}
-    for i, j in zip(low.tolist(), high.tolist()):
-        key = names[i] if i == j else f"{names[i]}-{names[j]}"
-        counts[key] = counts.get(key, 0) + 1
-    return counts
+    return [names[i] if i == j else f"{names[i]}-{names[j]}" for i, j in zip(low.tolist(), high.tolist())]
 
 
 class FailureRecorder:

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
 from ..analysis.energy import PREFIX, energy_order
+from .failures import material_labels
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 
 
@@ -113,6 +115,27 @@ class SimulationBase:
 
     method: str = ""
     _initial_energy: float = 0.0  # J: kinetic energy at t = 0 (initial velocities), counted as work put in
+    # Several materials ([materials.NAME]): their names in table order (the set-up sets it); the
+    # method then gives failed_ids() and failure_materials(ids). None: one material.
+    material_names: list[str] | None = None
+
+    @property
+    def several_materials(self) -> bool:
+        return bool(self.material_names) and len(self.material_names) > 1
+
+    def failure_labels(self, ids) -> list[str] | None:
+        """The material each failure `ids` happened in, or the pair "A-B" it parted (events.csv's
+        material column); None with one material."""
+        if not self.several_materials:
+            return None
+        return material_labels(*self.failure_materials(ids), self.material_names)
+
+    def failures_by_material(self) -> dict[str, int] | None:
+        """Failures so far per material and per pair of materials (summary.json's
+        `failures_by_material`); None with one material."""
+        if not self.several_materials:
+            return None
+        return dict(Counter(self.failure_labels(self.failed_ids())))
 
     def _start_clock_and_tools(self, tools, tool_names, warnings: list[str] | None = None) -> None:
         """Time 0, the tools and their springs and load cell, and the set-up's warnings (a list
