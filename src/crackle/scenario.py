@@ -402,6 +402,25 @@ class Zone(Strict):
         return np.abs(height) <= 0.5 * self.thickness
 
 
+class MaterialPlace(Strict):
+    """Where one of several materials ([materials.NAME]) is: a group of the mesh file's tets or zones; the one
+    with neither fills the rest (assign_materials)."""
+
+    group: str | None = None
+    """specimen.shape = "mesh": the file's group of tets this material fills (a gmsh physical volume's name, an
+    Abaqus *Elset, a meshio cell set); meshfree: a particle, a node of the mesh, takes the group holding the most of
+    its cell (a quarter of each tet around it)"""
+    zones: list[Zone] = []
+    """the zones this material fills (a tet by its centroid, a meshfree particle by its reference position); a later
+    material wins where two claim one"""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if self.group is not None and self.zones:
+            raise ValueError("give group or zones, not both")
+        return self
+
+
 def material_pair(key: str, names: list[str]) -> tuple[str, str]:
     """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
     for cut in (i for i, ch in enumerate(key) if ch == "-"):

@@ -17,8 +17,8 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import (ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone, assign_materials,
-                        check_material_tables, check_one_rest, material_pair)
+from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
+                        assign_materials, check_material_tables, check_one_rest, material_pair)
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.simulation import PeakForceProbe
@@ -57,21 +57,9 @@ class FdemMaterialSpec(ElasticSpec):
         return self
 
 
-class FdemNamedMaterial(FdemMaterialSpec):
+class FdemNamedMaterial(FdemMaterialSpec, MaterialPlace):
     """[materials.NAME]: one of several materials (the keys of [material]), and where it is: a group of the mesh
     file's or zones; the one with neither fills the rest."""
-
-    group: str | None = None
-    """specimen.shape = "mesh": the file's group of tets this material fills (a gmsh physical volume's name, an
-    Abaqus *Elset, a meshio cell set)"""
-    zones: list[Zone] = []
-    """the zones this material fills (a tet by its centroid); a later material wins where two claim a tet"""
-
-    @model_validator(mode="after")
-    def _one_way(self):
-        if self.group is not None and self.zones:
-            raise ValueError("give group or zones, not both")
-        return self
 
 
 class Scenario(ScenarioBase):
