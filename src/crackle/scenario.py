@@ -410,6 +410,25 @@ def check_material_names(names) -> None:
                              "line break (events.csv names the material of each failure); rename it")
 
 
+class MaterialPlace(Strict):
+    """Where one of several materials ([materials.NAME]) is: a group of the mesh file's tets or zones; the one
+    with neither fills the rest (assign_materials)."""
+
+    group: str | None = None
+    """specimen.shape = "mesh": the file's group of tets this material fills (a gmsh physical volume's name, an
+    Abaqus *Elset, a meshio cell set); meshfree: a particle, a node of the mesh, takes the group holding the most of
+    its cell (a quarter of each tet around it)"""
+    zones: list[Zone] = []
+    """the zones this material fills (a tet by its centroid, a meshfree particle by its reference position); a later
+    material wins where two claim one"""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if self.group is not None and self.zones:
+            raise ValueError("give group or zones, not both")
+        return self
+
+
 def material_pair(key: str, names: list[str]) -> tuple[str, str]:
     """The two materials an [interfaces] key "A-B" names (names may hold '-' themselves)."""
     for cut in (i for i, ch in enumerate(key) if ch == "-"):
@@ -417,6 +436,61 @@ def material_pair(key: str, names: list[str]) -> tuple[str, str]:
         if a in names and b in names and a != b:
             return a, b
     raise ValueError(f'interfaces."{key}": not two different materials joined by "-" (materials: {", ".join(names)})')
+
+
+def check_material_tables(material, materials: dict) -> None:
+    """[material] (one material) or [materials.NAME] tables (several): ValueError for both or neither,
+    or for a name events.csv cannot carry."""
+    if (material is None) == (not materials):
+        raise ValueError("give [material] (one material) or [materials.NAME] tables (several), not both"
+                         if materials else "[material] is missing (or give [materials.NAME] for several)")
+    check_material_names(materials)
+
+
+def fills_the_rest(material) -> bool:
+    """A [materials.NAME] with neither group nor zones: it fills what the others leave."""
+    return getattr(material, "group", None) is None and not material.zones
+
+
+def check_one_rest(materials: dict) -> None:
+    """ValueError when more than one of [materials.NAME] fills the rest."""
+    rest = [name for name, m in materials.items() if fills_the_rest(m)]
+    if len(rest) > 1:
+        raise ValueError(f"materials {', '.join(rest)}: only one material may fill the rest (no group, no zones); "
+                         "give the others a group or zones")
+
+
+def assign_materials(materials: dict, positions, groups: dict | None = None, sites: str = "tets") -> "np.ndarray":
+    """Each site's material (its index in `materials`, [materials.NAME] in order): the one that
+    fills the rest, then each material's group (`groups[name]`: the file's group as the sites' ids
+    or a mask over them) or zones (a site by its position, m (n, 3)) in table order, a later one
+    winning; ValueError naming what does not match (the groups asked and the file's, sites left
+    without a material). `sites` names them in the messages (tets, particles)."""
+    import numpy as np
+
+    positions = np.asarray(positions, dtype=float).reshape(-1, 3)
+    names = list(materials)
+    rest = [i for i, m in enumerate(materials.values()) if fills_the_rest(m)]
+    material = np.full(len(positions), rest[0] if rest else -1, dtype=np.int64)
+    asked = {m.group for m in materials.values() if getattr(m, "group", None) is not None}
+    if asked:
+        found = set(groups or {})
+        if asked - found or found - asked:
+            raise ValueError(
+                "materials.*.group and the mesh file's groups of tets do not match: "
+                f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
+                f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
+                f"(the file's groups: {', '.join(sorted(found)) or 'none'})")
+    for index, m in enumerate(materials.values()):
+        if getattr(m, "group", None) is not None:
+            material[groups[m.group]] = index
+        for zone in m.zones:
+            material[zone.contains(positions)] = index
+    unassigned = int(np.sum(material < 0))
+    if unassigned:
+        raise ValueError(f"{unassigned:,} of {len(positions):,} {sites} lie in no material's group or zones: give one "
+                         f"of [materials] ({', '.join(names)}) neither group nor zones, to fill the rest")
+    return material
 
 
 class Where(Strict):

@@ -17,8 +17,8 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import TensionTest, pulling_grip
 from ..loading.build import build_loading, touch_tools
-from ..scenario import (FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, Zone, check_material_names, material_pair,
-                        refuse_unused_keys, resolve_path)
+from ..scenario import (FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, Zone, check_material_tables,
+                        material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
@@ -207,14 +207,11 @@ class Scenario(ScenarioBase):
 
     @model_validator(mode="after")
     def _one_or_several_materials(self):
-        if (self.material is None) == (not self.materials):
-            raise ValueError("give [material] (one material) or [materials.NAME] tables (several), not both"
-                             if self.materials else "[material] is missing (or give [materials.NAME] for several)")
+        check_material_tables(self.material, self.materials)
         if self.interfaces and not self.materials:
             raise ValueError("[interfaces] names pairs of [materials.NAME]; with one [material] there is none")
         if self.materials:
             rest = [name for name, m in self.materials.items() if not m.zones]
-            check_material_names(self.materials)
             if len(rest) != 1:
                 raise ValueError(f"[materials]: exactly one material fills the rest (no zones); found {len(rest)}"
                                  f"{': ' + ', '.join(rest) if rest else ''}")

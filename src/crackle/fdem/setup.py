@@ -17,7 +17,8 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import ElasticSpec, PrecrackSpec, ScenarioBase, ScenarioError, Specimen, Zone, check_material_names, material_pair
+from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
+                        assign_materials, check_material_tables, check_one_rest, material_pair)
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.simulation import PeakForceProbe
@@ -56,21 +57,9 @@ class FdemMaterialSpec(ElasticSpec):
         return self
 
 
-class FdemNamedMaterial(FdemMaterialSpec):
+class FdemNamedMaterial(FdemMaterialSpec, MaterialPlace):
     """[materials.NAME]: one of several materials (the keys of [material]), and where it is: a group of the mesh
     file's or zones; the one with neither fills the rest."""
-
-    group: str | None = None
-    """specimen.shape = "mesh": the file's group of tets this material fills (a gmsh physical volume's name, an
-    Abaqus *Elset, a meshio cell set)"""
-    zones: list[Zone] = []
-    """the zones this material fills (a tet by its centroid); a later material wins where two claim a tet"""
-
-    @model_validator(mode="after")
-    def _one_way(self):
-        if self.group is not None and self.zones:
-            raise ValueError("give group or zones, not both")
-        return self
 
 
 class Scenario(ScenarioBase):
@@ -95,9 +84,7 @@ class Scenario(ScenarioBase):
 
     @model_validator(mode="after")
     def _fdem_checks(self):
-        if (self.material is None) == (not self.materials):
-            raise ValueError("give [material] (one material) or [materials.NAME] tables (several), not both"
-                             if self.materials else "[material] is missing (or give [materials.NAME] for several)")
+        check_material_tables(self.material, self.materials)
         if self.materials:
             self._check_materials()
         elif self.interfaces:
@@ -120,11 +107,7 @@ class Scenario(ScenarioBase):
 
 
     def _check_materials(self) -> None:
-        check_material_names(self.materials)
-        rest = [name for name, m in self.materials.items() if m.group is None and not m.zones]
-        if len(rest) > 1:
-            raise ValueError(f"materials {', '.join(rest)}: only one material may fill the rest (no group, no zones); "
-                             "give the others a group or zones")
+        check_one_rest(self.materials)
         grouped = [name for name, m in self.materials.items() if m.group is not None]
         if grouped and self.specimen.shape != "mesh":
             raise ValueError(f"materials.{grouped[0]}.group: groups come from a mesh file (specimen.shape = \"mesh\"); "
@@ -147,34 +130,6 @@ class Scenario(ScenarioBase):
             return self.material.interface.tensile_strength
         laws = [m.interface for m in self.materials.values()] + list(self.interfaces.values())
         return min(law.tensile_strength for law in laws)
-
-
-def assign_materials(mesh, scenario: Scenario) -> np.ndarray:
-    """Each tet's material (its index in [materials]): the rest material, then each material's
-    group or zones in table order (a later one wins); ValueError naming what does not match."""
-    names = list(scenario.materials)
-    centroid = mesh.points[mesh.tets].mean(axis=1)
-    rest = [i for i, m in enumerate(scenario.materials.values()) if m.group is None and not m.zones]
-    tet_material = np.full(mesh.n_tets, rest[0] if rest else -1, dtype=np.int64)
-    asked = {m.group for m in scenario.materials.values() if m.group is not None}
-    if asked:
-        found = set(mesh.groups or {})
-        if asked - found or found - asked:
-            raise ValueError(
-                "materials.*.group and the mesh file's groups of tets do not match: "
-                f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
-                f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
-                f"(the file's groups: {', '.join(sorted(found)) or 'none'})")
-    for index, m in enumerate(scenario.materials.values()):
-        if m.group is not None:
-            tet_material[mesh.groups[m.group]] = index
-        for zone in m.zones:
-            tet_material[zone.contains(centroid)] = index
-    unassigned = int(np.sum(tet_material < 0))
-    if unassigned:
-        raise ValueError(f"{unassigned:,} of {mesh.n_tets:,} tets lie in no material's group or zones: give one of "
-                         f"[materials] ({', '.join(names)}) neither group nor zones, to fill the rest")
-    return tet_material
 
 
 def build_material(spec: FdemMaterialSpec, name: str | None = None) -> Material:
@@ -232,7 +187,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     if scenario.materials:
         material = [build_material(spec, name) for name, spec in scenario.materials.items()]
         try:
-            tet_material = assign_materials(mesh, scenario)
+            tet_material = assign_materials(scenario.materials, mesh.points[mesh.tets].mean(axis=1), mesh.groups)
         except ValueError as err:
             raise ScenarioError(str(err)) from None
         pair_laws = scenario.pair_laws()

@@ -4,6 +4,7 @@ and the tests both call."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,19 +43,22 @@ class MeshfreeBody:
     law: J2Law
     velocity: tuple = (0.0, 0.0, 0.0)  # m/s
     dilation: float = 2.5
+    name: str = "body"  # its material's name in summary.json (material_names)
 
 
-def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, dilation: float = 2.5,
-                              stabilisation: float = 0.1, tools=(), supports=(), damping: float = 0.0,
-                              gravity=(0.0, 0.0, 0.0), velocity=None,
+def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[float], law: J2Law | Sequence[J2Law],
+                              dilation: float = 2.5, stabilisation: float = 0.1, tools=(), supports=(),
+                              damping: float = 0.0, gravity=(0.0, 0.0, 0.0), velocity=None,
                               fracture_stress: float | np.ndarray = math.inf, precracks=(), pressures=(),
                               failure_plastic_strain: float | np.ndarray = math.inf, bodies=(),
-                              self_contact: bool = False, support: str = "uniform") -> MeshfreeSimulation:
+                              self_contact: bool = False, support: str = "uniform", material=None,
+                              names=None) -> MeshfreeSimulation:
     """The particles of `plate` with support radius dilation x the largest grid step (`support`
     "uniform"; "local": dilation x each particle's own spacing, WallParticles.local_spacing, for
     a graded set) (gradients
     by stabilised conforming nodal integration over the particles' cells, shape.smoothed_gradients), the
-    material (density kg/m^3, J2Law), the stabilisation alpha (kernels docstring), tools and
+    material (density kg/m^3, J2Law; or several: one density and law each, `material` each
+    particle's index into them, `names` theirs), the stabilisation alpha (kernels docstring), tools and
     supports (loading.Tool, loading.Support), mass-proportional `damping` (1/s), `gravity`
     (m/s^2), an initial `velocity` (m/s, one for all or one per particle) and the fracture stress
     (Pa, the maximum principal stress that fails a particle; inf: no fracture, fracture.py), the
@@ -67,13 +71,16 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     if support == "local" and plate.local_spacing is None:
         raise SetupError("particles.support", f"\"local\" supports follow the spacing of a mesh or shell's particles; "
                          f"a {plate.shape}'s grid is uniform: remove particles.support")
-    shapes = [_Discretised.of(plate, dilation, stabilisation * law.youngs_modulus, support == "local")]
+    own = _SpecimenMaterials.of(plate, density, law, material, names)
+    shapes = [_Discretised.of(plate, dilation, stabilisation * own.youngs_modulus, support == "local")]
     shapes += [_Discretised.of(b.particles, b.dilation, stabilisation * b.law.youngs_modulus) for b in bodies]
     sizes = [len(d.X) for d in shapes]
     first = np.cumsum([0] + sizes)
     n = int(first[-1])
     X = np.concatenate([d.X for d in shapes])
-    material = np.repeat(np.arange(len(shapes), dtype=np.int64), sizes)
+    # Each particle's row of the law table: the specimen's materials', then one per body.
+    body = np.repeat(np.arange(len(shapes), dtype=np.int64), sizes)
+    material = np.concatenate([own.index, len(own.laws) - 1 + body[sizes[0]:]])
     link_first = np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]])
     start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, link_first)])
     neighbour = np.concatenate([d.neighbour + o for d, o in zip(shapes, first)])
@@ -82,11 +89,12 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
     row = np.repeat(np.arange(n), np.diff(start))
     links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value))
     columns = merge_columns([d.columns for d in shapes], first)
-    laws = [law] + [b.law for b in bodies]
+    laws = own.laws + [b.law for b in bodies]
     table = np.stack([w.table() for w in laws])
     volume = np.concatenate([d.plate.volume for d in shapes])
     area = np.concatenate([d.plate.area for d in shapes])
-    mass = np.concatenate([rho * d.plate.volume for rho, d in zip([density] + [b.density for b in bodies], shapes)])
+    mass = np.concatenate([own.density * plate.volume]
+                          + [b.density * d.plate.volume for b, d in zip(bodies, shapes[1:])])
     scale = float(np.max(np.ptp(X, axis=0)))
     constraint, projection, support_tool = support_constraints(supports, X, scale)
     pressed = pressure_arrays(plate, pressures, scale, n)
@@ -104,19 +112,19 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         thermal=np.column_stack([np.repeat(table[material, T_REF], 2), np.zeros(2 * n)]), material=material,
     )
     h = float(np.min(plate.spacing))
-    penalty = default_tool_penalty(law.youngs_modulus, h)
+    penalty = default_tool_penalty(float(np.max(own.youngs_modulus)), h)  # the stiffest material's
     tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
     tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
     contact = None
     if bodies or self_contact:
         radius = np.concatenate([np.broadcast_to(d.contact_radius, (len(d.X),)) for d in shapes])
         spring = CONTACT_STIFFNESS * np.array([w.youngs_modulus for w in laws])[material] * 2.0 * radius
-        contact = ParticleContact(X, material, radius, spring, [np.max(d.radius) for d in shapes], self_contact)
+        contact = ParticleContact(X, body, radius, spring, [np.max(d.radius) for d in shapes], self_contact)
         # The step allows STEP_PAIRS pairs at once on a particle, each two equal springs in series.
         tool_k = np.maximum(tool_k, 0.5 * STEP_PAIRS * spring)
     seating = seat_on_tools(list(tools), tool_table, particles, "particles")
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
-    c_p = math.sqrt((table[0, 0] + 2.0 * table[0, 1]) / density)
+    c_p = max(math.sqrt((rows[0] + 2.0 * rows[1]) / rho) for rows, rho in zip(table, own.densities))  # the fastest
     breaking = None
     if np.isfinite(fracture_stress).any() or np.isfinite(failure_plastic_strain).any() or precracks:
         cells = merge_cells([d.plate.cells for d in shapes])
@@ -124,12 +132,13 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         if frame is not None and bodies:
             frame = np.concatenate([frame, np.tile(np.eye(3), (n - sizes[0], 1, 1))])
         breaking = LinkBreaking(X, volume, cells, shapes[0].radius, shapes[0].terms,
-                                stabilisation * law.youngs_modulus, fracture_stress, shapes[0].spacing,
+                                stabilisation * own.youngs_modulus, fracture_stress, shapes[0].spacing,
                                 links, frame, tool_k, step_ratio, failure_plastic_strain, fracturing=sizes[0])
     sim = MeshfreeSimulation(particles, links, columns, table, tool_table, [t.name for t in tools],
                              float(np.max(shapes[0].radius)),
                              dt, h / c_p, gravity, damping, plate, breaking, pressed,
-                             history_tables([p.history for p in pressures]), contact, first)
+                             history_tables([p.history for p in pressures]), contact, first,
+                             own.names + [b.name for b in bodies])
     sim.warnings.extend(seating)
     if contact is not None:
         overlapping = contact.overlaps_between_bodies(X)
@@ -144,6 +153,34 @@ def build_meshfree_simulation(plate: WallParticles, density: float, law: J2Law, 
         # One-sided gradients at the pre-crack faces can be stiffer: the step of the cut links.
         sim.stable_dt = min(dt, stable_step(particles, links, columns, breaking.row, table, tool_k, h)[0])
     return sim
+
+
+@dataclass(frozen=True)
+class _SpecimenMaterials:
+    """The specimen's materials: their laws, densities (kg/m^3) and names, and each particle's
+    index into them; per particle its density and Young's modulus (Pa), the numbers themselves
+    with one material (what a single-material run multiplies by, bit for bit as before)."""
+
+    laws: list
+    densities: list
+    names: list
+    index: np.ndarray
+    density: float | np.ndarray
+    youngs_modulus: float | np.ndarray
+
+    @classmethod
+    def of(cls, plate, density, law, material, names) -> _SpecimenMaterials:
+        n = len(plate.X)
+        if isinstance(law, J2Law):
+            return cls([law], [float(density)], list(names or ["material"]), np.zeros(n, dtype=np.int64), density,
+                       law.youngs_modulus)
+        laws, densities = list(law), [float(rho) for rho in density]
+        index = np.asarray(material, dtype=np.int64)
+        if len(densities) != len(laws) or index.shape != (n,) or index.min() < 0 or index.max() >= len(laws):
+            raise ValueError("several materials need one density per law and each particle's index into them")
+        names = list(names or [f"material{i}" for i in range(len(laws))])
+        return cls(laws, densities, names, index, np.asarray(densities)[index],
+                   np.array([w.youngs_modulus for w in laws])[index])
 
 
 @dataclass
@@ -164,7 +201,8 @@ class _Discretised:
     columns: object
 
     @classmethod
-    def of(cls, plate: WallParticles, dilation: float, stab_scale: float, local: bool = False) -> _Discretised:
+    def of(cls, plate: WallParticles, dilation: float, stab_scale: float | np.ndarray,
+           local: bool = False) -> _Discretised:
         X = np.ascontiguousarray(plate.X, dtype=float)
         n = len(X)
         spacing = plate.local_spacing[:, 0].copy() if local else float(np.max(plate.spacing))

@@ -109,8 +109,11 @@ class LinkBreaking:
         # Per particle: two unit tangents of the wall and its normal (particles.WallParticles).
         self.wall_frame = wall_frame
         self.X, self.volume, self.cells = X, volume, cells
-        # The support radius and the crack discs' radius: numbers, or one per particle (a graded set).
-        self.radius, self.terms, self.stab_scale = radius, terms, float(stab_scale)
+        # The support radius and the crack discs' radius: numbers, or one per particle (a graded set);
+        # the stabilisation's alpha E: a number, or one per fracturing particle (several materials).
+        self.radius, self.terms = radius, terms
+        self.stab_scale = float(stab_scale) if np.ndim(stab_scale) == 0 else _per_particle(stab_scale, n,
+                                                                                             self.fracturing, 0.0)
         # Per particle: the maximum principal stress that fails it (Pa) and the equivalent plastic
         # strain that fails it, given as one value for all or one per fracturing particle (drawn:
         # draw_thresholds); inf on the particles that cannot fail (another body's).
@@ -308,7 +311,7 @@ class LinkBreaking:
         # law; F = I without links; 0.0 - theta keeps +0 where theta = 0, as before).
         free = np.repeat(self.detached, 2)
         p.plastic[free] = 0.0
-        p.plastic[free, :3] = 0.0 - thermal_strain(p.thermal[free, 0], sim.law[0])[:, None]
+        p.plastic[free, :3] = 0.0 - _thermal_strains(p.thermal[:, 0], np.repeat(p.material, 2), free, sim.law)[:, None]
         p.stress[self.detached] = 0.0
         released = float(np.sum(np.concatenate(energy_before)) - np.sum(sim.strain_energies(x_mid, rows)))
         self.damage += released
@@ -429,11 +432,22 @@ class LinkBreaking:
         return self.blocked[np.minimum(np.searchsorted(self.blocked, keys), len(self.blocked) - 1)] == keys
 
 
-def _per_particle(threshold, n: int, fracturing: int) -> np.ndarray:
-    """A threshold (a number, or one per fracturing particle) on all n particles: inf past the
-    fracturing ones."""
-    out = np.full(n, np.inf)
+def _per_particle(threshold, n: int, fracturing: int, beyond: float = np.inf) -> np.ndarray:
+    """A threshold (a number, or one per fracturing particle) on all n particles: `beyond` (inf:
+    never reached) past the fracturing ones."""
+    out = np.full(n, beyond)
     out[:fracturing] = threshold
+    return out
+
+
+def _thermal_strains(temperature, row, which, law_table) -> np.ndarray:
+    """material.thermal_strain at the Gauss points `which` (a mask) of their temperatures, each by
+    its law's row (`row`: each point's row of `law_table`)."""
+    ids = np.flatnonzero(which)
+    out = np.zeros(len(ids))
+    for r in np.unique(row[ids]):
+        sel = row[ids] == r
+        out[sel] = thermal_strain(temperature[ids[sel]], law_table[r])
     return out
 
 

@@ -290,6 +290,26 @@ def _tet_node_particles(points, tets) -> tuple[WallParticles, tuple]:
     return particles, boundary
 
 
+def node_groups(X, tets, groups: dict) -> dict[str, np.ndarray]:
+    """A tet mesh's groups of tets ({name: tet ids}) as groups of the particles at its nodes X
+    (masks): each particle in the group that holds the most of its median-dual cell (a quarter of
+    each tet around it, median_dual_cells), in every group that ties for it (within 1e-9 of the
+    cell: a node on a plane between two groups, half in each, is in both whatever the rounding of
+    the sums); a particle in no group's tet in none. What [materials.NAME] group reads on a mesh's
+    particles."""
+    from ..geometry.meshes import tet_volumes
+
+    tets = np.asarray(tets, dtype=np.int64)
+    quarter = np.repeat(0.25 * np.abs(tet_volumes(np.asarray(X, dtype=float), tets)), 4)
+    cell = np.bincount(tets.ravel(), weights=quarter, minlength=len(X))
+    share = {name: np.bincount(tets[ids].ravel(), weights=quarter.reshape(-1, 4)[ids].ravel(), minlength=len(X))
+             for name, ids in groups.items()}
+    if not share:
+        return {}
+    most = np.max(np.stack(list(share.values())), axis=0)
+    return {name: (held > 0.0) & (held >= most - 1e-9 * cell) for name, held in share.items()}
+
+
 def shell_particles(path, wall: float, layers: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0),
                     element_size: float | None = None) -> WallParticles:
     """Particles through the wall of a shell walled inwards from a closed or open triangle

@@ -14,14 +14,17 @@ a front travelling along a tube. Tools, supports, run control and outputs are th
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..budget import ModelTooLarge, check_model_size
 from ..loading.build import build_loading, build_precracks
-from ..scenario import ElasticSpec, PrecrackSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, resolve_path
+from ..scenario import (ElasticSpec, FDEM_ONLY_KEYS, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError,
+                        Specimen, assign_materials, check_material_tables, check_one_rest, resolve_path)
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
@@ -29,7 +32,8 @@ from ..geometry.meshes import MeshError, gmsh_sphere, read_mesh
 from ..geometry.specimens import check_file_units
 from ..materials.random_properties import RandomProperty, check_names
 from .fracture import RANDOM_PARTICLE_PROPERTIES, draw_thresholds
-from .particles import graded_plate_particles, plate_particles, shell_particles, tet_node_particles, tube_particles
+from .particles import (graded_plate_particles, node_groups, plate_particles, shell_particles, tet_node_particles,
+                        tube_particles)
 from .simulation import MeshfreeSimulation
 
 
@@ -263,6 +267,12 @@ class MeshfreeMaterial(ElasticSpec):
                          density=self.density)
 
 
+class MeshfreeNamedMaterial(MeshfreeMaterial, MaterialPlace):
+    """[materials.NAME]: one of the specimen's several materials (the keys of [material]) and where it is: zones
+    (a particle by its reference position) or, for a mesh file, a group of its tets; the one with neither fills
+    the rest."""
+
+
 class BodyMaterial(MeshfreeMaterial):
     """[bodies.material]: a body's material, as [material] without fracture (a body does not break)."""
 
@@ -324,13 +334,31 @@ class Scenario(ScenarioBase):
     """the plate, tube, mesh or shell the particles fill"""
     particles: ParticlesSpec = ParticlesSpec()
     """the particles and their shape functions (a mesh's: dilation and stabilisation only)"""
-    material: MeshfreeMaterial
-    """elastic constants, the J2 or thermo law and the fracture stress"""
+    material: MeshfreeMaterial | None = None
+    """elastic constants, the J2 or thermo law and the fracture stress (one material; [materials.NAME] for several)"""
+    materials: dict[str, MeshfreeNamedMaterial] = {}
+    """[materials.NAME]: the specimen's several materials, each where its zones or group say (instead of
+    [material]); each particle steps with its own material's law, density and fracture thresholds"""
     precracks: list[PrecrackSpec] = []
     """notches and slits present from the start: the links between particles that cross the plane inside the
     box are removed (the same visibility rule as a grown crack, fracture.py)"""
     bodies: list[BodySpec] = []
     """more bodies of particles (a deformable projectile), met by particle contact"""
+
+    @model_validator(mode="after")
+    def _one_or_several_materials(self):
+        check_material_tables(self.material, self.materials)
+        if self.materials:
+            check_one_rest(self.materials)
+            grouped = [name for name, m in self.materials.items() if m.group is not None]
+            if grouped and self.specimen.shape != "mesh":
+                raise ValueError(f"materials.{grouped[0]}.group: groups come from a mesh file (specimen.shape = "
+                                 "\"mesh\"); for a built-in shape give zones")
+        return self
+
+    def specimen_materials(self) -> dict[str, MeshfreeMaterial]:
+        """The specimen's materials by name: [material] under its name, or [materials.NAME] in order."""
+        return {self.material.name: self.material} if self.material is not None else dict(self.materials)
 
     @model_validator(mode="after")
     def _particles_of_the_shape(self):
@@ -376,6 +404,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             check_model_size(planned, "particles", "particles.spacing", scenario.run.max_memory)
         except ModelTooLarge as err:
             raise ScenarioError(str(err)) from None
+    mesh = None
     try:
         if spec.shape == "mesh":
             mesh = read_mesh(resolve_path(spec.file, base))
@@ -404,30 +433,82 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             check_file_units(plate.X, tools, "scale" in spec.model_fields_set, "specimen.file")
         except ValueError as err:
             raise ScenarioError(str(err)) from None
-    mat = scenario.material
     bodies = [_body(body, f"bodies.{i}", base) for i, body in enumerate(scenario.bodies)]
-    # The thresholds per particle where [material.random] draws them (the specimen's particles,
-    # at their reference positions; the bodies do not fracture), else the material's values.
-    drawn, drawn_statistics = draw_thresholds(plate.X, mat.random, {name: getattr(mat, name) for name in mat.random},
-                                              scenario.run.seed, mat.name)
-    fracture_stress = mat.fracture_factor * drawn["tensile_strength"] if "tensile_strength" in drawn \
-        else mat.fracture_stress
+    materials = scenario.specimen_materials()
+    if scenario.material is not None:
+        index, several = None, None
+        mat = scenario.material
+        density, law = mat.density, mat.law()
+    else:
+        try:
+            groups = None if mesh is None else node_groups(plate.X, mesh.tets, mesh.groups or {})
+            index = assign_materials(materials, plate.X, groups, "particles")
+        except ValueError as err:
+            raise ScenarioError(str(err)) from None
+        several = list(materials.values())
+        density, law = [m.density for m in several], [m.law() for m in several]
+    thresholds = _thresholds(plate.X, materials, index, scenario.run.seed)
     try:
         sim = build_meshfree_simulation(
-            plate, mat.density, mat.law(), dilation=particles.dilation, stabilisation=particles.stabilisation,
+            plate, density, law, dilation=particles.dilation, stabilisation=particles.stabilisation,
             tools=tools, supports=supports, damping=scenario.run.damping, gravity=scenario.run.gravity,
-            velocity=spec.initial_velocity, fracture_stress=fracture_stress,
+            velocity=spec.initial_velocity, fracture_stress=thresholds.fracture_stress,
             precracks=build_precracks(scenario.precracks), pressures=pressures,
-            failure_plastic_strain=drawn.get("failure_plastic_strain", mat.failure_plastic_strain), bodies=bodies,
+            failure_plastic_strain=thresholds.failure_plastic_strain, bodies=bodies,
             self_contact=scenario.run.contact,
             support=particles.support or ("local" if particles.refine is not None else "uniform"),
+            material=index, names=list(materials),
         )
     except SetupError as err:
         raise ScenarioError(f"{err.field}: {err}") from None
     except ValueError as err:
         raise ScenarioError(f"supports: {err}") from None
-    sim.drawn, sim.random_properties = drawn, ({mat.name: drawn_statistics} if drawn else None)
+    sim.drawn, sim.random_properties = thresholds.drawn, thresholds.statistics or None
     return sim
+
+
+@dataclass(frozen=True)
+class _Thresholds:
+    """The specimen's fracture thresholds: the fracture stress (Pa) and the failure plastic strain,
+    each one number (one material, nothing drawn) or one per particle; the properties drawn per
+    particle ({name: values on every specimen particle}) and their statistics per material."""
+
+    fracture_stress: float | np.ndarray
+    failure_plastic_strain: float | np.ndarray
+    drawn: dict
+    statistics: dict
+
+
+def _thresholds(X, materials: dict, index, seed: int) -> _Thresholds:
+    """Each particle's thresholds from its material (`index`: each particle's position in
+    `materials`; None: one material): the material's values, or where its [random] draws them,
+    values drawn at the particles' reference positions X from run.seed and the material's name
+    (fracture.draw_thresholds; a property one material draws takes the others' plain values
+    elsewhere)."""
+    if index is None:
+        (name, mat), = materials.items()
+        drawn, statistics = draw_thresholds(X, mat.random, {k: getattr(mat, k) for k in mat.random}, seed, name)
+        stress = mat.fracture_factor * drawn["tensile_strength"] if "tensile_strength" in drawn else mat.fracture_stress
+        strain = drawn.get("failure_plastic_strain", mat.failure_plastic_strain)
+        return _Thresholds(stress, strain, drawn, {name: statistics} if drawn else {})
+    several = list(materials.values())
+    strength = np.array([m.tensile_strength for m in several])[index]
+    strain = np.array([m.failure_plastic_strain for m in several])[index]
+    drawn_names = sorted({k for m in several for k in m.random})
+    drawn = {k: {"tensile_strength": strength, "failure_plastic_strain": strain}[k].copy() for k in drawn_names}
+    statistics = {}
+    for i, (name, mat) in enumerate(materials.items()):
+        if not mat.random:
+            continue
+        own = index == i
+        values, statistics[name] = draw_thresholds(X[own], mat.random, {k: getattr(mat, k) for k in mat.random},
+                                                   seed, name)
+        for k, v in values.items():
+            drawn[k][own] = v
+    if "tensile_strength" in drawn:
+        strength = drawn["tensile_strength"]
+    strain = drawn.get("failure_plastic_strain", strain)
+    return _Thresholds(np.array([m.fracture_factor for m in several])[index] * strength, strain, drawn, statistics)
 
 
 def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:
@@ -443,4 +524,4 @@ def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:
     except (MeshError, ValueError) as err:
         raise ScenarioError(f"{key}.{'file' if spec.shape == 'mesh' else 'element_size'}: {err}") from None
     mat = spec.material
-    return MeshfreeBody(particles, mat.density, mat.law(), spec.initial_velocity, spec.dilation)
+    return MeshfreeBody(particles, mat.density, mat.law(), spec.initial_velocity, spec.dilation, spec.name)

@@ -31,7 +31,7 @@ class MeshfreeSimulation(SimulationBase):
     method = "meshfree"
 
     def __init__(self, particles, links, columns, law, tools, tool_names, support_radius, stable_dt, wave_transit, gravity,
-                 damping, plate, breaking, pressed, pressures, contact=None, body_start=None):
+                 damping, plate, breaking, pressed, pressures, contact=None, body_start=None, material_names=None):
         self._start_clock_and_tools(tools, tool_names)
         self.particles, self.links, self.law = particles, links, law
         self.body = particles
@@ -52,6 +52,11 @@ class MeshfreeSimulation(SimulationBase):
         self.contact = contact
         # The first particle of each body (the specimen's 0, then build.MeshfreeBody's) and the end.
         self.body_start = np.array([0, len(particles.x)] if body_start is None else body_start, dtype=np.int64)
+        # The name of each row of the law table (particles.material): the specimen's materials
+        # ([material] or [materials.NAME] in order), then the bodies'.
+        self.material_names = list(material_names or [f"material{i}" for i in range(len(law))])
+        # The specimen's materials (the rows before the bodies'): several ones count failures each.
+        self.specimen_materials = len(self.material_names) - (len(self.body_start) - 2)
         self._no_pairs = PairContact(np.zeros(len(particles.x) + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
                                      np.zeros(0), np.zeros(0), np.zeros((0, 3)))
         # One failure per particle (the particle where a crack plane was put).
@@ -177,9 +182,10 @@ class MeshfreeSimulation(SimulationBase):
         parameters), velocity, Cauchy stress, equivalent plastic strain and the fracture state:
         `failed` (1 where a crack plane passes through the particle), `crack_normal` (its normal
         in the current configuration, F^-T N normalised; 0 elsewhere: glyphs show the crack) and
-        `detached` (1: a free particle, all its links removed); with the thermo law the
-        `temperature` (K); each property drawn per particle ([material.random]) by its name (nan
-        on the particles of other bodies, which do not fracture)."""
+        `detached` (1: a free particle, all its links removed), `material` (its row of the law
+        table: summary.json's material_names); with the thermo law the `temperature` (K; nan on
+        particles of a J2 material); each property drawn per particle ([material.random]) by its
+        name (nan on the particles of other bodies, which do not fracture)."""
         p = self.particles
         n = len(p.x)
         b = self.breaking
@@ -195,7 +201,8 @@ class MeshfreeSimulation(SimulationBase):
             "points": p.x,
             "point_data": {"displacement": p.x - p.X, "velocity": p.v, "stress": self.cauchy_stress(),
                            "plastic_strain": self.per_particle(p.eq_plastic), "failed": failed, "crack_normal": normal,
-                           "detached": detached, **self._temperature(), **self._drawn_values()},
+                           "detached": detached, "material": p.material.copy(), **self._temperature(),
+                           **self._drawn_values()},
             "component_names": {"stress": STRESS_COMPONENTS},
             "blocks": [("vertex", np.arange(n, dtype=np.int64)[:, None], {})],
         }
@@ -215,8 +222,16 @@ class MeshfreeSimulation(SimulationBase):
         return bool(np.any(self.law[:, MODEL] == THERMO))
 
     def _temperature(self) -> dict:
-        """The VTU's `temperature` (K) for the thermo law; nothing for J2 (no temperature)."""
-        return {"temperature": self.per_particle(self.particles.thermal[:, 0])} if self.thermo else {}
+        """The VTU's `temperature` (K) for the thermo law, nan on the particles of a J2 material
+        (no temperature); nothing without a thermo material."""
+        if not self.thermo:
+            return {}
+        return {"temperature": np.where(self._thermo_particles(), self.per_particle(self.particles.thermal[:, 0]),
+                                        np.nan)}
+
+    def _thermo_particles(self) -> np.ndarray:
+        """Per particle, whether its law is the thermo law."""
+        return self.law[self.particles.material, MODEL] == THERMO
 
     @staticmethod
     def per_particle(values: np.ndarray) -> np.ndarray:
@@ -243,12 +258,28 @@ class MeshfreeSimulation(SimulationBase):
             "layers": int(self.plate.layers),
             "support_radius": self.support_radius,
             "max_plastic_strain": float(np.max(self.per_particle(p.eq_plastic), initial=0.0)),
-            **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])))} if self.thermo else {}),
+            **({"max_temperature": float(np.max(self.per_particle(p.thermal[:, 0])[self._thermo_particles()]))}
+               if self.thermo else {}),
             **self.perforation(),
             **self.bodies(),
             "random_properties": self.random_properties,
+            "material_names": self.material_names,
+            "failures_by_material": self.failures_by_material(),
             "warnings": list(self.warnings),
         }
+
+    @property
+    def several_materials(self) -> bool:
+        """Several materials in the specimen (the bodies' rows do not count: they do not fail)."""
+        return self.specimen_materials > 1
+
+    def failed_ids(self) -> np.ndarray:
+        return np.zeros(0, dtype=np.int64) if self.breaking is None else np.flatnonzero(self.breaking.failed)
+
+    def failure_materials(self, ids):
+        """A particle's failure is in its own material, on both sides."""
+        material = self.particles.material[ids]
+        return material, material
 
     def pieces(self) -> np.ndarray:
         """Per particle, the piece it belongs to (particles joined by links that fracture has not
