@@ -169,7 +169,8 @@ def main(argv=None) -> int:
                        "--vary values, each in its own folder under --out, on a Dask cluster; then sweep.csv, "
                        "sweep.parquet and plots/sweep_KEY.png. Rerun the same command to finish an interrupted sweep.")
     p.add_argument("sweep", help="a scenario (file or shipped example), a sweep file, or a shipped sweep "
-                   "(brazilian-angles, walnut-layouts, mesh-ladder, tube-shots, tension-size-effect)")
+                   "(brazilian-angles, walnut-layouts, mesh-ladder, tube-shots, tension-size-effect, "
+                   "layered-longmaxi)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a key and its values, e.g. --vary loading.angle=0,30,60,90 (repeat for more keys)")
     p.add_argument("--zip", action="store_true", help="the i-th values of every key together (not every combination)")

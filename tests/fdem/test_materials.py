@@ -224,13 +224,14 @@ def test_unmatched_groups_stop_with_both_lists(tmp_path, capsys):
     (("[[tools]]", '[interfaces."soft-hard"]\ntensile_strength = 1e6\ncohesion = 1e6\nfriction_angle = 30.0\n'
       "fracture_energy = 2.0\n\n[[tools]]"), "soft-hard"),
     (('normal = [1.0, 0.0, 0.0]}]', 'normal = [1.0, 0.0, 0.0], radius = 0.01}]'), "radius"),
-    (("[materials.stiff]", '[materials."stiff,hard"]'), "may not be empty or hold a comma"),
+    (("[materials.stiff", '[materials."stiff,hard"', 2), "may not be empty or hold a comma"),
 ])
 def test_bad_material_tables_are_refused(tmp_path, capsys, change, message):
     """[material] beside [materials], two materials filling the rest, a pair naming no material,
     a zone key its shape does not take, a name events.csv cannot carry: exit 2 naming it."""
     path = tmp_path / "bad.toml"
-    path.write_text(BAR.replace("{pair}", "").replace(*change, 1))
+    old, new, count = (*change, 1)[:3]
+    path.write_text(BAR.replace("{pair}", "").replace(old, new, count))
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
     assert message in capsys.readouterr().err
 

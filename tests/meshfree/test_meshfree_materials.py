@@ -14,7 +14,7 @@ import pytest
 
 from crackle.cli import main
 from crackle.geometry.meshes import read_mesh, structured_box
-from crackle.io import read_pvd
+from crackle.io import read_events_csv, read_pvd
 from crackle.meshfree import build_simulation
 from crackle.scenario import load_scenario
 from threads import outputs_with_1_and_2_threads
@@ -200,7 +200,7 @@ def test_the_weaker_half_breaks_alone_and_the_outputs_say_so(tmp_path):
     reflection reaches it, (L + x) / c, within 5 % (measured +2.7 %: the front rises over a few
     spacings). summary.json's failures_by_material counts the failed particles, all weak
     (measured 20), its material_names say which index is which, and the VTU's `material` is 1
-    on the right half and 0 on every failed particle."""
+    on the right half and 0 on every failed particle; events.csv names each failure's material."""
     out = tmp_path / "out"
     path = _scenario(tmp_path, WEAK_STRONG, grip="speed = 1.4\ndirection = [1.0, 0.0, 0.0]", end_time=4e-5,
                      damping=0.0)
@@ -208,7 +208,9 @@ def test_the_weaker_half_breaks_alone_and_the_outputs_say_so(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["material_names"] == ["weak", "strong"]
     assert s["failed_particles"] > 0 and s["failures_by_material"] == {"weak": s["failed_particles"]}
-    events = np.loadtxt(out / "events.csv", delimiter=",", skiprows=1, usecols=(0, 1))
+    events = read_events_csv(out / "events.csv")
+    assert set(events["material"]) == {"weak"} and len(events["material"]) == s["failed_particles"]
+    events = np.stack([events["time"], events["x"]], axis=1)
     first = events[np.argmin(events[:, 0])]
     c = np.sqrt(200e9 / 7800.0)
     assert first[1] < 0.005 and first[0] == pytest.approx((0.12 + first[1]) / c, rel=0.05)
