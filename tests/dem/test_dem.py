@@ -238,32 +238,68 @@ def test_state_does_not_depend_on_how_steps_are_split():
     assert np.array_equal(whole.inter.state, split.inter.state)
 
 
-def _ucs_quick(tmp_path, *overrides, scenario="dem-ucs"):
+def _ucs_quick(tmp_path, *overrides, scenario="dem-ucs", cli=False):
+    """(history, summary) of `scenario` --quick with `overrides`, no field frames: through
+    `crackle run` (cli) or through run_scenario without plots/ (the CLI's runs draw them, a few
+    seconds each, and nothing else differs: the same steps, history and summary)."""
     import json
 
+    from crackle.api import run_scenario
     from crackle.cli import main
 
     out = tmp_path / "-".join([scenario, *[o.split("=")[-1] for o in overrides]])
-    args = ["run", scenario, "--quick", "--out", str(out), "--set", "run.field_frames=0"]
-    for o in overrides:
-        args += ["--set", o]
-    assert main(args) == 0
+    if cli:
+        args = ["run", scenario, "--quick", "--out", str(out), "--set", "run.field_frames=0"]
+        for o in overrides:
+            args += ["--set", o]
+        assert main(args) == 0
+    else:
+        run_scenario(scenario, out, ["run.field_frames=0", *overrides], quick=True, progress=False, plots=False)
     history = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     return history, json.loads((out / "summary.json").read_text())
 
 
-def test_elastic_modulus_is_reproducible_across_packings(tmp_path):
+# The quick UCS sample with unbreakable bonds (t and c x 100) to 0.22 ms: elastic throughout (the
+# top platen alone at 0.2 m/s reaches 0.063 % strain).
+UNBREAKABLE = ("material.tensile_strength=4.5e8", "material.cohesion=4.5e9", "run.end_time=2.2e-4")
+
+
+@pytest.fixture(scope="module")
+def elastic_ucs(tmp_path_factory):
+    """One run of UNBREAKABLE, the top platen alone at 0.2 m/s, on packing seed 1 (the example's),
+    for the tests that read it: the modulus's first packing, the top platen alone against both
+    platens moving, and the Love-Weber stress of its last state (the simulation kept, one field
+    frame at the end: the frames fall on history rows, so the history is the one of a run
+    without). Returns (history, summary, sim, output folder)."""
+    import json
+
+    from crackle.api import build_simulation
+    from crackle.solver import run
+
+    out = tmp_path_factory.mktemp("elastic-ucs")
+    scenario, base = load_scenario("dem-ucs", quick=True, overrides=["tools.0.speed=0.2", *UNBREAKABLE,
+                                                                      "run.field_frames=1"])
+    sim, control = build_simulation(scenario, base)
+    control.plots = False
+    run(sim, control, out)
+    history = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    return history, json.loads((out / "summary.json").read_text()), sim, out
+
+
+def test_elastic_modulus_is_reproducible_across_packings(tmp_path, elastic_ucs):
     """Three random packings (seeds 1-3) of the quick UCS sample, 3,215 particles (mean radius
     1 mm, paper 003's density), bonds made unbreakable (t and c x 100) so that the response
     stays elastic, loaded to 0.06 % strain: the slope of platen stress against strain over
     0.02-0.06 % (Young's modulus) is within 2 % of the three's mean (measured: 58.21, 57.52,
     57.96 GPa, 12 s a run; with 7,620 particles, mean radius 0.75 mm, 56.88, 56.31, 56.44 GPa,
     31 s a run; the paper's sample: ~55 GPa; 48.85, 48.88, 48.70 GPa with 5,266 particles at
-    porosity 0.40 without overlaps)."""
+    porosity 0.40 without overlaps). Seed 1 is the module's elastic_ucs run."""
     moduli = []
     for seed in (1, 2, 3):
-        h, summary = _ucs_quick(tmp_path, f"packing.seed={seed}", "tools.0.speed=0.2",
-                                "run.end_time=2.2e-4", "material.tensile_strength=4.5e8", "material.cohesion=4.5e9")
+        if seed == 1:
+            h, summary = elastic_ucs[:2]
+        else:
+            h, summary = _ucs_quick(tmp_path, f"packing.seed={seed}", "tools.0.speed=0.2", *UNBREAKABLE)
         assert summary["broken"] == 0
         stress, strain = h["platenstress"], h["platenstrain"]
         window = (strain > 2e-4) & (strain < 6e-4)
@@ -274,17 +310,17 @@ def test_elastic_modulus_is_reproducible_across_packings(tmp_path):
     assert np.max(np.abs(np.array(moduli) / mean - 1.0)) < 0.02, moduli
 
 
-def test_platen_strain_is_the_platens_approach_when_both_move(tmp_path):
+def test_platen_strain_is_the_platens_approach_when_both_move(tmp_path, elastic_ucs):
     """Issue 43: both platens moving towards each other at v = 0.1 m/s (ramped over 0.1 ms), bonds
     unbreakable: platen.strain is the sum of both platens' travels over the sample's extent H at
     every row (1e-12; H = 54 mm to 1e-3), 2 v (t - 0.05 ms) / H after the ramp (1e-6: the step's
     integral of the ramp), and the modulus in the summary (the stress-strain slope over 20-50 % of
     the peak) is the slope of the history's own columns over that window (1e-9) and the one of
     the same approach made by the top platen alone at 2 v, within 2 % (measured 57.9 and 57.4 GPa;
-    the strain of the top platen alone read it 2 x)."""
-    unbreakable = ["material.tensile_strength=4.5e8", "material.cohesion=4.5e9", "run.end_time=2.2e-4"]
-    h2, both = _ucs_quick(tmp_path, *unbreakable, "tools.0.speed=0.1", "tools.1.speed=0.1", "tools.1.ramp_time=1e-4")
-    h1, alone = _ucs_quick(tmp_path, *unbreakable, "tools.0.speed=0.2")
+    the strain of the top platen alone read it 2 x). The top platen alone is the module's
+    elastic_ucs run."""
+    h2, both = _ucs_quick(tmp_path, *UNBREAKABLE, "tools.0.speed=0.1", "tools.1.speed=0.1", "tools.1.ramp_time=1e-4")
+    alone = elastic_ucs[1]
     travels = h2["tooltopuz"] * -1.0 + h2["toolbottomuz"]
     height = travels[-1] / h2["platenstrain"][-1]
     assert height == pytest.approx(0.054, rel=1e-3)
@@ -331,7 +367,7 @@ def test_dem_ucs_quick_breaks_the_sample(tmp_path):
     porosity 0.42 without overlaps) and the modulus over 0.02-0.04 % strain within 15 % of ~55 GPa
     (measured 58.2 GPa, 57.4-58.1 over those runs; 50.1 before); `platen_modulus` (20-50 % of the
     peak) within 3 % of it."""
-    h, summary = _ucs_quick(tmp_path)
+    h, summary = _ucs_quick(tmp_path, cli=True)
     assert summary["method"] == "dem" and summary["status"] == "stopped"
     # The history's UCS curve: platen stress = top platen force / loaded area (its largest row
     # within 2 % of the load cell's peak, which sees every step), platen strain = travel / the
@@ -356,7 +392,7 @@ def test_dem_tension_quick_breaks_in_tension(tmp_path):
     reaction has dropped, the energy audit closes within 1 % (measured -0.013 %), and the summary
     reports the nominal strength over the 27 x 12 mm section: tensile_strength_ratio (over the
     bond's t = 4.5 MPa) between 0.8 and 1.5 (measured 1.115: 5.02 MPa; paper 003's UTS ~6 MPa)."""
-    h, summary = _ucs_quick(tmp_path, scenario="dem-tension")
+    h, summary = _ucs_quick(tmp_path, scenario="dem-tension", cli=True)
     assert summary["status"] == "stopped"
     assert summary["broken"] > 500 and summary["broken_by_mode"]["tension"] > 0.9 * summary["broken"]
     assert abs(summary["energy_error"]) < 0.01
@@ -460,23 +496,17 @@ def test_closed_flaw_weakest_beyond_its_friction_angle(tmp_path):
     assert out[30] < 0.9 * out[0]
 
 
-def test_love_weber_stress_matches_the_platen_stress(tmp_path):
+def test_love_weber_stress_matches_the_platen_stress(elastic_ucs):
     """Paper 003 section 2.2: in a quasi-static compression the platen stress and the Love-Weber
     stress of the assembly (the particles' internal moments over the sample volume, appendix A
     with one cell) agree. The internal moments leave out the platen forces' lever arms in the
     particles that touch them, a radius at each end: sigma_zz = platen stress x (1 - 2 R / H)
-    (0.963 for the quick sample, measured 0.948) within 3 %; the lateral stresses below 5 % of
-    it; the grid of cells of one mean diameter sums back to the same tensor (1e-9). Quick UCS
-    sample at 0.3 ms (elastic, about 23 MPa)."""
-    from crackle.api import build_simulation
-    from crackle.scenario import load_scenario
-    from crackle.solver import run
-
-    scenario, _ = load_scenario("dem-ucs", quick=True, overrides=["run.end_time=3e-4", "run.field_frames=1"])
-    sim, control = build_simulation(scenario)
-    control.plots = False
-    run(sim, control, tmp_path)
-    h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
+    (0.963 for the quick sample) within 3 %; the lateral stresses below 5 % of it; the grid of
+    cells of one mean diameter sums back to the same tensor (1e-9). The module's elastic_ucs
+    run: the quick UCS sample at 0.22 ms, top platen at 0.2 m/s, unbreakable bonds (about
+    36 MPa; measured ratio 0.967, lateral 6e-5 of it; the quick UCS at 0.1 m/s with Table 1's
+    bonds at 0.3 ms, 27 MPa and 93 bonds broken, read 0.958 and 9e-4)."""
+    h, _, sim, out = elastic_ucs
     platen = h["tooltopfz"][-1] / sim.loaded_area  # the force on the sample, down: sigma_zz < 0
     stress = sim.love_weber_stress()
     assert platen < -5e6
@@ -490,7 +520,7 @@ def test_love_weber_stress_matches_the_platen_stress(tmp_path):
     # stresses times their volumes sum to the same tensor, and each holding its particles.
     import meshio
 
-    frame = meshio.read(sorted((tmp_path / "fields").glob("step_*.vtu"))[-1])
+    frame = meshio.read(sorted((out / "fields").glob("step_*.vtu"))[-1])
     hexes = frame.cells_dict["hexahedron"]
     cell_stress = frame.cell_data_dict["homogenised_stress"]["hexahedron"]
     corners = frame.points[hexes]
