@@ -11,6 +11,7 @@ import meshio
 import numpy as np
 import pytest
 
+from crackle.api import run_scenario
 from crackle.cli import main
 from crackle.io import read_events_csv, read_pvd
 
@@ -49,11 +50,11 @@ def _scenario(tmp_path, name: str, materials: str) -> str:
 
 
 def _run(tmp_path, name, materials, *sets):
+    """`crackle run` of the scenario --quick, 10 field frames, without plots/ (seconds a run,
+    read by no test here): run_scenario."""
     out = tmp_path / name
-    args = ["run", _scenario(tmp_path, name, materials), "--quick", "--out", str(out), "--set", "run.field_frames=10"]
-    for s in sets:
-        args += ["--set", s]
-    assert main(args) == 0
+    run_scenario(_scenario(tmp_path, name, materials), out, ["run.field_frames=10", *sets], quick=True, progress=False,
+                 plots=False)
     return json.loads((out / "summary.json").read_text()), out
 
 
@@ -84,13 +85,20 @@ def test_two_particle_groups_in_series_and_the_weaker_breaks(tmp_path):
     (the springs in series: each half strains as its own material, the junction's bonds the two
     half-springs in series), and the halves carry the same stress within 2 % (the Love-Weber means
     scatter by about 1 %). The sample breaks at the soft material's strength (the soft sample's
-    nominal strength) within 10 %, nine in ten broken bonds or more in the soft half."""
+    nominal strength) within 10 %, nine in ten broken bonds or more in the soft half.
+    Measured: the compliances -0.04 % (soft) and -0.02 % (stiff) off, the stresses 1.2 % apart,
+    3.42 against 3.37 MPa. The stiff sample runs to 0.2 ms, its one field frame there (its
+    frame 2 of 10 over 0.25 ms fell at 0.05 ms before, the ramp's end: -0.22 %); the soft one
+    stops once its force has stayed below 80 % of the peak for 10 us (the example's rule: 30 %
+    for 50 us), past the peak (at 0.41 ms; the force falls to 80 % in 45 us and never dipped 1 %
+    below its running peak before it: measured), the same nominal strength to the bit."""
     two, out_two = _run(tmp_path, "two", TWO.replace("{pair}", ""))
-    soft, out_soft = _run(tmp_path, "soft", ONE.replace("{Y}", "25e9").replace("{t}", "3e6").replace("{c}", "30e6"))
+    soft, out_soft = _run(tmp_path, "soft", ONE.replace("{Y}", "25e9").replace("{t}", "3e6").replace("{c}", "30e6"),
+                          "run.stop.force_drop=0.8", "run.stop.force_drop_hold=1e-5")
     _, out_stiff = _run(tmp_path, "stiff", ONE.replace("{Y}", "50e9").replace("{t}", "6e6").replace("{c}", "60e6"),
-                        "run.end_time=2.5e-4")
+                        "run.end_time=2e-4", "run.field_frames=1")
     (e_soft, s_soft), (e_stiff, s_stiff) = _halves(out_two, 2)
-    alone_soft, alone_stiff = _halves(out_soft, 2)[0], _halves(out_stiff, 2)[1]
+    alone_soft, alone_stiff = _halves(out_soft, 2)[0], _halves(out_stiff, 1)[1]
     assert e_soft / s_soft == pytest.approx(alone_soft[0] / alone_soft[1], rel=0.01)
     assert e_stiff / s_stiff == pytest.approx(alone_stiff[0] / alone_stiff[1], rel=0.01)
     assert e_soft / e_stiff == pytest.approx(2.0, rel=0.1)
