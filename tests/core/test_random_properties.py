@@ -106,8 +106,13 @@ def test_the_same_field_on_two_meshes():
     together = standard_normal(spec, np.concatenate([points, xc[:100]]), 9)[:50]
     assert np.array_equal(standard_normal(spec, points, 9), together)
     inside = np.all((xc > 0.004) & (xc < 0.016), axis=1)
-    interpolated = LinearNDInterpolator(xf, vf)(xc[inside])
-    error = np.sqrt(np.nanmean((interpolated - vc[inside]) ** 2))
+    # Interpolated from the fine faces within one fine element of that region (23,808 of 46,800:
+    # the triangulation of them all took 24 s of the test's 40; the error reads 1,039 Pa against
+    # 1,056 from all of them, the bound 92,698), every point inside their hull.
+    near = np.all((xf > 0.004 - 0.002) & (xf < 0.016 + 0.002), axis=1)
+    interpolated = LinearNDInterpolator(xf[near], vf[near])(xc[inside])
+    assert not np.isnan(interpolated).any()
+    error = np.sqrt(np.mean((interpolated - vc[inside]) ** 2))
     assert error < 0.2 * np.std(vc)
     # The check can fail: another seed's field is as far off as two independent fields.
     other = _model(0.004, {"tensile_strength": spec.model_copy(update={"correlation_length": 0.0161})})
