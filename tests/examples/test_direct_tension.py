@@ -18,6 +18,8 @@ import pytest
 from crackle.api import run_scenario
 from crackle.scenario import ScenarioError, load_scenario
 
+# The runs here leave out plots/ (seconds a run, read by no test here): the same steps and outputs.
+
 E, A, L = 26e9, 1e-4, 0.04
 
 
@@ -27,7 +29,7 @@ def test_glued_grips_pull_an_elastic_bar(tmp_path):
     within 3 % (measured -1.5 %: the grips' penalty ties add h / (10 L) of compliance each, the
     glued ends' blocked Poisson contraction a little stiffness), both grips carry it (within
     1 %), and the energy audit closes within 0.5 %."""
-    result = run_scenario("direct-tension", tmp_path, progress=False, overrides=[
+    result = run_scenario("direct-tension", tmp_path, progress=False, plots=False, overrides=[
         "specimen.mesh=structured", "specimen.element_size=0.005", "material.interface.insertion=extrinsic",
         "material.interface.tensile_strength=1e9", "run.end_time=2e-4", "run.field_frames=0"])
     h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
@@ -84,7 +86,7 @@ def test_moving_support_pulls_an_elastic_bar(tmp_path):
     pulling grip (nominal_strength = peak reaction / section)."""
     scenario = tmp_path / "bar.toml"
     scenario.write_text(MOVING_SUPPORTS)
-    result = run_scenario(str(scenario), tmp_path / "out", progress=False)
+    result = run_scenario(str(scenario), tmp_path / "out", progress=False, plots=False)
     h = np.genfromtxt(tmp_path / "out" / "history.csv", delimiter=",", names=True)
     late = h["time"] >= 1.5e-4
     elongation = np.mean(h["toolgripux"][late])
@@ -114,7 +116,7 @@ def test_moving_support_keys_are_checked(tmp_path, support, message):
 def test_structured_bar_breaks_at_the_tensile_strength(tmp_path):
     """With faces normal to the pull (structured cells), the quick bar's nominal strength is ft:
     tensile_strength_ratio within 3 % of 1 (measured 1.008, extrinsic faces, 768 tets)."""
-    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
+    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, plots=False, overrides=[
         "specimen.mesh=structured", "material.interface.insertion=extrinsic", "run.field_frames=0"])
     s = result.summary
     assert s["loaded_area"] == pytest.approx(A, rel=1e-9)
@@ -132,7 +134,7 @@ def test_quick_bar_breaks_at_ft_in_both_insertion_modes(tmp_path, insertion, mea
     softens (the grip force ends under half its peak: 0.14 / 0.18 of it at 0.6 ms, on the cohesive
     tail: no face has reached the critical opening, 43 um, by then) and the energy audit closes
     within 1 % (measured -0.38 % / -0.04 %)."""
-    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
+    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, plots=False, overrides=[
         f"material.interface.insertion={insertion}", "run.field_frames=0"])
     s = result.summary
     print(f"{insertion}: tensile_strength_ratio {s['tensile_strength_ratio']:.3f} (measured {measured})")
@@ -148,7 +150,7 @@ def test_paper_law_carries_the_face_orientation_bias(tmp_path):
     section: the same quick bar peaks at 1.296 ft intrinsic (1.3-1.6 ft at every size and
     orientation measured: docs/validation.md, "Strength objectivity"). Checked: above 1.2 ft,
     and the run's summary carries set-up's warning about it."""
-    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, overrides=[
+    result = run_scenario("direct-tension", tmp_path, quick=True, progress=False, plots=False, overrides=[
         "material.interface.mixed_mode=paper", "run.field_frames=0"])
     ratio = result.summary["tensile_strength_ratio"]
     print(f"paper 001's law: tensile_strength_ratio {ratio:.3f} (measured 1.296)")

@@ -40,7 +40,8 @@ def test_quick_single_fracture_splits_along_the_precrack_plane(tmp_path):
     pieces, the energy balances within 1 % (measured -0.0006 %), and the plastic zone spans one
     to two elements as the paper finds at this size (measured 26.7 mm)."""
     out = tmp_path / "sf"
-    result = run_scenario("single-fracture", out, overrides=["run.field_frames=0"], quick=True, progress=False)
+    result = run_scenario("single-fracture", out, overrides=["run.field_frames=0"], quick=True, progress=False,
+                          plots=False)  # plots/: seconds, read by no test here
     s = json.loads((out / "summary.json").read_text())
     ev = read_events_csv(out / "events.csv")
     assert len(ev["y"]) >= 4

@@ -9,7 +9,8 @@ from crackle.api import run_scenario
 
 
 def _summary(tmp_path, name):
-    run_scenario(name, tmp_path / name, overrides=["run.field_frames=0"], quick=True)
+    # plots/ left out: seconds a run, and no test here reads it
+    run_scenario(name, tmp_path / name, overrides=["run.field_frames=0"], quick=True, plots=False)
     return json.loads((tmp_path / name / "summary.json").read_text())
 
 
