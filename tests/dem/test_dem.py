@@ -437,7 +437,8 @@ def test_open_flaw_strength_rises_with_its_inclination(tmp_path):
     inclination theta, UCS(90)/UCS(0) ~ 2 (experiments 1.3-1.7). Quick sample at the paper's
     density: 40.5 and 64.9 MPa at 0 and 90 deg (ratio 1.60, 2026-12-06; 37.2 and 60.6 before;
     paper 29 and 56 MPa; each a draw with a ~5 % round-off scatter: 38.6 and 58.9 with the platens
-    2e-18 m lower); the test asks for a ratio of 1.3-2.5. Each run stops past its peak (PAST_THE_PEAK)."""
+    2e-18 m lower); the test asks for a ratio of 1.3-2.5. Each run stops past its peak
+    (PAST_THE_PEAK)."""
     strength = {}
     for angle in (0, 90):
         _, summary = _ucs_quick(tmp_path, f"flaw.angle={angle}", *PAST_THE_PEAK, scenario="dem-flaw")
@@ -500,7 +501,8 @@ def test_closed_flaw_weakest_beyond_its_friction_angle(tmp_path):
     0.026 %; 0.070 and 0.057 % at the example's later stop)."""
     out = {}
     for angle in (0, 30):
-        _, summary = _ucs_quick(tmp_path, "flaw.kind=closed", f"flaw.angle={angle}", *PAST_THE_PEAK, scenario="dem-flaw")
+        _, summary = _ucs_quick(tmp_path, "flaw.kind=closed", f"flaw.angle={angle}", *PAST_THE_PEAK,
+                                scenario="dem-flaw")
         out[angle] = summary["peak_stress"]
         assert abs(summary["energy_error"]) < 0.01
     assert out[30] < 0.9 * out[0]

@@ -31,7 +31,8 @@ ELASTIC_PEAK = FT * math.pi * D * T / 2  # 2827 N
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bd0")
-    result = run_scenario("brazilian-disc", out, overrides=["run.field_frames=0"], quick=True, progress=False, plots=False)
+    result = run_scenario("brazilian-disc", out, overrides=["run.field_frames=0"], quick=True, progress=False,
+                          plots=False)
     return 0.0, result
 
 
