@@ -477,7 +477,7 @@ def assign_materials(materials: dict, positions, groups: dict | None = None, sit
         found = set(groups or {})
         if asked - found or found - asked:
             raise ValueError(
-                "materials.*.group and the mesh file's groups of tets do not match: "
+                f"materials.*.group and the file's groups of {sites} do not match: "
                 f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
                 f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
                 f"(the file's groups: {', '.join(sorted(found)) or 'none'})")
