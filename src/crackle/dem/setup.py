@@ -326,7 +326,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         loaded_area = domain.volume / extent
         platen = Platen(lead.name, direction, extent, _opposite(tools, lead, direction))
     mat = scenario.the_material()
-    law = scenario.bond_law(centers)
+    try:
+        law = scenario.bond_law(centers)
+    except ValueError as err:  # a zone that cannot be built (aggregates that do not fit)
+        raise ScenarioError(str(err)) from None
     density = mat.density if scenario.material is not None else \
         np.array([m.density for m in scenario.materials.values()])[law.group]
     try:
