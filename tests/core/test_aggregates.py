@@ -207,6 +207,20 @@ def test_fdem_tets_take_the_aggregate_material(tmp_path):
     assert zone.placed_aggregates.fraction() == pytest.approx(0.35, abs=0.02)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed"
+    assert not any("min_diameter" in w for w in summary["warnings"])
+
+
+def test_fdem_warns_of_aggregates_the_mesh_does_not_resolve(tmp_path):
+    """6 mm aggregates on 4 mm tets (under two across): the set-up's warnings name the zone and
+    the element size that resolves them."""
+    from crackle.api import build_simulation
+    from crackle.scenario import load_scenario
+
+    path = tmp_path / "coarse.toml"
+    path.write_text(FDEM.replace("{fraction}", "0.35").replace("element_size = 0.002", "element_size = 0.004"))
+    sim, _ = build_simulation(*load_scenario(str(path)))
+    warned = [w for w in sim.model.warnings if w.startswith("materials.aggregate.zones.0: min_diameter = 6 mm")]
+    assert len(warned) == 1 and "specimen.element_size <= 3 mm" in warned[0]
 
 
 def test_fdem_refuses_aggregates_that_cannot_be_placed(tmp_path, capsys):
