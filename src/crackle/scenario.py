@@ -351,9 +351,11 @@ class Zone(Strict):
     """box (box_min, box_max), sphere (center, radius), half-space (point, normal: the side the normal points to),
     layer (point, normal, thickness; spacing for a stack), aggregates (box_min, box_max, min_diameter, max_diameter,
     volume_fraction; exponent, gap, seed, axis: random non-overlapping spheres, or cylinders along an axis, of a
-    Fuller grading placed in the box by take-and-place)"""
+    Fuller grading placed in the box by take-and-place, the box periodic: aggregates cut by its faces come back
+    through the opposite ones, so a specimen inside it holds the fraction, cut by its surface)"""
     box_min: Vec3 | None = None
-    """m, box and aggregates: the lower corner"""
+    """m, box and aggregates: the lower corner (aggregates: e.g. the specimen's bounding box's; the box may be
+    larger)"""
     box_max: Vec3 | None = None
     """m, box and aggregates: the upper corner"""
     center: Vec3 | None = None
@@ -375,13 +377,13 @@ class Zone(Strict):
     """m, aggregates: the largest aggregate"""
     volume_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
     """aggregates: the share of the box the aggregates fill (with axis: of its cross-section, by area); random
-    take-and-place reaches about 0.4 in 3D and 0.5 in 2D for a Fuller grading over a factor 4 in size"""
+    take-and-place reaches about 0.45 in 3D and 0.6 in 2D for a Fuller grading over a factor 4 in size"""
     exponent: Positive = 0.5
     """aggregates: n of the Fuller curve, the volume share of the aggregate passing a sieve of size d being
     (d / max_diameter)^n; between min_diameter and max_diameter the sizes follow it, class by class"""
     gap: NonNegative | None = None
-    """m, aggregates: the least distance between two aggregates' surfaces, and twice their least distance to the
-    box's faces (a mortar film); default 0.1 x min_diameter"""
+    """m, aggregates: the least distance between two aggregates' surfaces (a mortar film); default 0.1 x
+    min_diameter"""
     seed: Annotated[int, Field(ge=0)] = 0
     """aggregates: of their sizes and places: the same seed, the same aggregates on any machine and mesh; apart from
     run.seed (the material properties' draws), so `crackle sweep --seeds` keeps the mesostructure: vary this key
