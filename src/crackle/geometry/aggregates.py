@@ -67,7 +67,7 @@ class Aggregates:
         cKDTree takes."""
         across = self._across()
         size = (self.box_max - self.box_min)[across]
-        return np.mod(self.centers[:, across] - self.box_min[across], size), size
+        return _wrap(self.centers[:, across] - self.box_min[across], size), size
 
     def contains(self, x) -> np.ndarray:
         """Which of the points x (m, (k, 3)) lie inside an aggregate (or its periodic image) and
@@ -81,7 +81,7 @@ class Aggregates:
         rows = np.flatnonzero(np.all((x >= self.box_min) & (x <= self.box_max), axis=1))
         centers, size = self._periodic()
         across = self._across()
-        tree = cKDTree(np.mod(x[np.ix_(rows, across)] - self.box_min[across], size), boxsize=size)
+        tree = cKDTree(_wrap(x[np.ix_(rows, across)] - self.box_min[across], size), boxsize=size)
         for hits in tree.query_ball_point(centers, 0.5 * self.diameters, return_sorted=False):
             inside[rows[hits]] = True
         return inside
@@ -116,6 +116,13 @@ class Aggregates:
         apart = c[i] - c[j]
         apart -= size * np.round(apart / size)  # the nearest image
         return float(min(bound, np.min(np.linalg.norm(apart, axis=1) - r[i] - r[j])))
+
+
+def _wrap(v: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """v folded into [0, size) (np.mod rounds a tiny negative value up to size itself, which a
+    periodic cKDTree refuses)."""
+    v = np.mod(v, size)
+    return np.where(v >= size, 0.0, v)
 
 
 def _measure(d, dims: int):
