@@ -338,7 +338,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     mat = scenario.the_material()
     try:
         law = scenario.bond_law(centers, labels)
-    except ValueError as err:
+    except ValueError as err:  # a zone that cannot be built (aggregates that do not fit), a group no material names
         raise ScenarioError(str(err)) from None
     density = mat.density if scenario.material is not None else \
         np.array([m.density for m in scenario.materials.values()])[law.group]
