@@ -70,6 +70,10 @@ def _rows(schema: dict, defs: dict, prefix: str, skip: set[str] = frozenset()) -
         elif prop.get("type") == "array" and "properties" in _resolve(prop.get("items", {}), defs):
             rows.append(f"| **{key}** | list of sections | | | {meaning} |")
             rows += _rows(_resolve(prop["items"], defs), defs, key + "[].", skip)
+        elif prop.get("type") == "object" and _is_section(prop.get("additionalProperties"), defs):
+            # A table of sections by the user's names ([materials.NAME]): one NAME's keys.
+            rows.append(f"| **{key}** | table of sections by name | | | {meaning} |")
+            rows += _rows({"properties": {"NAME": prop["additionalProperties"]}}, defs, key + ".", skip)
         elif "oneOf" in prop or ("anyOf" in prop and all("$ref" in p for p in prop["anyOf"] if p.get("type") != "null")):
             rows.append(f"| **{key}** | section, by its kind | | | {meaning} |")
             for option in prop.get("oneOf") or [p for p in prop["anyOf"] if p.get("type") != "null"]:
@@ -80,6 +84,14 @@ def _rows(schema: dict, defs: dict, prefix: str, skip: set[str] = frozenset()) -
             default = "required" if name in required else _value(prop.get("default"))
             rows.append(f"| `{key}` | {_type(prop, defs)} | {default} | {_range(prop)} | {meaning} |")
     return rows
+
+
+def _is_section(prop, defs: dict) -> bool:
+    """Whether a schema is a section (keys of its own) or a choice among sections."""
+    if not isinstance(prop, dict):
+        return False
+    prop = _resolve(prop, defs)
+    return "properties" in prop or "oneOf" in prop
 
 
 def _first_line(text: str) -> str:

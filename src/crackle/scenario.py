@@ -9,13 +9,19 @@ from __future__ import annotations
 
 import math
 import tomllib
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3, schema_fields, section_schemas
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .geometry.aggregates import Aggregates
 
 
 class ScenarioError(ValueError):
@@ -338,16 +344,20 @@ class LoadingSpec(Strict):
 
 class Zone(Strict):
     """A part of space a material fills (by the cell's centroid, the particle's centre): a box, a
-    sphere, the half-space a normal points into, or a layer about a plane (with `spacing`, a stack
-    of parallel layers: bedding)."""
+    sphere, the half-space a normal points into, a layer about a plane (with `spacing`, a stack
+    of parallel layers: bedding), or random aggregates in a box (a concrete mesostructure)."""
 
-    shape: Literal["box", "sphere", "half-space", "layer"]
+    shape: Literal["box", "sphere", "half-space", "layer", "aggregates"]
     """box (box_min, box_max), sphere (center, radius), half-space (point, normal: the side the normal points to),
-    layer (point, normal, thickness; spacing for a stack)"""
+    layer (point, normal, thickness; spacing for a stack), aggregates (box_min, box_max, min_diameter, max_diameter,
+    volume_fraction; exponent, gap, seed, axis: random non-overlapping spheres, or cylinders along an axis, of a
+    Fuller grading placed in the box by take-and-place, the box periodic: aggregates cut by its faces come back
+    through the opposite ones, so a specimen inside it holds the fraction, cut by its surface)"""
     box_min: Vec3 | None = None
-    """m, box: the lower corner"""
+    """m, box and aggregates: the lower corner (aggregates: e.g. the specimen's bounding box's; the box may be
+    larger)"""
     box_max: Vec3 | None = None
-    """m, box: the upper corner"""
+    """m, box and aggregates: the upper corner"""
     center: Vec3 | None = None
     """m, sphere"""
     radius: Positive | None = None
@@ -360,35 +370,100 @@ class Zone(Strict):
     """m, layer: its thickness"""
     spacing: Positive | None = None
     """m, layer: the distance between the mid-planes of a stack of such layers (unset: one layer)"""
+    min_diameter: Positive | None = None
+    """m, aggregates: the smallest aggregate modelled (finer sand is part of the material that fills the rest); the
+    element size should be at most a third to a half of it"""
+    max_diameter: Positive | None = None
+    """m, aggregates: the largest aggregate"""
+    volume_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    """aggregates: the share of the box the aggregates fill (with axis: of its cross-section, by area); random
+    take-and-place reaches about 0.45 in 3D and 0.6 in 2D for a Fuller grading over a factor 4 in size"""
+    exponent: Positive = 0.5
+    """aggregates: n of the Fuller curve, the volume share of the aggregate passing a sieve of size d being
+    (d / max_diameter)^n; between min_diameter and max_diameter the sizes follow it, class by class"""
+    gap: NonNegative | None = None
+    """m, aggregates: the least distance between two aggregates' surfaces (a mortar film); default 0.1 x
+    min_diameter"""
+    seed: Annotated[int, Field(ge=0)] = 0
+    """aggregates: of their sizes and places: the same seed, the same aggregates on any machine and mesh; apart from
+    run.seed (the material properties' draws), so `crackle sweep --seeds` keeps the mesostructure: vary this key
+    (e.g. --vary materials.aggregate.zones.0.seed=0,1,2) for other ones"""
+    axis: Vec3 | None = None
+    """aggregates: cylinders along this coordinate axis ([0, 0, 1]: z) through the whole box instead of spheres
+    (the 2D mesostructure of a thin disc); grading and fraction are then by area"""
 
     _NEEDS: ClassVar[dict[str, tuple[str, ...]]] = {
         "box": ("box_min", "box_max"), "sphere": ("center", "radius"), "half-space": ("point", "normal"),
         "layer": ("point", "normal", "thickness"),
+        "aggregates": ("box_min", "box_max", "min_diameter", "max_diameter", "volume_fraction"),
+    }
+    # The keys a shape may leave out (their defaults apply).
+    _OPTIONAL: ClassVar[dict[str, tuple[str, ...]]] = {
+        "layer": ("spacing",), "aggregates": ("exponent", "gap", "seed", "axis"),
     }
 
     @model_validator(mode="after")
     def _complete(self):
         needs = self._NEEDS[self.shape]
+        zone = f"{'an' if self.shape[0] in 'aeiou' else 'a'} {self.shape} zone"
         missing = [key for key in needs if getattr(self, key) is None]
         if missing:
-            raise ValueError(f"a {self.shape} zone needs {', '.join(missing)}")
-        extra = sorted(set(self.model_fields_set) - {"shape", *needs, *(("spacing",) if self.shape == "layer" else ())})
+            raise ValueError(f"{zone} needs {', '.join(missing)}")
+        optional = self._OPTIONAL.get(self.shape, ())
+        extra = sorted(set(self.model_fields_set) - {"shape", *needs, *optional})
         if extra:
-            raise ValueError(f"{', '.join(extra)}: not a key of a {self.shape} zone (it takes {', '.join(needs)})")
+            also = f"; optional: {', '.join(optional)}" if optional else ""
+            raise ValueError(f"{', '.join(extra)}: not a key of {zone} (it takes {', '.join(needs)}{also})")
         if self.normal is not None and not any(self.normal):
             raise ValueError("normal must be a non-zero vector")
-        if self.shape == "box" and not all(lo < hi for lo, hi in zip(self.box_min, self.box_max)):
+        if self.shape in ("box", "aggregates") and not all(lo < hi for lo, hi in zip(self.box_min, self.box_max)):
             raise ValueError("box_min must be below box_max in x, y and z")
         if self.spacing is not None and self.spacing <= self.thickness:
             raise ValueError(f"spacing = {self.spacing:g} m is not above thickness = {self.thickness:g} m: the layers "
                              "would fill everything; give a larger spacing or drop it")
+        if self.shape == "aggregates":
+            self._check_aggregates()
         return self
+
+    def _check_aggregates(self) -> None:
+        """What take-and-place cannot do, refused before any aggregate is placed."""
+        from .geometry.aggregates import check_request
+
+        axis = self.aggregate_axis()
+        extent = [self.box_max[k] - self.box_min[k] for k in range(3) if k != axis]
+        check_request(extent, self.min_diameter, self.max_diameter, self.volume_fraction, self.aggregate_gap())
+
+    def aggregate_axis(self) -> int | None:
+        """aggregates: the coordinate (0, 1, 2) the cylinders run along, None for spheres."""
+        if self.axis is None:
+            return None
+        along = [k for k, c in enumerate(self.axis) if c != 0.0]
+        if len(along) != 1:
+            raise ValueError(f"axis = {list(self.axis)}: aggregates take a coordinate axis ([1, 0, 0], [0, 1, 0] "
+                             "or [0, 0, 1]), as their box is aligned with them")
+        return along[0]
+
+    def aggregate_gap(self) -> float:
+        """m, aggregates: the gap asked for, or its default 0.1 x min_diameter."""
+        return self.gap if self.gap is not None else 0.1 * self.min_diameter
+
+    @cached_property
+    def placed_aggregates(self) -> "Aggregates":
+        """aggregates: the placed set (geometry.aggregates.Aggregates), placed once per zone;
+        AggregatePlacementError (a ValueError) when the fraction cannot be placed."""
+        from .geometry.aggregates import place_aggregates
+
+        return place_aggregates(self.box_min, self.box_max, self.min_diameter, self.max_diameter,
+                                self.volume_fraction, self.aggregate_gap(), seed=self.seed, exponent=self.exponent,
+                                axis=self.aggregate_axis())
 
     def contains(self, x) -> "np.ndarray":
         """Which of the points x (m, (k, 3)) lie inside (a box and a layer with their bounds)."""
         import numpy as np
 
         x = np.asarray(x, dtype=float).reshape(-1, 3)
+        if self.shape == "aggregates":
+            return self.placed_aggregates.contains(x)
         if self.shape == "box":
             return np.all((x >= np.asarray(self.box_min)) & (x <= np.asarray(self.box_max)), axis=1)
         if self.shape == "sphere":
@@ -477,7 +552,7 @@ def assign_materials(materials: dict, positions, groups: dict | None = None, sit
         found = set(groups or {})
         if asked - found or found - asked:
             raise ValueError(
-                "materials.*.group and the mesh file's groups of tets do not match: "
+                f"materials.*.group and the file's groups of {sites} do not match: "
                 f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
                 f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
                 f"(the file's groups: {', '.join(sorted(found)) or 'none'})")

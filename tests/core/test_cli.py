@@ -290,7 +290,8 @@ def test_gmsh_clamped_size_is_said():
 
 def test_key_reference_is_current_and_complete():
     """docs/keys.md is `crackle keys` (regenerate it with `crackle keys > docs/keys.md`), and every
-    key of every schema has its unit or meaning."""
+    key of every schema has its unit or meaning, those of tables by name ([materials.NAME] and
+    its zones) included."""
     from pathlib import Path
 
     from crackle.keys import reference_document
@@ -302,6 +303,7 @@ def test_key_reference_is_current_and_complete():
     undocumented = [row.split("|")[1] for row in rows if not row.rstrip(" |").split("|")[-1].strip()]
     assert not undocumented, undocumented
     assert "| `run.end_time` | number | required | > 0 | s, simulated time |" in text
+    assert "| `materials.NAME.zones[].min_diameter` | number |" in text
 
 
 def test_ctrl_c_during_set_up_exits_130_without_a_traceback(capsys, monkeypatch):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from collections import Counter
 from importlib import resources
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -118,7 +119,7 @@ def test_bad_particle_groups_are_refused(tmp_path, capsys):
     no_zone = TWO.replace("{pair}", "").replace(
         'zones = [{shape = "half-space", point = [0.0, 0.0, 0.027], normal = [0.0, 0.0, 1.0]}]', "")
     assert main(["run", _scenario(tmp_path, "a", no_zone), "--out", str(tmp_path / "a")]) == 2
-    assert "exactly one material fills the rest" in capsys.readouterr().err
+    assert "only one material may fill the rest" in capsys.readouterr().err
     damped = TWO.replace("{pair}", "").replace("cohesion = 60e6", "cohesion = 60e6\nlocal_damping = 0.1")
     assert main(["run", _scenario(tmp_path, "b", damped), "--out", str(tmp_path / "b")]) == 2
     assert "local_damping" in capsys.readouterr().err
@@ -152,3 +153,40 @@ def test_a_weak_pair_law_breaks_the_junction_alike_on_1_and_2_threads(tmp_path):
     counts = summary["failures_by_material"]
     assert counts.get("soft-stiff", 0) > 0.5 * sum(counts.values())
     assert summary["nominal_strength"] < 0.7 * 3.37e6
+
+
+def test_groups_from_a_sphere_files_column_are_the_zones_groups(tmp_path, capsys):
+    """The quick two-group sample's packing written as a text sphere list with a fifth column
+    ("granite" below z = 27 mm, "marble" above, as another code would export each sphere's
+    material) and [materials.NAME] taking theirs by `group`: the same particles in each group as
+    the half-space zone gives, so the same run bit for bit (history and events over 50 us, bonds
+    breaking in neither). A label no material names stops the run (exit 2) naming it."""
+    zoned = _scenario(tmp_path, "zoned", TWO.replace("{pair}", ""))
+    from crackle.dem.setup import build_simulation as build_dem
+    from crackle.scenario import load_scenario
+
+    packing = build_dem(*load_scenario(zoned, quick=True)).packing
+    label = np.where(packing.centers[:, 2] >= 0.027, "marble", "granite")
+    lines = [" ".join(repr(float(v)) for v in (*c, r)) + f" {g}" for c, r, g in zip(packing.centers, packing.radii, label)]
+    (tmp_path / "spheres.txt").write_text("# x y z r material\n" + "\n".join(lines) + "\n")
+    grouped = TWO.replace("{pair}", "").replace(
+        'zones = [{shape = "half-space", point = [0.0, 0.0, 0.027], normal = [0.0, 0.0, 1.0]}]', 'group = "marble"')
+    grouped = grouped.replace("cohesion = 30e6\n", 'cohesion = 30e6\ngroup = "granite"\n', 1)
+    src = Path(_scenario(tmp_path, "grouped", grouped)).read_text()
+    start = src.index("\n[packing]\n")
+    end = src.index("\n[", start + 1)
+    Path(tmp_path / "grouped.toml").write_text(
+        src[:start] + '\n[packing]\nfile = "spheres.txt"\ngroup_column = 5\n' + src[end:])
+    outs = []
+    for name in ("zoned", "grouped"):
+        out = tmp_path / f"out-{name}"
+        assert main(["run", str(tmp_path / f"{name}.toml"), "--quick", "--out", str(out), "--set", "run.end_time=5e-5",
+                     "--set", "run.field_frames=0"]) == 0
+        outs.append(out)
+    assert (outs[0] / "history.csv").read_bytes() == (outs[1] / "history.csv").read_bytes()
+    assert (outs[0] / "events.csv").read_bytes() == (outs[1] / "events.csv").read_bytes()
+
+    (tmp_path / "spheres.txt").write_text((tmp_path / "spheres.txt").read_text().replace(" marble\n", " basalt\n", 1))
+    assert main(["run", str(tmp_path / "grouped.toml"), "--quick", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    assert "named by no material: basalt" in err

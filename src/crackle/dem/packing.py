@@ -636,6 +636,23 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
                    porosity=1.0 - solid / domain.volume, max_overlap=max_overlap, mean_overlap=mean_overlap, sweeps=0)
 
 
+def read_sphere_labels(path: str | os.PathLike, column: int) -> np.ndarray:
+    """Each sphere's label in column `column` (1-based: 5 is the first after `x y z r`) of a text
+    sphere list (read_sphere_list's format): a group, a material or a clump id, as written
+    (str). ValueError naming the line that has no such column."""
+    labels = []
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for number, line in enumerate(f, start=1):
+            text = line.split("#", 1)[0].replace(",", " ").split()
+            if not text:
+                continue
+            if len(text) < column:
+                raise ValueError(f"line {number}: {line.strip()!r} has {len(text)} columns: no column {column} "
+                                 "(packing.group_column) to read the sphere's group from")
+            labels.append(text[column - 1])
+    return np.array(labels, dtype=str)
+
+
 def radius_range(mean_radius: float, radius_ratio: float) -> tuple[float, float]:
     """(Rmin, Rmax) (m) of the uniform distribution with mean `mean_radius` (m) and Rmax / Rmin =
     `radius_ratio`."""

@@ -17,13 +17,13 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import TensionTest, pulling_grip
 from ..loading.build import build_loading, touch_tools
-from ..scenario import (FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Specimen, Zone, check_material_tables,
-                        material_pair, refuse_unused_keys, resolve_path)
+from ..scenario import (FDEM_ONLY_KEYS, MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
+                        check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
-from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_list
+from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_labels, read_sphere_list
 from ..solver.simulation import PeakForceProbe
 from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe
 from .simulation import DemSimulation
@@ -76,11 +76,17 @@ class PackingSpec(Strict):
     'x y z r' line per sphere in m, further columns ignored, # comments; the specimen section gives the
     domain, which must hold every centre); it takes the place of the keys above (a warning says so when
     they are set too)"""
+    group_column: Annotated[int, Field(ge=5)] | None = None
+    """a text sphere list's column (1-based: 5 is the first after 'x y z r') holding each sphere's group, e.g. the
+    material or group id another code wrote: [materials.NAME] take theirs by `group` (its value as written)"""
 
     @model_validator(mode="after")
     def _one_source(self):
         if self.mean_radius is None and self.file is None:
             raise ValueError("give mean_radius (a new packing) or file (a saved one)")
+        if self.group_column is not None and (self.file is None or self.file.lower().endswith(".npz")):
+            raise ValueError("group_column: a column of a text sphere list (packing.file, not .npz); remove it or "
+                             "give the file")
         return self
 
 
@@ -166,12 +172,10 @@ class FlawSpec(Strict):
         return np.array([math.cos(theta), 0.0, math.sin(theta)]), np.array([-math.sin(theta), 0.0, math.cos(theta)])
 
 
-class DemNamedMaterial(DemMaterial):
-    """[materials.NAME]: one of several particle groups (the keys of [material]) and the zones its
-    particles fill (by their centres); the one without zones fills the rest."""
-
-    zones: list[Zone] = []
-    """the zones whose particles are of this material; a later material wins where two claim a particle"""
+class DemNamedMaterial(DemMaterial, MaterialPlace):
+    """[materials.NAME]: one of several particle groups (the keys of [material]) and where its
+    particles are: `group`, a label of the sphere file's packing.group_column, or `zones` (by the
+    particles' centres); the one with neither fills the rest."""
 
 
 class DemPairBond(Strict):
@@ -211,10 +215,11 @@ class Scenario(ScenarioBase):
         if self.interfaces and not self.materials:
             raise ValueError("[interfaces] names pairs of [materials.NAME]; with one [material] there is none")
         if self.materials:
-            rest = [name for name, m in self.materials.items() if not m.zones]
-            if len(rest) != 1:
-                raise ValueError(f"[materials]: exactly one material fills the rest (no zones); found {len(rest)}"
-                                 f"{': ' + ', '.join(rest) if rest else ''}")
+            check_one_rest(self.materials)
+            grouped = [name for name, m in self.materials.items() if m.group is not None]
+            if grouped and self.packing.group_column is None:
+                raise ValueError(f"materials.{grouped[0]}.group: groups come from a column of a text sphere list; "
+                                 "give packing.file and packing.group_column, or give the material zones")
             for key in ("local_damping", "bonds_per_particle"):
                 values = {getattr(m, key) for m in self.materials.values()}
                 if len(values) > 1:
@@ -227,16 +232,15 @@ class Scenario(ScenarioBase):
                 material_pair(key, list(self.materials))
         return self
 
-    def bond_law(self, centers: np.ndarray):
+    def bond_law(self, centers: np.ndarray, labels: np.ndarray | None = None):
         """The BondLaw of [material], or the GroupedLaws of [materials] with each particle's
-        group (by its centre; ValueError if none takes one) and the pairs' laws."""
+        group (the sphere file's label, `labels`, or its centre in zones; ValueError for a label
+        no material names or a particle none takes) and the pairs' laws."""
         if self.material is not None:
             return self.material.law()
         names = list(self.materials)
-        group = np.full(len(centers), next(i for i, m in enumerate(self.materials.values()) if not m.zones))
-        for index, m in enumerate(self.materials.values()):
-            for zone in m.zones:
-                group[zone.contains(centers)] = index
+        groups = None if labels is None else {label: labels == label for label in np.unique(labels).tolist()}
+        group = assign_materials(self.materials, centers, groups, sites="particles")
         laws = tuple(m.law() for m in self.materials.values())
         pairs = {}
         for key, bond in self.interfaces.items():
@@ -302,11 +306,19 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         raise ScenarioError("pressures: the DEM has no faces to load; remove [[pressures]]")
     packing = build_packing(scenario, base)
     centers, radii = packing.centers, packing.radii
+    labels = None
+    if scenario.packing.group_column is not None:
+        try:
+            labels = read_sphere_labels(resolve_path(scenario.packing.file, base), scenario.packing.group_column)
+        except (ValueError, UnicodeDecodeError) as err:
+            raise ScenarioError(f"packing.file: {err}") from None
     flaw = scenario.flaw
     if flaw is not None:
         _check_inside(flaw, domain_of(scenario.specimen))
         if flaw.kind == "open":
-            centers, radii = _open_flaw(flaw, centers, radii)
+            kept = ~_in_open_flaw(flaw, centers, radii)
+            centers, radii = centers[kept], radii[kept]
+            labels = None if labels is None else labels[kept]
     # A touching platen is placed on the particle furthest along its direction (on its surface).
     tools = touch_tools(tools, scenario.all_tools(), lambda tool: centers - radii[:, None] * _unit(tool.direction))
     domain = domain_of(scenario.specimen)
@@ -324,7 +336,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         loaded_area = domain.volume / extent
         platen = Platen(lead.name, direction, extent, _opposite(tools, lead, direction))
     mat = scenario.the_material()
-    law = scenario.bond_law(centers)
+    try:
+        law = scenario.bond_law(centers, labels)
+    except ValueError as err:  # a zone that cannot be built (aggregates that do not fit), a group no material names
+        raise ScenarioError(str(err)) from None
     density = mat.density if scenario.material is not None else \
         np.array([m.density for m in scenario.materials.values()])[law.group]
     try:
@@ -380,9 +395,9 @@ def _check_inside(flaw: FlawSpec, domain) -> None:
             raise ScenarioError("flaw.length: the flaw reaches out of the specimen; shorten it or move flaw.center")
 
 
-def _open_flaw(flaw: FlawSpec, centers, radii):
-    """The packing without the particles that reach into an open flaw's slot."""
+def _in_open_flaw(flaw: FlawSpec, centers, radii) -> np.ndarray:
+    """The particles that reach into an open flaw's slot (a mask): the packing goes without them."""
     removed = flaw.removed(centers, radii)
     if not removed.any():
         raise ScenarioError("flaw: no particle reaches into the flaw; check flaw.center and flaw.length")
-    return centers[~removed], radii[~removed]
+    return removed

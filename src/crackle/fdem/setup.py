@@ -164,6 +164,25 @@ def _clamped_size_warning(spec: Specimen, mesh) -> str:
     )
 
 
+# Tets across the smallest aggregate below which it is a few tets or none (by centroid).
+_TETS_ACROSS_AGGREGATE = 2.0
+
+
+def _unresolved_aggregates(scenario: Scenario, mesh) -> list[str]:
+    """A warning per aggregates zone whose smallest aggregates are under two element sizes across."""
+    h = scenario.specimen.element_size or mesh.element_size()
+    out = []
+    for name, spec in scenario.materials.items():
+        for k, zone in enumerate(spec.zones):
+            if zone.shape == "aggregates" and zone.min_diameter < _TETS_ACROSS_AGGREGATE * h:
+                out.append(f"materials.{name}.zones.{k}: min_diameter = {zone.min_diameter * 1e3:.3g} mm is under "
+                           f"{_TETS_ACROSS_AGGREGATE:g} elements of {h * 1e3:.3g} mm: the smallest aggregates are a "
+                           f"tet or two, or none (a tet takes them by its centroid); set specimen.element_size <= "
+                           f"{zone.min_diameter / _TETS_ACROSS_AGGREGATE * 1e3:.2g} mm (a third of min_diameter "
+                           f"resolves them)")
+    return out
+
+
 def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
     """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
     tools, supports, pressures = build_loading(scenario, base)
@@ -226,6 +245,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     sizing = _clamped_size_warning(scenario.specimen, mesh)
     if sizing:
         model.warnings.insert(0, sizing)
+    model.warnings += _unresolved_aggregates(scenario, mesh)
     sim = FdemSimulation(model)
     _strength_test(sim, scenario, tools, supports, mesh)
     plane = scenario.analysis.fracture_plane
