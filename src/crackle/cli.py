@@ -75,7 +75,7 @@ def _cmd_sweep(args) -> int:
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
     print(f"  table in {result.out_dir / 'sweep.csv'} (and sweep.parquet), plots in {result.out_dir / 'plots'}")
-    for line in result.seed_lines:
+    for line in result.notes:
         print(f"  {line}")
     return 0 if all(s in COMPLETED for s in statuses) else 1
 

@@ -579,15 +579,25 @@ class Where(Strict):
     """m, lower corner of the box"""
     box_max: Vec3 | None = None
     """m, upper corner of the box"""
+    radius: Positive | None = None
+    """m, on the cylinder of this radius about the line through axis_point along axis_direction (a cylinder's
+    side: the faces there whose normal is not along the axis, so not the ends' rim)"""
+    axis_point: Vec3 | None = None
+    """m, with radius: a point on the cylinder's axis"""
+    axis_direction: Vec3 | None = None
+    """with radius: the cylinder's axis"""
     tol: Positive | None = None
-    """m, distance to the plane that counts as on it; default 1e-6 of the specimen size"""
+    """m, distance to the plane (or cylinder) that counts as on it; default 1e-6 of the specimen size"""
 
     @model_validator(mode="after")
     def _some(self):
         if (self.plane_point is None) != (self.plane_normal is None):
             raise ValueError("give both plane_point and plane_normal")
-        if self.plane_point is None and self.box_min is None and self.box_max is None:
-            raise ValueError("choose nodes with plane_point + plane_normal and/or box_min / box_max")
+        if (self.radius is None) != (self.axis_point is None) or (self.radius is None) != (self.axis_direction is None):
+            raise ValueError("a cylinder's side needs radius, axis_point and axis_direction together")
+        if self.plane_point is None and self.box_min is None and self.box_max is None and self.radius is None:
+            raise ValueError("choose nodes with plane_point + plane_normal, box_min / box_max and/or radius + "
+                             "axis_point + axis_direction")
         return self
 
 

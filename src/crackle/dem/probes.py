@@ -1,62 +1,14 @@
-"""DEM's measurements (solver.simulation.Probe), each set up when the scenario asks for it: the
-platen's stress-strain curve and modulus, a disc's Brazilian strength, where cracking starts
-along a flaw (a direct tension test's strengths: solver.simulation.PeakForceProbe)."""
+"""DEM's measurements (solver.simulation.Probe), each set up when the scenario asks for it: a
+disc's Brazilian strength, where cracking starts along a flaw (a direct tension test's strengths:
+solver.simulation.PeakForceProbe; the platens' curve: solver.platen.PlatenProbe)."""
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
-from ..analysis.strength import platen_modulus
-from ..io.plots import plot_stress_strain, run_plot_path
 from ..solver.simulation import Probe
-
-
-@dataclass(frozen=True)
-class Platen:
-    """The first moving tool: its force on the sample along its travel over the loaded area is
-    the history's `platen.stress`; the platens' approach (its travel towards the opposite platen
-    less the opposite one's travel towards it, whether that one moves or not) over the sample's
-    extent along it is `platen.strain` (both positive in compression, as a UCS curve is read)."""
-
-    name: str
-    direction: np.ndarray  # unit, the tool's travel
-    length: float  # m, the sample's extent along it
-    opposite: str | None = None  # the tool facing it across the sample, if any
-
-    def stress_strain(self, row: dict, loaded_area: float) -> tuple[float, float]:
-        """(stress, strain) of a history row with the tools' force and travel columns."""
-        force = np.array([row[f"tool.{self.name}.f{c}"] for c in "xyz"])  # on the sample
-        approach = np.array([row[f"tool.{self.name}.u{c}"] for c in "xyz"])
-        if self.opposite is not None:
-            approach = approach - np.array([row[f"tool.{self.opposite}.u{c}"] for c in "xyz"])
-        return float(force @ self.direction) / loaded_area, float(approach @ self.direction) / self.length
-
-
-class PlatenProbe(Probe):
-    """platen.stress and platen.strain in the history, the modulus of their curve (20-50 % of
-    the peak) in the summary, plots/stress_strain.png."""
-
-    def __init__(self, platen: Platen, loaded_area: float):
-        self.platen = platen
-        self.loaded_area = loaded_area
-        self.curve: dict[float, tuple[float, float]] = {}  # time -> (strain, stress)
-
-    def columns(self, sim, row: dict) -> dict[str, float]:
-        stress, strain = self.platen.stress_strain(row, self.loaded_area)
-        self.curve[sim.time] = (strain, stress)
-        return {"platen.stress": stress, "platen.strain": strain}
-
-    def summary(self, sim) -> dict:
-        # JSON has no NaN: None until the curve has rows between 20 and 50 % of its peak.
-        curve = np.array([self.curve[t] for t in sorted(self.curve)]).reshape(-1, 2)
-        return {"platen_modulus": platen_modulus(curve[:, 0], curve[:, 1])}
-
-    def plots(self, sim, out_dir) -> None:
-        plot_stress_strain(out_dir / "history.csv", run_plot_path(out_dir, "stress_strain"))
 
 
 class BrazilianProbe(Probe):

@@ -25,7 +25,8 @@ from .build import build_dem_simulation
 from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_labels, read_sphere_list
 from ..solver.simulation import PeakForceProbe
-from .probes import BrazilianProbe, FlawProbe, Platen, PlatenProbe
+from ..solver.platen import Platen, PlatenProbe, facing_tool
+from .probes import BrazilianProbe, FlawProbe
 from .simulation import DemSimulation
 
 
@@ -334,7 +335,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         along = centers @ direction
         extent = float((along + radii).max() - (along - radii).min())
         loaded_area = domain.volume / extent
-        platen = Platen(lead.name, direction, extent, _opposite(tools, lead, direction))
+        platen = Platen(lead.name, direction, extent, facing_tool(tools, lead, direction))
     mat = scenario.the_material()
     try:
         law = scenario.bond_law(centers, labels)
@@ -371,13 +372,6 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
     if grip is not None:
         sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, scenario.weakest_tensile_strength())))
     return sim
-
-
-def _opposite(tools, lead, direction) -> str | None:
-    """The tool facing `lead` across the sample (travelling against it, moving or not): the
-    platen whose travel makes the platens' approach with lead's."""
-    facing = [t for t in tools if t is not lead and t.shape != "support" and float(_unit(t.direction) @ direction) < -0.9]
-    return facing[0].name if facing else None
 
 
 def _unit(v) -> np.ndarray:

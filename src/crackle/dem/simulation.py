@@ -269,9 +269,6 @@ class DemSimulation(SimulationBase):
             "failures_by_material": self.failures_by_material(),
             "warnings": list(self.warnings),
         }
-        if self.loaded_area:
-            out["loaded_area"] = self.loaded_area
-            out["peak_stress"] = float(np.max(self.load_cell.peaks()[0], initial=0.0)) / self.loaded_area
         return {**out, **self.probe_summary()}
 
 

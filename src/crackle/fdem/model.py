@@ -429,9 +429,8 @@ def _pressure_faces(pressures, mesh: TetMesh, pairs: _Pairs, precrack: np.ndarra
             face_pressure[pairs.ta[precrack], pairs.fa[precrack]] = pid
             face_pressure[pairs.tb[precrack], pairs.fb[precrack]] = pid
         else:
-            sel = load.faces.mask(mesh.points, scale)
             bt, bf = pairs.boundary_faces[:, 0], pairs.boundary_faces[:, 1]
-            chosen = np.all(sel[conn[bt[:, None], FACE_CORNERS[bf]]], axis=1)
+            chosen = load.faces.face_mask(mesh.points, conn[bt[:, None], FACE_CORNERS[bf]], scale)
             if not chosen.any():
                 raise ValueError(f"pressure {pid}: its selection holds no boundary face")
             face_pressure[bt[chosen], bf[chosen]] = pid

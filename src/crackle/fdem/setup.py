@@ -21,6 +21,7 @@ from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, 
                         assign_materials, check_material_tables, check_one_rest, material_pair)
 from .laws import LAWS
 from .model import build_fdem_model
+from ..solver.platen import Platen, PlatenProbe, facing_tool
 from ..solver.simulation import PeakForceProbe
 from .probes import BrazilianProbe, CrackProbe, FractureTipProbe
 from .simulation import FdemSimulation
@@ -247,7 +248,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
         model.warnings.insert(0, sizing)
     model.warnings += _unresolved_aggregates(scenario, mesh)
     sim = FdemSimulation(model)
-    _strength_test(sim, scenario, tools, supports, mesh)
+    _strength_test(sim, scenario, tools, supports, mesh, pressures)
     plane = scenario.analysis.fracture_plane
     if plane is not None:
         size = float(np.max(np.subtract(*mesh.bounds()[::-1])))
@@ -263,15 +264,50 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     return sim
 
 
-def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mesh) -> None:
+# Specimens a pair of platens tests in compression (a core, a prism, a meshed sample).
+_COMPRESSION_SHAPES = ("cylinder", "box", "beam", "mesh")
+
+
+def _covers(tool, points: np.ndarray) -> bool:
+    """Whether `tool` is a platen over the specimen's whole section: a plane, or a box whose face
+    across its travel spans every point's projection."""
+    if tool.shape == "plane":
+        return True
+    if tool.shape != "box":
+        return False
+    a, b = (np.asarray(v, float) for v in tool.axes)
+    if abs(float(np.cross(a, b) @ np.asarray(tool.direction, float))) < 0.99 * np.linalg.norm(tool.direction):
+        return False
+    rel = points - np.asarray(tool.center, float)
+    return bool(np.all(np.abs(rel @ a) <= 0.5 * tool.size[0]) and np.all(np.abs(rel @ b) <= 0.5 * tool.size[1]))
+
+
+def _strength_test(sim: FdemSimulation, scenario: Scenario, tools, supports, mesh, pressures) -> None:
     """The strength test the set-up is, if any, for the summary's nominal strengths: a glued grip
-    or a moving support pulling the specimen (direct tension) or a disc between platens
-    (Brazilian)."""
+    or a moving support pulling the specimen (direct tension), a disc between platens
+    (Brazilian), or a core, prism or meshed sample between flat platens (uniaxial compression; with
+    a pressure on its side, the triaxial test: the first [[pressures]] on boundary faces is the
+    confinement)."""
     spec = scenario.specimen
     grip = pulling_grip(tools, mesh.points, supports, float(np.max(mesh.bounds()[1] - mesh.bounds()[0])))
     if grip is not None:
         section = mean_section(float(mesh.volumes().sum()), mesh.points, tools[grip].direction)
         sim.probes.append(PeakForceProbe(TensionTest(grip, section, scenario.weakest_tensile_strength())))
+    elif spec.shape in _COMPRESSION_SHAPES:
+        # Two platens, each covering the specimen's section (not three-point bending's rollers).
+        platens = [t for t in tools if _covers(t, mesh.points)]
+        moving = [t for t in platens if t.moves]
+        if len(platens) != 2 or not moving:
+            return
+        direction = np.asarray(moving[0].direction, float) / np.linalg.norm(moving[0].direction)
+        opposite = facing_tool(platens, moving[0], direction)
+        if opposite is None:
+            return
+        along = mesh.points @ direction
+        extent = float(along.max() - along.min())
+        confinement = next((p.history for p in pressures if not isinstance(p.faces, str)), None)
+        sim.probes.append(PlatenProbe(Platen(moving[0].name, direction, extent, opposite),
+                                      float(mesh.volumes().sum()) / extent, confinement))
     elif spec.shape == "disc":
         moving = [t for t in tools if t.moves]
         if moving:

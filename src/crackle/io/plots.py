@@ -373,7 +373,7 @@ RUN_PLOTS = {
     "fragment_sizes": "fdem: fragment masses",
     "time_step": "fdem: the per-element stable steps and the step used",
     "crack_growth": "fdem: the main crack's length and speed (with [analysis.cracks])",
-    "stress_strain": "dem: platen stress against strain (with platens)",
+    "stress_strain": "platen stress against strain (a compression or triaxial test between platens)",
     "j_history": "shell: J and G at each crack tip",
 }
 

@@ -168,6 +168,10 @@ class Selection:
     box_min: tuple[float, float, float] | None = None
     box_max: tuple[float, float, float] | None = None
     tol: float | None = None  # default: 1e-6 of the specimen size
+    # On a cylinder's side: distance `radius` from the line through axis_point along axis_direction.
+    radius: float | None = None
+    axis_point: tuple[float, float, float] | None = None
+    axis_direction: tuple[float, float, float] | None = None
 
     def mask(self, points: np.ndarray, scale: float) -> np.ndarray:
         p = np.asarray(points, dtype=float)
@@ -180,7 +184,24 @@ class Selection:
             keep &= np.all(p >= np.asarray(self.box_min) - tol, axis=1)
         if self.box_max is not None:
             keep &= np.all(p <= np.asarray(self.box_max) + tol, axis=1)
+        if self.radius is not None:
+            a = _unit(self.axis_direction)
+            r = p - np.asarray(self.axis_point)
+            keep &= np.abs(np.linalg.norm(r - np.outer(r @ a, a), axis=1) - self.radius) <= tol
         return keep
+
+    def face_mask(self, points: np.ndarray, corners: np.ndarray, scale: float) -> np.ndarray:
+        """Which faces (rows of `corners`, (m, 3) point indices) the selection takes: those whose
+        three corners it holds; on a cylinder's side, not a face of an end whose corners all lie on
+        the rim (its normal along the axis)."""
+        chosen = np.all(self.mask(points, scale)[corners], axis=1)
+        if self.radius is not None and chosen.any():
+            p = np.asarray(points, dtype=float)[corners[chosen]]
+            normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+            normal /= np.linalg.norm(normal, axis=1)[:, None]
+            # A side face's normal is nearly radial, an end face's along the axis.
+            chosen[np.flatnonzero(chosen)[np.abs(normal @ _unit(self.axis_direction)) > 0.5]] = False
+        return chosen
 
 
 @dataclass(frozen=True)

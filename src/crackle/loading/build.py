@@ -21,7 +21,8 @@ def _history_of(spec) -> History:
 
 
 def selection(where) -> Selection:
-    return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol)
+    return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol, where.radius,
+                     where.axis_point, where.axis_direction)
 
 
 def rotation_matrix(angle_deg: float, axis) -> np.ndarray:

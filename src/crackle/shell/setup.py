@@ -307,7 +307,7 @@ def _regions(mesh, scenario: Scenario):
     thickness, region = mesh.thickness.copy(), mesh.region.copy()
     scale = float(np.max(np.ptp(mesh.X, axis=0)))
     for i, spec in enumerate(scenario.regions):
-        chosen = np.all(selection(spec.where).mask(mesh.X, scale)[mesh.tri], axis=1)
+        chosen = selection(spec.where).face_mask(mesh.X, mesh.tri, scale)
         if not chosen.any():
             raise ScenarioError(f"regions.{i}.where: selects no triangle (all three corners must be selected); check "
                                 "its plane or box")
@@ -327,7 +327,7 @@ def _pressures(shell, pressures, scale) -> HistoryTable:
     mesh, faces = shell.mesh, shell.faces
     centroids = mesh.X[mesh.tri].mean(axis=1)
     for k, pressure in enumerate(pressures):
-        chosen = np.all(pressure.faces.mask(mesh.X, scale)[mesh.tri], axis=1)
+        chosen = pressure.faces.face_mask(mesh.X, mesh.tri, scale)
         if not chosen.any():
             raise ScenarioError(f"pressures.{k}.where: selects no triangle (all three corners must be selected)")
         faces.pressure[chosen] = k

@@ -20,7 +20,7 @@ from pathlib import Path
 from ..scenario import ScenarioError
 from ..solver.checkpoint import CHECKPOINT_FILE
 from .plan import SweepPlan, SweepRun
-from .table import write_seed_statistics, write_table
+from .table import write_envelopes, write_seed_statistics, write_table
 
 MANIFEST = "sweep.json"
 # A run folder whose summary has one of these is finished (interrupted runs are run again).
@@ -33,7 +33,7 @@ class SweepResult:
     out_dir: Path
     rows: list[dict]  # one per run, in the plan's order
     ran: int  # runs made by this call (the rest were finished before)
-    seed_lines: list[str] = field(default_factory=list)  # the means and deviations over seeds (--seeds)
+    notes: list[str] = field(default_factory=list)  # to print: the means and deviations over seeds (--seeds), envelopes
 
 
 def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, plots: bool = True) -> dict:
@@ -126,11 +126,12 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, scheduler: str | None = None
             row.update(status=got["status"], message=got["message"], summary={})
         rows.append(row)
     unknown = write_table(out, list(plan.vary), rows, plots, plan.scenario)
-    seed_lines = write_seed_statistics(out, list(plan.vary), rows, list(plots))
+    notes = write_seed_statistics(out, list(plan.vary), rows, list(plots))
+    notes += write_envelopes(out, rows, plan.scenario)
     if unknown:
         raise ScenarioError(f"--plot {'; '.join(unknown)}: no such scalar in the runs' summaries; the table and the "
                             "other plots are written, and rerunning with the right name reuses the finished runs")
-    return SweepResult(out, rows, len(todo), seed_lines)
+    return SweepResult(out, rows, len(todo), notes)
 
 
 def _claim_folder(out: Path, plan: SweepPlan) -> None:

@@ -1,4 +1,5 @@
-"""A sweep's table (sweep.csv, sweep.parquet) and its comparison plots (plots/sweep_KEY.png).
+"""A sweep's table (sweep.csv, sweep.parquet), its comparison plots (plots/sweep_KEY.png) and, over
+triaxial runs, the strength envelopes (envelope.json, plots/strength_envelope.png).
 
 Columns: the varied keys, then `run` (its folder), `status`, `message`, then every scalar of
 the runs' summary.json (a nested object's scalars as `object.field`, e.g. `dt_limit.dt`; lists
@@ -6,12 +7,14 @@ are left out: they stay in each run's summary)."""
 
 from __future__ import annotations
 
-import difflib
-
 import csv
+import difflib
+import json
 import math
 import re
 from pathlib import Path
+
+import numpy as np
 
 DEFAULT_PLOTTED = ("peak_force", "broken", "energy_error")
 
@@ -123,6 +126,51 @@ def write_seed_statistics(out: Path, varied_keys: list[str], rows: list[dict], s
         writer.writeheader()
         for record in table:
             writer.writerow({k: _csv_value(v) for k, v in record.items()})
+    return lines
+
+
+ENVELOPE_FILE = "envelope.json"
+
+
+def write_envelopes(out: Path, rows: list[dict], scenario: str | None = None) -> list[str]:
+    """When two or more finished runs at different confinements report confining_pressure and
+    peak_stress (triaxial tests: sigma_3 and sigma_1): the Mohr-Coulomb and Hoek-Brown envelopes
+    fitted to them (analysis.envelope) in envelope.json, drawn with the peaks in
+    plots/strength_envelope.png. Returns a line per envelope to print (none without them)."""
+    from ..analysis.envelope import hoek_brown, hoek_brown_sigma_1, mohr_coulomb, mohr_coulomb_sigma_1
+    from ..io.plots import _new_figure, _save, axis_label
+
+    peaks = [(float(r["summary"]["confining_pressure"]), float(r["summary"]["peak_stress"])) for r in rows
+             if r.get("status") in ("completed", "stopped")
+             and _number(r["summary"].get("confining_pressure")) is not None
+             and _number(r["summary"].get("peak_stress")) is not None]
+    if len({s3 for s3, _ in peaks}) < 2:
+        return []
+    s3, s1 = (np.array(v) for v in zip(*sorted(peaks)))
+    coulomb, hoek = mohr_coulomb(s3, s1), hoek_brown(s3, s1)
+    (out / ENVELOPE_FILE).write_text(json.dumps({
+        "sigma_3": s3.tolist(), "sigma_1": s1.tolist(), "mohr_coulomb": coulomb, "hoek_brown": hoek}, indent=2) + "\n")
+    fig = _new_figure(figsize=(5.0, 4.0))
+    ax = fig.subplots()
+    ax.plot(s3 / 1e6, s1 / 1e6, "ko", label="peaks")
+    span = np.linspace(0.0, float(s3.max()) * 1.05, 50)
+    lines = []
+    if coulomb is not None:
+        ax.plot(span / 1e6, mohr_coulomb_sigma_1(coulomb, span) / 1e6, "-",
+                label=f"Mohr-Coulomb: c {coulomb['cohesion'] / 1e6:.3g} MPa, phi {coulomb['friction_angle']:.3g} deg")
+        lines.append(f"Mohr-Coulomb: UCS {coulomb['ucs'] / 1e6:.4g} MPa, cohesion {coulomb['cohesion'] / 1e6:.4g} MPa, "
+                     f"friction angle {coulomb['friction_angle']:.3g} deg (R^2 {coulomb['r2']:.3f})")
+    if hoek is not None:
+        ax.plot(span / 1e6, hoek_brown_sigma_1(hoek, span) / 1e6, "--",
+                label=f"Hoek-Brown: sigma_ci {hoek['sigma_ci'] / 1e6:.3g} MPa, m_i {hoek['m_i']:.3g}")
+        lines.append(f"Hoek-Brown: sigma_ci {hoek['sigma_ci'] / 1e6:.4g} MPa, m_i {hoek['m_i']:.3g} "
+                     f"(R^2 {hoek['r2']:.3f})")
+    ax.set_xlabel(axis_label("confining pressure sigma_3", "MPa"))
+    ax.set_ylabel(axis_label("peak stress sigma_1", "MPa"))
+    ax.set_title(f"{Path(scenario).stem if scenario else 'sweep'}: strength envelope", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    _save(fig, out / "plots" / "strength_envelope.png")
     return lines
 
 
