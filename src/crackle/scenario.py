@@ -30,7 +30,7 @@ class ScenarioError(ValueError):
 
 # The [specimen] keys each shape reads (FDEM's; the DEM's are fewer): a key set that the shape
 # does not read is refused, since the specimen would silently not be the one asked for.
-_BOX = {"size", "element_size", "origin", "mesh"}
+_BOX = {"size", "element_size", "origin", "mesh", "holes"}
 _ROUND = {"diameter", "thickness", "element_size", "center", "axis"}
 _WALLS = {"element_size", "center", "wall", "suture_wall", "suture_band", "layers"}
 SPECIMEN_KEYS = {
@@ -50,6 +50,21 @@ def refuse_unused_keys(spec, keys: dict[str, set[str]]) -> None:
     if other:
         raise ValueError(f"{', '.join(other)}: not used by shape = \"{spec.shape}\" (its keys: "
                          f"{', '.join(sorted(keys[spec.shape]))})")
+
+
+class HoleSpec(Strict):
+    """[[specimen.holes]]: a cylindrical hole through the whole box (a borehole, a tunnel)."""
+
+    center: Vec3
+    """m, a point on its axis"""
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    """its axis"""
+    radius: Positive
+    """m"""
+    element_size: Positive | None = None
+    """m, the tets at its wall, growing to specimen.element_size over `grading`; default specimen.element_size"""
+    grading: Positive | None = None
+    """m, the distance from the wall over which the tets grow; default 3 radii"""
 
 
 class Specimen(Strict):
@@ -93,6 +108,9 @@ class Specimen(Strict):
     file: str | None = None
     """mesh: any tet mesh meshio reads (.msh, .vtu, .inp ...); shell: its closed outer surface (STL or any
     meshio format); relative to the scenario file's folder"""
+    holes: list[HoleSpec] = []
+    """box and beam with mesh = "unstructured": cylindrical holes through the whole box, each meshed finer at
+    its wall when it asks"""
     initial_velocity: Vec3 = (0.0, 0.0, 0.0)
     """m/s, of the whole specimen at t = 0"""
     angular_velocity: Vec3 = (0.0, 0.0, 0.0)
@@ -114,6 +132,8 @@ class Specimen(Strict):
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
         refuse_unused_keys(self, SPECIMEN_KEYS)
+        if self.holes and self.mesh != "unstructured":
+            raise ValueError('holes: a box with holes is meshed by gmsh: set specimen.mesh = "unstructured"')
         extent = self.extent()
         h = self.element_size
         if h is not None and extent is not None:

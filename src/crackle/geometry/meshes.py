@@ -381,20 +381,76 @@ def _check_h(element_size: float) -> None:
         raise MeshError(f"element_size must be positive, got {element_size}")
 
 
+@dataclass(frozen=True)
+class Hole:
+    """A cylindrical hole through a whole box (a borehole, a tunnel): its axis through `center`
+    along `axis`, its `radius` (m); the tets at its wall `wall_size` (m) across, growing to the
+    box's element size over `grading` (m) from the wall."""
+
+    center: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    radius: float
+    wall_size: float
+    grading: float
+
+
 def gmsh_box(
     size: tuple[float, float, float],
     element_size: float,
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    holes: tuple[Hole, ...] = (),
 ) -> TetMesh:
-    """Unstructured tet mesh of a box ``size = (Lx, Ly, Lz)`` with corner at ``origin``."""
+    """Unstructured tet mesh of a box ``size = (Lx, Ly, Lz)`` with corner at ``origin``, less
+    any `holes` (each graded from its wall: a Distance and a Threshold field)."""
     _check_h(element_size)
     Lx, Ly, Lz = (float(v) for v in size)
     x, y, z = (float(v) for v in origin)
     with _gmsh_model(element_size) as gmsh:
-        gmsh.model.occ.addBox(x, y, z, Lx, Ly, Lz)
+        box = gmsh.model.occ.addBox(x, y, z, Lx, Ly, Lz)
+        span = 2.0 * float(np.linalg.norm(size))  # longer than the box whichever way the axis runs
+        tools = []
+        for hole in holes:
+            _check_h(hole.wall_size)
+            axis = np.asarray(hole.axis, float) / np.linalg.norm(hole.axis)
+            base = np.asarray(hole.center, float) - 0.5 * span * axis
+            tools.append((3, gmsh.model.occ.addCylinder(*base.tolist(), *(span * axis).tolist(), float(hole.radius))))
+        if tools:
+            gmsh.model.occ.cut([(3, box)], tools)
         gmsh.model.occ.synchronize()
+        if holes:
+            _grade_from_holes(gmsh, holes, element_size)
         gmsh.model.mesh.generate(3)
-        return _gmsh_tets(gmsh)
+        return _gmsh_tets(gmsh, "the box with its holes")
+
+
+def _grade_from_holes(gmsh, holes, element_size: float) -> None:
+    """Each hole's wall_size at its wall, growing linearly to element_size over its grading: the
+    smallest of the holes' Threshold fields on the distance to the surfaces lying on its wall."""
+    fields = []
+    for hole in holes:
+        axis = np.asarray(hole.axis, float) / np.linalg.norm(hole.axis)
+        wall = []
+        for dim, tag in gmsh.model.getEntities(2):
+            lo = np.array(gmsh.model.getBoundingBox(dim, tag)[:3])
+            hi = np.array(gmsh.model.getBoundingBox(dim, tag)[3:])
+            mid = 0.5 * (lo + hi) - np.asarray(hole.center, float)
+            # A wall surface's box is centred on the axis (the cylinder's), a face of the box's is not.
+            if np.linalg.norm(mid - (mid @ axis) * axis) < 0.5 * hole.radius and np.max(hi - lo) > hole.radius:
+                wall.append(tag)
+        distance = gmsh.model.mesh.field.add("Distance")
+        gmsh.model.mesh.field.setNumbers(distance, "SurfacesList", wall)
+        threshold = gmsh.model.mesh.field.add("Threshold")
+        gmsh.model.mesh.field.setNumber(threshold, "InField", distance)
+        gmsh.model.mesh.field.setNumber(threshold, "SizeMin", float(hole.wall_size))
+        gmsh.model.mesh.field.setNumber(threshold, "SizeMax", float(element_size))
+        gmsh.model.mesh.field.setNumber(threshold, "DistMin", 0.0)
+        gmsh.model.mesh.field.setNumber(threshold, "DistMax", float(hole.grading))
+        fields.append(threshold)
+    smallest = gmsh.model.mesh.field.add("Min")
+    gmsh.model.mesh.field.setNumbers(smallest, "FieldsList", fields)
+    gmsh.model.mesh.field.setAsBackgroundMesh(smallest)
+    for option in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+        gmsh.option.setNumber(option, 0)
 
 
 def gmsh_cylinder(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .meshes import TetMesh, gmsh_box, gmsh_cylinder, gmsh_sphere, locality_order, read_mesh, structured_box
+from .meshes import Hole, TetMesh, gmsh_box, gmsh_cylinder, gmsh_sphere, locality_order, read_mesh, structured_box
 from .walnut import shell_from_surface, walnut_shell
 
 
@@ -98,7 +98,9 @@ def _generated_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None
             scale=spec.scale, offset=spec.center, **walls,
         )
     if spec.shape in ("box", "beam"):
-        return gmsh_box(spec.size, spec.element_size, origin=spec.origin), None
+        holes = tuple(Hole(h.center, h.axis, h.radius, h.element_size or spec.element_size,
+                           h.grading if h.grading is not None else 3.0 * h.radius) for h in spec.holes)
+        return gmsh_box(spec.size, spec.element_size, origin=spec.origin, holes=holes), None
     if spec.shape == "sphere":
         return gmsh_sphere(0.5 * spec.diameter, spec.element_size, center=spec.center), None
     return gmsh_cylinder(0.5 * spec.diameter, spec.thickness, spec.element_size, center=spec.center, axis=spec.axis), None
