@@ -477,6 +477,30 @@ class Zone(Strict):
                                 self.volume_fraction, self.aggregate_gap(), seed=self.seed, exponent=self.exponent,
                                 axis=self.aggregate_axis())
 
+    def planes(self, center, radius: float) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:
+        """The planes (point, unit normal) that bound a layer (each layer of a stack) or a half-space
+        within `radius` of `center` (m): where a generated mesh is cut so that the zone's faces are
+        those planes (none for the other shapes)."""
+        import numpy as np
+
+        if self.shape not in ("layer", "half-space"):
+            return []
+        n = np.asarray(self.normal, float) / np.linalg.norm(self.normal)
+        mid = float(np.asarray(self.point, float) @ n)
+        if self.shape == "half-space":
+            offsets = [mid]
+        else:
+            half, at = 0.5 * self.thickness, float(np.asarray(center, float) @ n)
+            if self.spacing is None:
+                mids = [mid]
+            else:
+                first, last = (int(np.floor((at - radius - half - mid) / self.spacing)),
+                               int(np.ceil((at + radius + half - mid) / self.spacing)))
+                mids = [mid + k * self.spacing for k in range(first, last + 1)]
+            offsets = [m + side for m in mids for side in (-half, half)]
+            offsets = [d for d in offsets if abs(d - at) < radius]
+        return [(tuple(float(v) for v in d * n), tuple(float(v) for v in n)) for d in offsets]
+
     def contains(self, x) -> "np.ndarray":
         """Which of the points x (m, (k, 3)) lie inside (a box and a layer with their bounds)."""
         import numpy as np

@@ -194,7 +194,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
         except ModelTooLarge as err:
             raise ScenarioError(str(err)) from None
     try:
-        mesh, region = specimen_mesh(scenario.specimen, base)
+        mesh, region = specimen_mesh(scenario.specimen, base, _zone_planes(scenario))
     except MeshError as err:
         raise ScenarioError(f"specimen: {err}") from None
     if scenario.specimen.shape in ("mesh", "shell"):
@@ -262,6 +262,18 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
             top=cracks.top,
         )))
     return sim
+
+
+def _zone_planes(scenario: Scenario) -> tuple:
+    """The planes bounding the materials' layer and half-space zones across the specimen, which a
+    generated mesh is cut along (geometry.meshes.cut_along_planes): bedding planes of planar faces."""
+    spec = scenario.specimen
+    if not scenario.materials or spec.extent() is None:
+        return ()
+    center = (np.asarray(spec.origin) + 0.5 * np.asarray(spec.size) if spec.shape in ("box", "beam")
+              else np.asarray(spec.center, float))
+    return tuple(plane for material in scenario.materials.values() for zone in material.zones
+                 for plane in zone.planes(center, spec.extent()))
 
 
 # Specimens a pair of platens tests in compression (a core, a prism, a meshed sample).

@@ -399,9 +399,11 @@ def gmsh_box(
     element_size: float,
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
     holes: tuple[Hole, ...] = (),
+    planes: tuple = (),
 ) -> TetMesh:
     """Unstructured tet mesh of a box ``size = (Lx, Ly, Lz)`` with corner at ``origin``, less
-    any `holes` (each graded from its wall: a Distance and a Threshold field)."""
+    any `holes` (each graded from its wall: a Distance and a Threshold field), cut along any
+    `planes` (cut_along_planes)."""
     _check_h(element_size)
     Lx, Ly, Lz = (float(v) for v in size)
     x, y, z = (float(v) for v in origin)
@@ -416,6 +418,7 @@ def gmsh_box(
             tools.append((3, gmsh.model.occ.addCylinder(*base.tolist(), *(span * axis).tolist(), float(hole.radius))))
         if tools:
             gmsh.model.occ.cut([(3, box)], tools)
+        cut_along_planes(gmsh, planes, np.asarray(origin, float) + 0.5 * np.asarray(size, float), span)
         gmsh.model.occ.synchronize()
         if holes:
             _grade_from_holes(gmsh, holes, element_size)
@@ -453,14 +456,41 @@ def _grade_from_holes(gmsh, holes, element_size: float) -> None:
         gmsh.option.setNumber(option, 0)
 
 
+def cut_along_planes(gmsh, planes, center: np.ndarray, span: float) -> None:
+    """Split the current OCC model's volumes along `planes` ((point, normal) pairs) so that the
+    mesh has faces on them: a material zone bounded by planes (bedding layers) then has planar
+    faces between its tets and the rest's, not the staircase of tets taken by their centroids.
+    Each plane is a disc `span` across about the point nearest `center`; the volumes are fragmented
+    by them and the discs' parts outside every volume removed."""
+    if not planes:
+        return
+    discs = []
+    for point, normal in planes:
+        n = np.asarray(normal, float) / np.linalg.norm(normal)
+        foot = center - ((center - np.asarray(point, float)) @ n) * n
+        disc = gmsh.model.occ.addDisk(*foot.tolist(), 0.5 * span, 0.5 * span, zAxis=n.tolist())
+        discs.append((2, disc))
+    volumes = gmsh.model.occ.getEntities(3)
+    gmsh.model.occ.fragment(volumes, discs)
+    gmsh.model.occ.synchronize()
+    bounding = set()
+    for _, volume in gmsh.model.getEntities(3):
+        bounding.update(tag for _, tag in gmsh.model.getBoundary([(3, volume)], oriented=False))
+    loose = [(2, tag) for _, tag in gmsh.model.getEntities(2) if tag not in bounding]
+    if loose:
+        gmsh.model.occ.remove(loose, recursive=True)
+
+
 def gmsh_cylinder(
     radius: float,
     length: float,
     element_size: float,
     center: tuple[float, float, float] = (0.0, 0.0, 0.0),
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
+    planes: tuple = (),
 ) -> TetMesh:
-    """Unstructured tet mesh of a cylinder centred at ``center`` along ``axis``."""
+    """Unstructured tet mesh of a cylinder centred at ``center`` along ``axis``, cut along any
+    `planes` (cut_along_planes)."""
     _check_h(element_size)
     ax = np.asarray(axis, dtype=np.float64)
     if not np.linalg.norm(ax) > 0:
@@ -469,6 +499,7 @@ def gmsh_cylinder(
     base = np.asarray(center, dtype=np.float64) - 0.5 * ax  # gmsh wants the base centre
     with _gmsh_model(element_size) as gmsh:
         gmsh.model.occ.addCylinder(*base.tolist(), *ax.tolist(), float(radius))
+        cut_along_planes(gmsh, planes, np.asarray(center, float), 2.0 * float(np.hypot(radius, length)))
         gmsh.model.occ.synchronize()
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh)
@@ -478,11 +509,13 @@ def gmsh_sphere(
     radius: float,
     element_size: float,
     center: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    planes: tuple = (),
 ) -> TetMesh:
-    """Unstructured tet mesh of a ball of given radius."""
+    """Unstructured tet mesh of a ball of given radius, cut along any `planes` (cut_along_planes)."""
     _check_h(element_size)
     with _gmsh_model(element_size) as gmsh:
         gmsh.model.occ.addSphere(*(float(c) for c in center), float(radius))
+        cut_along_planes(gmsh, planes, np.asarray(center, float), 4.0 * float(radius))
         gmsh.model.occ.synchronize()
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh)

@@ -12,11 +12,13 @@ from .meshes import Hole, TetMesh, gmsh_box, gmsh_cylinder, gmsh_sphere, localit
 from .walnut import shell_from_surface, walnut_shell
 
 
-def specimen_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
+def specimen_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh, np.ndarray | None]:
     """The specimen's tet mesh and its per-tet region ids (walnut, shell: 0 face, 1 suture; else
     None). Raises MeshError; relative file names are taken from `base`. Generated unstructured
     meshes come in a cache-friendly order (locality_order); a structured box keeps its regular
-    order, a mesh file its own (so that element numbers in messages are the file's)."""
+    order, a mesh file its own (so that element numbers in messages are the file's). `planes`
+    ((point, normal) pairs: the material zones' bounding planes) cut a gmsh-meshed box, cylinder,
+    disc or sphere so that faces lie on them."""
     from ..scenario import resolve_path
 
     if spec.shape == "mesh":
@@ -24,7 +26,7 @@ def specimen_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
         return (mesh if spec.scale == 1.0 else dataclasses.replace(mesh, points=mesh.points * spec.scale)), None
     if spec.shape in ("box", "beam") and spec.mesh == "structured":
         return structured_box(spec.size, spec.element_size, origin=spec.origin), None
-    mesh, region = _generated_mesh(spec, base)
+    mesh, region = _generated_mesh(spec, base, planes)
     mesh, order = locality_order(mesh)
     return mesh, (None if region is None else region[order])
 
@@ -86,7 +88,7 @@ def planned_tets(spec) -> float | None:
     return 8.5 * volume / h**3
 
 
-def _generated_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None]:
+def _generated_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh, np.ndarray | None]:
     from ..scenario import resolve_path
 
     walls = dict(wall=spec.wall, suture_wall=spec.suture_wall, suture_band=spec.suture_band, layers=spec.layers)
@@ -100,7 +102,8 @@ def _generated_mesh(spec, base: Path | None) -> tuple[TetMesh, np.ndarray | None
     if spec.shape in ("box", "beam"):
         holes = tuple(Hole(h.center, h.axis, h.radius, h.element_size or spec.element_size,
                            h.grading if h.grading is not None else 3.0 * h.radius) for h in spec.holes)
-        return gmsh_box(spec.size, spec.element_size, origin=spec.origin, holes=holes), None
+        return gmsh_box(spec.size, spec.element_size, origin=spec.origin, holes=holes, planes=planes), None
     if spec.shape == "sphere":
-        return gmsh_sphere(0.5 * spec.diameter, spec.element_size, center=spec.center), None
-    return gmsh_cylinder(0.5 * spec.diameter, spec.thickness, spec.element_size, center=spec.center, axis=spec.axis), None
+        return gmsh_sphere(0.5 * spec.diameter, spec.element_size, center=spec.center, planes=planes), None
+    return gmsh_cylinder(0.5 * spec.diameter, spec.thickness, spec.element_size, center=spec.center, axis=spec.axis,
+                         planes=planes), None
