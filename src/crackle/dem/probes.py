@@ -86,3 +86,32 @@ class FlawProbe(Probe):
         return {"flaw_initiation": initiation_along_flaw(0.5 * (sim.x0[s.a[failed]] + sim.x0[s.b[failed]]),
                                                          s.fail_time[failed], self.flaw.center, along, across,
                                                          self.flaw.length)}
+
+
+class MembraneProbe(Probe):
+    """The pressures on the sample's faces (dem.membrane): `pressure.K` (Pa) per [[pressures]]
+    entry in the history; with a platen, the triaxial test's results in the summary:
+    `confining_pressure` (Pa, the area-weighted mean pressure on the faces parallel to the
+    platen's travel at the time of the peak tool force, the one peak_stress reads),
+    `deviator_at_peak` (peak_stress less it)."""
+
+    def __init__(self, platen: Platen | None):
+        self.platen = platen
+
+    def columns(self, sim, row: dict) -> dict[str, float]:
+        return {f"pressure.{k}": float(p) for k, p in enumerate(sim.membrane.pressures(sim.time))}
+
+    def summary(self, sim) -> dict:
+        membrane = sim.membrane
+        out = {"membrane_rasters": membrane.rasters}
+        if self.platen is None or not sim.loaded_area:
+            return out
+        peaks, times = sim.load_cell.peaks()
+        j = int(np.argmax(peaks))  # the tool whose peak summary.json's peak_stress reads
+        weight = np.array([sum(f.area for f in faces if abs(float(f.inward @ self.platen.direction)) < 1e-9)
+                           for faces in membrane.faces])
+        if not weight.any():
+            return out
+        confining = float(weight @ membrane.pressures(float(times[j]))) / float(weight.sum())
+        peak = float(peaks[j]) / sim.loaded_area
+        return {**out, "confining_pressure": confining, "deviator_at_peak": peak - confining}
