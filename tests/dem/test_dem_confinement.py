@@ -169,10 +169,13 @@ def test_triaxial_peak_rises_with_confinement(triaxial):
 
 def test_membrane_is_thread_count_independent(tmp_path):
     """dem-triaxial --quick, coarse packing, sigma_3 = 5 MPa, to 0.5 ms (the confinement, the
-    platen's start, new rasters as particles move): history.csv byte-identical with
+    platen's start), the membrane redrawn once a particle has moved 0.01 R (membrane.MOVE, 0.25
+    in a run: here 3 rasters as the platen starts): history.csv byte-identical with
     NUMBA_NUM_THREADS = 1 and 2."""
     code = textwrap.dedent("""
         import sys
+        import crackle.dem.membrane
+        crackle.dem.membrane.MOVE = 0.01
         from crackle.api import run_scenario
         run_scenario("dem-triaxial", sys.argv[1], [*sys.argv[2:]], quick=True, progress=False, plots=False)
     """)
