@@ -218,3 +218,22 @@ def test_non_box_specimen_refused(tmp_path):
     scenario, base = load_scenario(str(_write(tmp_path, text)))
     with pytest.raises(ScenarioError, match="box specimen"):
         build_simulation(scenario, base)
+
+
+def test_where_names_faces_of_the_box():
+    """A plane names the face lying in it (all four corners on it); a box the faces whose centres
+    it holds: dem-triaxial's box around the prism's middle gives the four lateral faces, not the
+    top and bottom; the quick example's membrane tiles them (27 x 54 and 12 x 54 mm, twice each:
+    the |force| per unit pressure sums to 2 x 12 x 54 mm^2 along x, 2 x 27 x 54 along y, within 1e-12)."""
+    from crackle.api import build_simulation
+    from crackle.dem.membrane import box_faces, selected_faces
+    from crackle.loading import Selection
+
+    faces = box_faces((0.0, 0.0, 0.0), (0.027, 0.012, 0.054))
+    plane = selected_faces(Selection(plane_point=(0.027, 0.0, 0.0), plane_normal=(1.0, 0.0, 0.0)), faces, 0.054)
+    assert [f.name for f in plane] == ["x = 0.027"]
+    scenario, base = load_scenario("dem-triaxial", quick=True)
+    sim, _ = build_simulation(scenario, base)
+    assert [f.name for f in sim.membrane.faces[0]] == ["x = 0", "x = 0.027", "y = 0", "y = 0.012"]
+    total = np.abs(sim.membrane.area[0]).sum(axis=0)
+    assert total == pytest.approx([2 * 0.012 * 0.054, 2 * 0.027 * 0.054, 0.0], rel=1e-12, abs=1e-18)
