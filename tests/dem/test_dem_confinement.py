@@ -183,8 +183,8 @@ def test_membrane_is_thread_count_independent(tmp_path):
     for threads in (1, 2):
         out = tmp_path / f"t{threads}"
         env = {**os.environ, "NUMBA_NUM_THREADS": str(threads), "PYTHONPATH": str(SRC)}
-        subprocess.run([sys.executable, "-c", code, str(out), *COARSE, "pressures.0.value=5e6", "run.end_time=5e-4"],
-                       check=True, env=env)
+        subprocess.run([sys.executable, "-c", code, str(out), *COARSE, "pressures.0.value=5e6",
+                        "run.end_time=5e-4"], check=True, env=env)
         texts.append((out / "history.csv").read_bytes())
         summary = json.loads((out / "summary.json").read_text())
         assert summary["membrane_rasters"] > 1
@@ -230,7 +230,8 @@ def test_where_names_faces_of_the_box():
     from crackle.loading import Selection
 
     faces = box_faces((0.0, 0.0, 0.0), (0.027, 0.012, 0.054))
-    plane = selected_faces(Selection(plane_point=(0.027, 0.0, 0.0), plane_normal=(1.0, 0.0, 0.0)), faces, 0.054)
+    where = Selection(plane_point=(0.027, 0.0, 0.0), plane_normal=(1.0, 0.0, 0.0))
+    plane = selected_faces(where, faces, 0.054)
     assert [f.name for f in plane] == ["x = 0.027"]
     scenario, base = load_scenario("dem-triaxial", quick=True)
     sim, _ = build_simulation(scenario, base)
@@ -248,12 +249,14 @@ def test_confined_run_resumed_is_bit_identical(tmp_path, monkeypatch):
     import crackle.dem.membrane
 
     monkeypatch.setattr(crackle.dem.membrane, "MOVE", 0.01)
-    args = ["dem-triaxial", "--quick", *[a for o in COARSE for a in ("--set", o)], "--set", "pressures.0.value=5e6"]
+    args = ["dem-triaxial", "--quick", *[a for o in COARSE for a in ("--set", o)],
+            "--set", "pressures.0.value=5e6"]
     whole, half = tmp_path / "whole", tmp_path / "half"
     rows = ["--set", "run.history_samples=200"]
     assert main(["run", *args, *rows, "--set", "run.end_time=8e-4", "--out", str(whole)]) == 0
     # the first half on the same grid of rows (the half run's rows are its own end time's samples)
-    assert main(["run", *args, "--set", "run.history_samples=100", "--set", "run.end_time=4e-4", "--out", str(half)]) == 0
+    first = ["--set", "run.history_samples=100", "--set", "run.end_time=4e-4"]
+    assert main(["run", *args, *first, "--out", str(half)]) == 0
     assert main(["run", *args, *rows, "--set", "run.end_time=8e-4", "--resume", str(half)]) == 0
     a, b = (np.genfromtxt(out / "history.csv", delimiter=",", names=True) for out in (whole, half))
     late_a, late_b = a[a["time"] > 4.001e-4], b[b["time"] > 4.001e-4]  # past the half run's last row

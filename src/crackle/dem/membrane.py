@@ -2,23 +2,23 @@
 (PFC's and Yade's flexible-membrane confinement), what `[[pressures]]` with faces = "where"
 does for the DEM.
 
-Rule (deterministic, no races): each loaded face (a face of the specimen's box, in its
-reference place) is rasterised on a square-ish grid of cells about CELL x the mean radius
-wide; each cell's area goes to the outermost particle seen from outside through the cell's
-centre along the face's normal (of the spheres the ray meets within DEPTH largest diameters of
-the face, the one whose surface it meets furthest out; ties: the lowest particle index), or,
-where it meets none (at the box's edges, where rays graze the sample; a gap; a cell beyond a
-shortened sample's end), to the particle whose surface lies
-closest to the cell's centre on the face. A particle's membrane force is then p(t) x its cells' area along the face's
-inward normal, each cell's on the line through the cell, fixed in space: a force and a torque
-on the particle, a dead load whose resultant on a face is p x the face's reference area (the
-cells tile the face) and whose moment is always the uniform pressure's, however the particles
-move. Measured on the coarse quick triaxial at 20 MPa (frictionless platens, nothing else
-holds the sample's turn about its axis): with the forces at the particles' centres it spun at
-1,000 rad/s; with the lines of action moving with the particles, at 25 rad/s (a dead load on a
-turning body whose points of application turn with it drives the turn further). The particle pass adds the
-force to the external force of the shared node update, which books its work into w_external,
-the audit's input, and the torque to the spin's, its work booked there too.
+Rule (deterministic, no races): each loaded face (a face of the specimen's box, in its reference
+place) is rasterised on a square-ish grid of cells about CELL x the mean radius wide; each
+cell's area goes to the outermost particle seen from outside through the cell's centre along the
+face's normal (of the spheres the ray meets within DEPTH largest diameters of the face, the one
+whose surface it meets furthest out; ties: the lowest particle index), or, where it meets none
+(at the box's edges, where rays graze the sample; a gap; a cell beyond a shortened sample's
+end), to the particle whose surface lies closest to the cell's centre on the face. A particle's
+membrane force is then p(t) x its cells' area along the face's inward normal, each cell's on the
+line through the cell, fixed in space: a force and a torque on the particle, a dead load whose
+resultant on a face is p x the face's reference area (the cells tile the face) and whose moment
+is always the uniform pressure's, however the particles move. Measured on the coarse quick
+triaxial at 20 MPa (frictionless platens, nothing else holds the sample's turn about its axis):
+with the forces at the particles' centres it spun at 1,000 rad/s; with the lines of action
+moving with the particles, at 25 rad/s (a dead load on a turning body whose points of
+application turn with it drives the turn further). The particle pass adds the force to the
+external force of the shared node update, which books its work into w_external, the audit's
+input, and the torque to the spin's, its work booked there too.
 
 Exposure is recomputed (the whole raster, serially, in Python between compiled chunks, on the
 contact check's fixed grid of steps) once some particle has moved MOVE x the mean radius
@@ -165,7 +165,8 @@ def _cells(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth: fl
     nv = max(1, int(math.ceil((v1 - v0) / cell)))
     du, dv = (u1 - u0) / nu, (v1 - v0) / nv
     owner = _raster(np.ascontiguousarray(face.side * x[:, face.axis]), np.ascontiguousarray(x[:, face.u]),
-                    np.ascontiguousarray(x[:, face.v]), radius, face.side * face.level, depth, u0, v0, du, dv, nu, nv)
+                    np.ascontiguousarray(x[:, face.v]), radius, face.side * face.level, depth,
+                    u0, v0, du, dv, nu, nv)
     cu = np.repeat(u0 + (np.arange(nu) + 0.5) * du, nv)
     cv = np.tile(v0 + (np.arange(nv) + 0.5) * dv, nu)
     offset = np.zeros((len(owner), 3))
@@ -177,7 +178,8 @@ def _cells(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth: fl
     return owner, offset, du * dv
 
 
-def exposed_areas(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth: float | None = None) -> np.ndarray:
+def exposed_areas(x: np.ndarray, radius: np.ndarray, face: Face, cell: float,
+                  depth: float | None = None) -> np.ndarray:
     """Per particle, the area (m^2) of `face` it takes (the rasterised rule of the module's
     docstring, cells about `cell` wide, hits within `depth` of the face, default DEPTH largest
     diameters); the areas sum to the face's area."""
@@ -195,7 +197,8 @@ def face_loads(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth
     force = (np.bincount(owner, minlength=n) * area)[:, None] * face.inward[None, :]
     first = np.zeros((n, 3, 3))
     for i in range(3):
-        first[:, i, face.axis] = np.bincount(owner, weights=offset[:, i], minlength=n) * area * face.inward[face.axis]
+        moments = np.bincount(owner, weights=offset[:, i], minlength=n)
+        first[:, i, face.axis] = moments * area * face.inward[face.axis]
     return force, first
 
 
@@ -210,8 +213,9 @@ class Membrane:
     area vector per pressure (m^2, along the faces' inward normals) and `moment` (k, n, 3) the
     moment of its cells' forces about its centre per unit pressure (m^3), both at the positions
     `x_raster`, what the compiled particle pass multiplies by the pressure now (the torque
-    growing by (x_raster - x) x the force as the particle leaves its cells' lines); `first` (k, n, 3, 3) their first moments (the
-    particle stress's share); `histories` the shared HistoryTable."""
+    growing by (x_raster - x) x the force as the particle leaves its cells' lines); `first`
+    (k, n, 3, 3) their first moments (the particle stress's share); `histories` the shared
+    HistoryTable."""
 
     def __init__(self, faces: list[list[Face]], histories, x: np.ndarray, radius: np.ndarray):
         self.faces = faces
