@@ -56,6 +56,7 @@ CASES = {
     "dem-ucs": ["dem-ucs", "--quick"],
     "dem-brazilian": ["dem-brazilian", "--quick"],
     "dem-tension": ["dem-tension", "--quick"],
+    "dem-triaxial": ["dem-triaxial", "--quick"],
     **{f"dem-damping-{a}": ["dem-ucs", "--quick", "--set", f"material.local_damping={a}"] for a in ("0.1", "0.4", "0.8")},
     **{f"dem-damping-{a}-slow": ["dem-ucs", "--quick", "--set", f"material.local_damping={a}", "--set", "tools.0.speed=0.025",
                                  "--set", "run.end_time=8e-3"] for a in ("0.1", "0.2", "0.4", "0.8")},

@@ -707,9 +707,11 @@ class PressureSpec(Strict):
 
     faces: Literal["precrack", "where"] = "precrack"
     """precrack: both faces of every pre-crack; where: the boundary faces `where` selects (meshfree: the wall
-    faces of the surface particles it selects)"""
+    faces of the surface particles it selects; DEM: faces of the box specimen, loaded as a flexible membrane on
+    the outermost particles)"""
     where: Where | None = None
-    """faces = "where": a face is selected when its three corners are (meshfree: when its particle is)"""
+    """faces = "where": a face is selected when its three corners are (meshfree: when its particle is; DEM: a face
+    of the box when its four corners lie on the plane and its centre in the box)"""
     wall: Literal["inner", "outer"] | None = None
     """meshfree: only the faces on this wall surface: a tube's inner or outer wall, a plate's face on its origin
     side (inner) or the other (outer) along the thickness; unset: both"""

@@ -11,6 +11,7 @@ import pytest
 
 from crackle.dem.build import build_dem_simulation
 from crackle.dem.kernels import BONDED, BROKEN, GONE
+from crackle.dem.membrane import no_membrane
 from crackle.dem.model import BondLaw
 from crackle.loading import History, Selection, Support, Tool
 from crackle.scenario import ScenarioError, load_scenario
@@ -122,7 +123,7 @@ def test_a_rigidly_turning_pair_carries_its_shear_force_along():
         p.x[0], p.x[1] = centre - arm, centre + arm
         p.v[0], p.v[1] = -np.cross((0.0, 0.0, rate), arm), np.cross((0.0, 0.0, rate), arm)
         p.spin[:] = (0.0, 0.0, rate)
-        advance(1, step, dt, p, inter, sim.tools, sim.gravity, 0.0)
+        advance(1, step, dt, p, inter, sim.tools, sim.gravity, 0.0, *no_membrane(2))
     f = inter.shear[0]
     assert np.linalg.norm(f) == pytest.approx(shear, rel=1e-4)
     assert math.atan2(abs(f[1]), -f[0]) < 1e-4 and abs(f[2]) < 1e-9 * shear

@@ -35,7 +35,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.body import BODY_FIELDS
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
 from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
@@ -247,8 +247,10 @@ def _release(i, t, mode, state, shear, inter):
 
 
 @block_kernel
-def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool_v_next, gravity, alpha):
+def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool_v_next, gravity, alpha,
+                    membrane_area, membrane_moment, membrane_x, pressure_now):
     x, v, w, mass, inertia = particles.x, particles.v, particles.spin, particles.mass, particles.inertia
+    n_pressure = membrane_area.shape[0]
     transfer, start, entry, sign = inter.transfer, inter.start, inter.entry, inter.sign
     w_damping = particles.w_damping
     for g in range(lo, hi):
@@ -270,7 +272,34 @@ def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool
             mz += arm * transfer[i, TRANSFER_MOMENT + 2]
         m = mass[g]
         cx, cy, cz, tool_work = contact_with_tools(g, particles, dt, slot, tools, tool_v_prev, tool_v_next)
-        update_velocity_local_damping(g, particles, (fx, fy, fz), (m * gravity[0], m * gravity[1], m * gravity[2]),
+        ex = m * gravity[0]
+        ey = m * gravity[1]
+        ez = m * gravity[2]
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        for k in range(n_pressure):
+            # The membrane (dem.membrane): pressure x exposed area, inward, on the cells' lines of
+            # action, fixed in space: the moment about the centre at the raster, plus (x_raster -
+            # x) x the force as the particle moves.
+            p = pressure_now[k]
+            ax = membrane_area[k, g, 0]
+            ay = membrane_area[k, g, 1]
+            az = membrane_area[k, g, 2]
+            rx = membrane_x[g, 0] - x[g, 0]
+            ry = membrane_x[g, 1] - x[g, 1]
+            rz = membrane_x[g, 2] - x[g, 2]
+            ex += p * ax
+            ey += p * ay
+            ez += p * az
+            tx += p * (membrane_moment[k, g, 0] + ry * az - rz * ay)
+            ty += p * (membrane_moment[k, g, 1] + rz * ax - rx * az)
+            tz += p * (membrane_moment[k, g, 2] + rx * ay - ry * ax)
+        if n_pressure > 0:
+            mx += tx
+            my += ty
+            mz += tz
+        update_velocity_local_damping(g, particles, (fx, fy, fz), (ex, ey, ez),
                                       (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next, slot)
         move(g, x, v, dt)
         # Spin: the same central difference and local damping on the torque (no supports on it).
@@ -283,30 +312,40 @@ def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool
         wz = w[g, 2] + (mz + dz) * dt / j
         if alpha != 0.0:
             w_damping[g] -= 0.5 * dt * (dx * (w[g, 0] + wx) + dy * (w[g, 1] + wy) + dz * (w[g, 2] + wz))
+        if n_pressure > 0:  # the membrane's torque works on the spin
+            particles.w_external[g] += 0.5 * dt * (tx * (w[g, 0] + wx) + ty * (w[g, 1] + wy) + tz * (w[g, 2] + wz))
         w[g, 0] = wx
         w[g, 1] = wy
         w[g, 2] = wz
 
 
 @njit(parallel=True, cache=True)
-def advance(n_steps, first_step, dt, particles, inter, tools, gravity, alpha):
+def advance(n_steps, first_step, dt, particles, inter, tools, gravity, alpha, membrane_area, membrane_moment,
+            membrane_x, pressures):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place. `alpha`: the local
-    non-viscous damping (0 to 1)."""
+    non-viscous damping (0 to 1). `membrane_area`, `membrane_moment` (k, n, 3): each particle's
+    exposed area vector and its cells' moment about its centre per unit pressure, `membrane_x`
+    the positions they were taken at (dem.membrane), `pressures` their HistoryTable (k rows;
+    k = 0: none)."""
     n_tool = tools.kind.shape[0]
     n_inter = inter.a.shape[0]
     n = particles.x.shape[0]
     tool_v_prev = np.zeros((max(n_tool, 1), 3))
     tool_v_next = np.zeros((max(n_tool, 1), 3))
+    n_pressure = membrane_area.shape[0]
+    pressure_now = np.zeros(max(n_pressure, 1))
     for step in range(n_steps):
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)
+        for k in range(n_pressure):
+            pressure_now[k] = interp_history(t, pressures.times[k], pressures.values[k], pressures.counts[k])
         for blk in prange((n_inter + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _interaction_block(lo, min(lo + BLOCK, n_inter), t, dt, particles, inter)
         for blk in prange((n + BLOCK - 1) // BLOCK):
             lo = blk * BLOCK
             _particle_block(lo, min(lo + BLOCK, n), np.int64(blk), dt, particles, inter, tools, tool_v_prev, tool_v_next,
-                            gravity, alpha)
+                            gravity, alpha, membrane_area, membrane_moment, membrane_x, pressure_now)
         load_cell_step((first_step + step + 1) * dt, tools)
         move_tools(dt, tools, tool_v_next)

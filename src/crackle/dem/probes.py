@@ -38,3 +38,16 @@ class FlawProbe(Probe):
         return {"flaw_initiation": initiation_along_flaw(0.5 * (sim.x0[s.a[failed]] + sim.x0[s.b[failed]]),
                                                          s.fail_time[failed], self.flaw.center, along, across,
                                                          self.flaw.length)}
+
+
+class MembraneProbe(Probe):
+    """The pressures on the sample's faces (dem.membrane): `pressure.K` (Pa) per [[pressures]]
+    entry in the history, `membrane_rasters` (how many times the exposure was drawn) in the
+    summary; a triaxial test's confinement at the peak is the platens' probe's
+    (solver.platen.PlatenProbe, from Membrane.confinement)."""
+
+    def columns(self, sim, row: dict) -> dict[str, float]:
+        return {f"pressure.{k}": float(p) for k, p in enumerate(sim.membrane.pressures(sim.time))}
+
+    def summary(self, sim) -> dict:
+        return {"membrane_rasters": sim.membrane.rasters}

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..analysis.strength import TensionTest, pulling_grip
-from ..loading.build import build_loading, touch_tools
+from ..loading.build import build_loading, selection as build_selection, touch_tools
 from ..scenario import (FDEM_ONLY_KEYS, MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
                         check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
@@ -26,7 +26,8 @@ from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_labels, read_sphere_list
 from ..solver.simulation import PeakForceProbe
 from ..solver.platen import Platen, PlatenProbe, facing_tool
-from .probes import BrazilianProbe, FlawProbe
+from .membrane import Face, Membrane, box_faces, selected_faces
+from .probes import BrazilianProbe, FlawProbe, MembraneProbe
 from .simulation import DemSimulation
 
 
@@ -303,8 +304,7 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulation:
     tools, supports, pressures = build_loading(scenario, base)
-    if pressures:
-        raise ScenarioError("pressures: the DEM has no faces to load; remove [[pressures]]")
+    loaded = _loaded_faces(scenario)  # before the packing: bad pressures fail fast
     packing = build_packing(scenario, base)
     centers, radii = packing.centers, packing.radii
     labels = None
@@ -363,15 +363,50 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         sim.warnings.append(f"packing.particle_density = {scenario.packing.particle_density:g} sets the packing: "
                             "packing.porosity does not apply")
     sim.sample_volume = domain.volume
+    if loaded:
+        sim.set_membrane(Membrane(loaded, [p.history for p in pressures], sim.particles.x, sim.particles.radius))
+        sim.probes.append(MembraneProbe())
     if flaw is not None:
         sim.probes.append(FlawProbe(flaw))
     if platen is not None and loaded_area:
-        sim.probes.append(PlatenProbe(platen, loaded_area))
+        confinement = sim.membrane.confinement(platen.direction) if sim.membrane is not None else None
+        sim.probes.append(PlatenProbe(platen, loaded_area, confinement))
     if scenario.specimen.shape == "disc" and loaded_area:
         sim.probes.append(BrazilianProbe(scenario.specimen.diameter, scenario.specimen.thickness))
     if grip is not None:
         sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, scenario.weakest_tensile_strength())))
     return sim
+
+
+def _loaded_faces(scenario: Scenario) -> list[list[Face]]:
+    """Per [[pressures]] entry, the faces of the specimen's box it loads (dem.membrane): its
+    `where` names them (all four corners on its plane, the centre in its box). ScenarioError for
+    what the DEM cannot load."""
+    if not scenario.pressures:
+        return []
+    spec = scenario.specimen
+    if spec.shape not in ("box", "beam"):
+        raise ScenarioError(f'pressures: the DEM loads the faces of a box specimen (specimen.shape = "box" or '
+                            f'"beam"), not a {spec.shape}; remove [[pressures]] or make the specimen a box')
+    lo = np.asarray(spec.origin, float)
+    faces = box_faces(lo, lo + np.asarray(spec.size, float))
+    scale = float(max(spec.size))
+    out = []
+    for i, p in enumerate(scenario.pressures):
+        if p.faces != "where":
+            raise ScenarioError(f'pressures.{i}.faces: the DEM has no pre-cracks to load; give faces = "where" and a '
+                                '[pressures.where] plane or box naming faces of the specimen\'s box')
+        for key in ("front_speed", "wall"):
+            if getattr(p, key) is not None:
+                raise ScenarioError(f"pressures.{i}.{key}: not available for the DEM (its membrane loads whole faces of "
+                                    "the box at once); remove it")
+        chosen = selected_faces(build_selection(p.where), faces, scale)
+        if not chosen:
+            names = ", ".join(f.name for f in faces)
+            raise ScenarioError(f"pressures.{i}.where selects no face of the specimen's box (its faces: {names}); a "
+                                "face is selected when its four corners lie on the plane and its centre in the box")
+        out.append(chosen)
+    return out
 
 
 def _unit(v) -> np.ndarray:

@@ -10,6 +10,7 @@ from ..io.fields import STRESS_COMPONENTS
 from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, TRANSFER_FORCE, TRANSFER_LEVER_A, TRANSFER_LEVER_B, advance
+from .membrane import no_membrane
 from .model import with_contacts
 
 
@@ -45,6 +46,9 @@ class DemSimulation(SimulationBase):
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
         self._failures = FailureRecorder(n_bonds)
+        # [[pressures]]: the membrane on the loaded faces (dem.membrane), set by set_membrane
+        self.membrane = None
+        self._membrane_args = no_membrane(len(radius))
         self._relist()
         # Energy present at t = 0 (initial velocities) counts as work put in.
         self._initial_energy = self.kinetic_energy()
@@ -54,11 +58,19 @@ class DemSimulation(SimulationBase):
         self._advance_on_grid(n_steps, dt, CONTACT_CHECK, self._compiled_steps, before=self._check_contacts)
 
     def _compiled_steps(self, n: int, dt: float) -> None:
-        advance(n, self.steps, dt, self.particles, self.inter, self.tools, self.gravity, self.damping)
+        advance(n, self.steps, dt, self.particles, self.inter, self.tools, self.gravity, self.damping,
+                *self._membrane_args)
+
+    def set_membrane(self, membrane) -> None:
+        """Pressures on faces of the sample (a dem.membrane.Membrane), from the next step on."""
+        self.membrane = membrane
+        self._membrane_args = (membrane.area, membrane.moment, membrane.x_raster, membrane.histories)
 
     def _check_contacts(self, dt: float) -> None:
         if self._contacts_may_change(dt):
             self._relist()
+        if self.membrane is not None:
+            self.membrane.update(self.particles.x)
 
     def _contacts_may_change(self, dt: float) -> bool:
         """Whether a pair not listed could touch before the next check: some particle has moved,
@@ -147,7 +159,9 @@ class DemSimulation(SimulationBase):
         """Per particle, the stress tensor (1 / Vp) sum_c x_c (x) f_c (x_c from the centre to the
         contact point, f_c the force on the particle there), symmetrised, (n, 6) in the order xx
         yy zz xy yz xz. Pa, tension positive as crackle's other stresses: paper 003 eqs 7-8 with
-        the sign of geomechanics (compression positive) turned."""
+        the sign of geomechanics (compression positive) turned. The membrane's forces (pressures on
+        the faces, dem.membrane) count as contacts where each cell's force meets the sphere; the
+        tools' do not."""
         p, s = self.particles, self.inter
         n = len(p.radius)
         live = s.state != GONE
@@ -162,6 +176,9 @@ class DemSimulation(SimulationBase):
         # On a: branch +la n, force -f_b; on b: branch -lb n, force +f_b. Both give -l n (x) f_b.
         np.add.at(sigma, a, -np.einsum("ki,kj->kij", la * unit, f_b))
         np.add.at(sigma, b, -np.einsum("ki,kj->kij", lb * unit, f_b))
+        if self.membrane is not None:
+            # The membrane's cells: d (x) f, d from the centre to where each cell's force acts.
+            sigma += np.einsum("k,knij->nij", self.membrane.pressures(self.time), self.membrane.first)
         volume = 4.0 / 3.0 * math.pi * p.radius**3
         sigma /= volume[:, None, None]
         sym = 0.5 * (sigma + sigma.transpose(0, 2, 1))

@@ -5,13 +5,13 @@ pressure at the peak and the deviator stress there."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..analysis.strength import platen_modulus
 from ..io.plots import plot_stress_strain, run_plot_path
-from ..loading import History
 from .simulation import Probe
 
 
@@ -51,12 +51,13 @@ def _unit(v) -> np.ndarray:
 class PlatenProbe(Probe):
     """platen.stress and platen.strain in the history; in the summary the peak stress (the
     largest tool peak over the loaded area) and the modulus of the curve (20-50 % of the peak);
-    plots/stress_strain.png. With a `confinement` (the history of the pressure on the sample's
-    side), the summary's confining_pressure is its value when the peak came and
+    plots/stress_strain.png. With a `confinement` (the pressure on the sample's side, a function of
+    time: FDEM's pressure history, the DEM membrane's mean over the sides), the summary's
+    confining_pressure is its value when the peak came and
     deviator_at_peak = peak_stress - confining_pressure (sigma_1 - sigma_3, compression
     positive)."""
 
-    def __init__(self, platen: Platen, loaded_area: float, confinement: History | None = None):
+    def __init__(self, platen: Platen, loaded_area: float, confinement: Callable[[float], float] | None = None):
         self.platen = platen
         self.loaded_area = loaded_area
         self.confinement = confinement
