@@ -271,7 +271,18 @@ class Membrane:
                            for faces in self.faces])
         if not weight.any():
             return None
-        return lambda t: float(weight @ self.pressures(t)) / float(weight.sum())
+        return SideConfinement(self, weight / weight.sum())
+
+
+@dataclass(frozen=True, eq=False)
+class SideConfinement:
+    """Membrane.confinement's function of time (a class: a run's checkpoint pickles it)."""
+
+    membrane: Membrane
+    weight: np.ndarray  # per pressure, its share of the sides' area
+
+    def __call__(self, t: float) -> float:
+        return float(self.weight @ self.membrane.pressures(t))
 
 
 def no_membrane(n: int):
