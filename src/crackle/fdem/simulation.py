@@ -50,8 +50,18 @@ class FdemSimulation(SimulationBase):
         self._first_kick = -1.0  # the velocity span of the next compiled step, where the step changed
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
-        # Energy present at t = 0 (initial velocities) counts as work put in.
-        self._initial_energy = self.kinetic_energy()
+        # Energy present at t = 0 (initial velocities, an initial stress) counts as work put in.
+        self._initial_energy = self.kinetic_energy() + self.initial_stored_energy()
+
+    def initial_stored_energy(self) -> float:
+        """J: the energy the tets and interfaces hold at t = 0 under an initial stress
+        (kernels.tet_energy_and_stress, fdem.prestress); 0 without one."""
+        m = self.model
+        if not len(m.tets.s0):
+            return 0.0
+        tet_energy_and_stress(m.x0, m.tets, self._tet_energy, self._stress)
+        interface_energy(m.x0, m.ifs, self._cohesive, self._contact)
+        return float(np.sum(self._tet_energy)) + float(np.sum(self._cohesive))
 
     # -- stepping ---------------------------------------------------------------------------
     @property
