@@ -202,7 +202,7 @@ def _initial_stress_warnings(scenario: Scenario) -> list[str]:
         weight = -spec.g * vertical
         if np.linalg.norm(np.asarray(scenario.run.gravity) - weight) > 0.01 * spec.g:
             out.append(f"initial_stress.density: the stress growing with depth is in equilibrium under its own weight "
-                       f"only: set run.gravity = [{', '.join(f'{c:.4g}' for c in weight)}] (m/s^2), or the specimen "
+                       f"only: set run.gravity = [{', '.join(f'{c + 0.0:.4g}' for c in weight)}] (m/s^2), or the specimen "
                        "moves from t = 0")
     if scenario.precracks:
         out.append("initial_stress with [[precracks]]: the pre-cracked faces start unloaded and take up the initial "
