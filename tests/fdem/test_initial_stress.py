@@ -306,3 +306,55 @@ def test_other_methods_refuse_initial_stress():
         load_scenario("dem-ucs", ["initial_stress.stress=[-1e6, -1e6, -1e6, 0.0, 0.0, 0.0]"])
     with pytest.raises(ScenarioError, match='not yet available for method = "shell"'):
         load_scenario("shell-centre-crack", ["initial_stress.principal=[-1e6, -1e6, -1e6]"])
+
+
+def test_extrinsic_faces_stay_tied_at_rest_under_initial_stress(tmp_path):
+    """Extrinsic insertion with the principal stresses and matching pressures of the first test:
+    the tied tets carry the initial stress as one continuum (no interface traction is needed),
+    and the stress the insertion check reads includes it. Over 1,000 steps: kinetic energy below
+    1e-6 of the stored energy, each tet's stress the initial one within 1e-6, the insertion
+    check's Kirchhoff stress (ties.tet_stress) the initial one within 1e-6, no face inserted (the
+    state is below Mohr-Coulomb's cap everywhere: deviatoric 10 MPa against c = 15 MPa plus
+    friction)."""
+    path = _scenario(tmp_path, f"principal = {list(PRINCIPAL)}", _box_pressures(PRINCIPAL))
+    sim, dt = _build(path, ["material.interface.insertion=extrinsic"])
+    m = sim.model
+    s0 = m.tets.s0.copy()
+    tied = m.ties.tied.copy()
+    assert tied.all()
+    sim.advance(1000, dt)
+    en = sim.energies(dt)
+    drift = np.abs(_tet_stress(sim) - s0).max() / np.abs(s0).max()
+    checked = np.abs(m.ties.tet_stress - s0).max() / np.abs(s0).max()
+    print(f"extrinsic: KE / stored = {en['energy.kinetic'] / _stored(en):.3g}, drift {drift:.3g}, checked {checked:.3g}")
+    assert en["energy.kinetic"] < 1e-6 * _stored(en)
+    assert drift < 1e-6 and checked < 1e-6
+    assert np.array_equal(m.ties.tied, tied)
+
+
+def test_precrack_under_initial_stress_carries_it(tmp_path):
+    """A pre-crack across the whole cube on the plane z = 10 mm, the general tensor with the
+    boundary held as above: the crack's faces carry the initial compression t_n = -12 MPa (their
+    contact's reference shifted by t_n / p_n, as a face that fails under the initial stress keeps)
+    and the shear (2, -1) MPa by friction (2.2 MPa < mu |t_n| = 7.2 MPa, mu = 0.6). Over 1,000
+    steps: kinetic energy below 1e-6 of the stored energy, each tet's stress the initial one
+    within 1e-6 of its largest component; the stored energy at t = 0 includes the crack's
+    pressed springs (energy.contact)."""
+    fixed = "".join(_support("fixed", p, n) for n in ((1, 0, 0), (0, 1, 0), (0, 0, 1))
+                    for p in ((0, 0, 0), tuple(L * np.array(n))))
+    crack = "[[precracks]]\npoint = [0.0, 0.0, 0.01]\nnormal = [0.0, 0.0, 1.0]\n"
+    path = _scenario(tmp_path, f"stress = {list(GENERAL)}", fixed + crack)
+    sim, dt = _build(path)
+    m = sim.model
+    s0 = m.tets.s0.copy()
+    assert np.count_nonzero(m.ifs.state) == 36  # the plane's faces: 4 triangles on each of 3 x 3 cells
+    en0 = sim.energies(dt)
+    assert en0["energy.contact"] > 0.0
+    sim.advance(1000, dt)
+    en = sim.energies(dt)
+    drift = np.abs(_tet_stress(sim) - s0).max() / np.abs(s0).max()
+    print(f"precrack: KE / stored = {en['energy.kinetic'] / _stored(en):.3g}, drift {drift:.3g}, "
+          f"contact {en['energy.contact']:.3g} J")
+    assert en["energy.kinetic"] < 1e-6 * _stored(en)
+    assert drift < 1e-6
+    assert en["energy.friction"] < 1e-9 * _stored(en)

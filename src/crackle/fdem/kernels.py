@@ -123,6 +123,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     force_mid, turning = ifs.force_mid, ifs.turning
     slip_plastic, dn_shift, reading_offset, pair_entry = ifs.slip_plastic, ifs.dn_shift, ifs.reading_offset, ifs.pair_entry
     tied, tet_stress = ties.tied, ties.tet_stress
+    prestressed = ifs.prestressed.shape[0] > 0
     released = False
     law_table, law_of = ifs.law_table, ifs.law
     e_damage, e_friction, reach = ifs.e_damage, ifs.e_friction, ifs.reach
@@ -138,7 +139,8 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             # A tied face carries no force; once its tets' traction reaches the strength it is
             # inserted and carries its law from this step on.
             if not try_insert(i, na_copy[i, 0] // 4, nb_copy[i, 0] // 4, x, na, nb, area[i], damage, slip_plastic,
-                              dn_shift, e_damage, ifs.e_inserted, tied, tet_stress, law, pn, ps, nx, ny, nz):
+                              dn_shift, e_damage, ifs.e_inserted, tied, tet_stress, law, pn, ps, nx, ny, nz,
+                              prestressed):
                 continue
             released = True
         if state[i] == INTACT and intact_step(
@@ -156,12 +158,17 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         mu = law[LAW_MU]
         reach2 = reach[i] * reach[i]
         depth = PASSED_THROUGH * reach[i]
+        # Under an initial stress a face keeps the compressive shift it carried its initial
+        # compression with (fdem.prestress) as its contact's reference: it goes on pressing.
+        shift = min(dn_shift[i], 0.0) if prestressed else 0.0
         # dE/dn of the pressed pairs' energy p_n (dn - entry)^2 A / 6: their slips turn it.
         qx = 0.0
         qy = 0.0
         qz = 0.0
         for p in range(3):
             dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+            if prestressed:
+                dn += shift
             if not (facing and _pair_touching(dn, sx, sy, sz, reach2, depth)):
                 pair_entry[i, p] = OUT_OF_CONTACT
                 traction_t[i, p, 0] = 0.0
@@ -558,6 +565,8 @@ def interface_energy(x, ifs, cohesive, contact):
             facing = mid_area >= MID_FACE_MIN * ifs.area[i]
             for p in range(3):
                 dn, sx, sy, sz = opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                if ifs.prestressed.shape[0] > 0:
+                    dn += min(ifs.dn_shift[i], 0.0)
                 entry = ifs.pair_entry[i, p]
                 if facing and entry != OUT_OF_CONTACT and _pair_touching(dn, sx, sy, sz, reach2, depth):
                     pressed = min(dn - entry, 0.0)

@@ -41,7 +41,7 @@ Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face
 Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force force_mid turning traction_t slip_plastic dn_shift "
-    "reading_offset pair_entry e_damage e_friction e_inserted",
+    "reading_offset pair_entry e_damage e_friction e_inserted prestressed",
 )
 Controls = namedtuple("Controls", "gravity damping")
 
@@ -176,10 +176,11 @@ def build_fdem_model(
     n_if = len(pairs.area)
     # Extrinsic laws: their intact faces start tied (no force until inserted).
     extrinsic = (pairs.law_table[pairs.law, LAW_EXTRINSIC] != 0.0) & (pairs.state == INTACT)
-    dn_shift, slip_plastic = np.zeros(n_if), np.zeros((n_if, 3, 3))
+    dn_shift, slip_plastic, traction_t = np.zeros(n_if), np.zeros((n_if, 3, 3)), np.zeros((n_if, 3, 3))
     if len(s0):
-        dn_shift, slip_plastic = preload_interfaces(bulk.x0, pairs.na, pairs.ta, pairs.tb, pairs.law, pairs.law_table,
-                                                    pairs.pn, pairs.ps, (pairs.state == INTACT) & ~extrinsic, s0)
+        dn_shift, slip_plastic, traction_t = preload_interfaces(
+            bulk.x0, pairs.na, pairs.ta, pairs.tb, pairs.law, pairs.law_table, pairs.pn, pairs.ps,
+            (pairs.state == INTACT) & ~extrinsic, s0, precrack=pairs.state == PRECRACK)
     ifs = Interfaces(
         na=pairs.na.astype(np.int64),
         nb=pairs.nb.astype(np.int64),
@@ -199,7 +200,7 @@ def build_fdem_model(
         # 1 where force_mid holds this step's forces (failed faces, damaged intact ones): one byte
         # for the tet pass's gather to read, not the state and the damage of every face.
         turning=np.zeros(n_if, dtype=np.uint8),
-        traction_t=np.zeros((n_if, 3, 3)),
+        traction_t=traction_t,
         slip_plastic=slip_plastic,
         dn_shift=dn_shift,
         reading_offset=np.zeros((n_if, 2)),
@@ -209,6 +210,10 @@ def build_fdem_model(
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
         e_inserted=np.zeros(n_if),
+        # One element (1) in a model with an initial stress, empty otherwise: a face's
+        # compressive dn_shift (fdem.prestress) then stays its reference once it fails, and an
+        # extrinsic face inserted in compression gets one (fdem.extrinsic.try_insert).
+        prestressed=np.ones(1 if len(s0) else 0, dtype=np.uint8),
     )
     ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0

@@ -25,12 +25,15 @@ What the offsets do not carry (limits):
   pre-peak one, t0 dsp / 2, against Gf).
 - The shear preload is kept in the global frame, as the plastic slip is: a block that turns far
   (tens of degrees) does not turn its interfaces' shear preload with it (the tets' S0 does turn).
-- A face that fails under initial compression carries its contact from zero gap (as an extrinsic
-  face inserted in compression: fdem.extrinsic), and pre-cracked faces start unloaded: the
-  compression across them is taken up as the pair closes by sigma_n / p_n.
+- Faces that fail keep the compressive part of their shift as their contact's reference
+  (kernels._interface_block, Interfaces.prestressed): a face failing in shear under confinement
+  goes on pressing with the initial compression instead of dropping it. Pre-cracked faces start
+  with that shift and their Coulomb springs carrying the initial shear up to mu |t_n| (beyond it
+  they slide from the first step); a tensile traction across a pre-crack opens it.
 - Extrinsic faces start tied: the tied tets carry S0 as one continuum (no traction needed), and a
   face inserted later starts at the traction of its tets' stress, which includes S0
-  (try_insert reads the stress _tet_forces keeps, S0 included).
+  (try_insert reads the stress _tet_forces keeps, S0 included), compression included in a
+  prestressed model (try_insert's `prestressed`).
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND
+from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, LAW_MU
 from .laws.bilinear import initiation_index
 from .laws.guo_munjiza import LAW_BETA, shear_cap, shear_strength
 
@@ -101,13 +104,18 @@ def face_normals(x0: np.ndarray, na: np.ndarray) -> np.ndarray:
     return n / np.linalg.norm(n, axis=1)[:, None]
 
 
-def preload_interfaces(x0, na, ta, tb, law_of, law_table, pn, ps, chosen, s0) -> tuple[np.ndarray, np.ndarray]:
-    """dn_shift (n_if,) and slip_plastic (n_if, 3, 3) that make the `chosen` faces (intact,
-    intrinsic) carry the traction of their tets' initial stresses s0 (m, 6) at zero gap;
-    ValueError naming [initial_stress] where that traction reaches a face's strength."""
+def preload_interfaces(x0, na, ta, tb, law_of, law_table, pn, ps, chosen, s0,
+                       precrack=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dn_shift (n_if,), slip_plastic (n_if, 3, 3) and traction_t (n_if, 3, 3) that make the
+    `chosen` faces (intact, intrinsic) carry the traction of their tets' initial stresses s0 (m, 6)
+    at zero gap, and the `precrack` faces its compression (a shift the failed faces' contact keeps,
+    kernels._interface_block) and its shear up to friction (their Coulomb springs' traction; a
+    shear beyond mu |t_n| slides from the first step, as a closed crack would); ValueError naming
+    [initial_stress] where the traction reaches an intact face's strength."""
     n_if = len(na)
     dn_shift = np.zeros(n_if)
     slip_plastic = np.zeros((n_if, 3, 3))
+    traction_t = np.zeros((n_if, 3, 3))
     utilisation = np.zeros(n_if)
     normal = face_normals(x0, na)
     _preload(normal, s0[ta], s0[tb], law_of.astype(np.int64), law_table, pn, ps, chosen.astype(np.bool_), dn_shift,
@@ -121,4 +129,23 @@ def preload_interfaces(x0, na, ta, tb, law_of, law_table, pn, ps, chosen, s0) ->
             f"faces (up to {utilisation[worst]:.3g}x the strength, at ({', '.join(f'{c:.4g}' for c in where)}) m): they "
             "would fail at t = 0; lower the initial stress (a tensile or deviatoric part beyond the strength) or raise "
             "the interface strength (tensile_strength, cohesion)")
-    return dn_shift, slip_plastic
+    if precrack is not None and precrack.any():
+        ids = np.flatnonzero(precrack)
+        n = normal[ids]
+        sigma = stress_matrices(0.5 * (s0[ta[ids]] + s0[tb[ids]]))
+        t = np.einsum("kij,kj->ki", sigma, n)
+        tn = np.einsum("ki,ki->k", t, n)
+        ts = t - tn[:, None] * n
+        pressed = tn < 0.0
+        dn_shift[ids] = np.where(pressed, tn / pn[ids], 0.0)
+        cap = law_table[law_of[ids], LAW_MU] * np.maximum(-tn, 0.0)
+        size = np.linalg.norm(ts, axis=1)
+        scale = np.where(size > cap, cap / np.where(size > 0.0, size, 1.0), 1.0)
+        traction_t[ids] = (scale[:, None] * ts)[:, None, :]
+    return dn_shift, slip_plastic, traction_t
+
+
+def stress_matrices(s: np.ndarray) -> np.ndarray:
+    """(k, 6) stresses in STRESS_ORDER as (k, 3, 3) symmetric matrices."""
+    xx, yy, zz, xy, yz, xz = s.T
+    return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)

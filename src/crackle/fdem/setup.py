@@ -192,7 +192,7 @@ def _initial_stress(scenario: Scenario, mesh) -> np.ndarray | None:
 
 def _initial_stress_warnings(scenario: Scenario) -> list[str]:
     """What keeps an initial stress from starting in equilibrium: a gradient with depth without
-    the gravity its weight balances, and pre-cracks (which start unloaded: fdem.prestress)."""
+    the gravity its weight balances."""
     spec = scenario.initial_stress
     if spec is None:
         return []
@@ -204,9 +204,6 @@ def _initial_stress_warnings(scenario: Scenario) -> list[str]:
             out.append(f"initial_stress.density: the stress growing with depth is in equilibrium under its own weight "
                        f"only: set run.gravity = [{', '.join(f'{c + 0.0:.4g}' for c in weight)}] (m/s^2), or the specimen "
                        "moves from t = 0")
-    if scenario.precracks:
-        out.append("initial_stress with [[precracks]]: the pre-cracked faces start unloaded and take up the initial "
-                   "stress across them as they close (fdem.prestress)")
     return out
 
 
