@@ -30,6 +30,8 @@ What the offsets do not carry (limits):
   goes on pressing with the initial compression instead of dropping it. Pre-cracked faces start
   with that shift and their Coulomb springs carrying the initial shear up to mu |t_n| (beyond it
   they slide from the first step); a tensile traction across a pre-crack opens it.
+- The stable step leaves out the initial stress's geometric stiffness (|S0| / E, ~1e-3 for rock
+  at depth, against the safety factor's 30 %).
 - Extrinsic faces start tied: the tied tets carry S0 as one continuum (no traction needed), and a
   face inserted later starts at the traction of its tets' stress, which includes S0
   (try_insert reads the stress _tet_forces keeps, S0 included), compression included in a
