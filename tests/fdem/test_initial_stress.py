@@ -387,3 +387,24 @@ def test_faces_failing_under_initial_compression_go_on_pressing(tmp_path):
     print(f"failed under compression: KE / stored = {en['energy.kinetic'] / _stored(en):.3g}, drift {drift:.3g}")
     assert en["energy.kinetic"] < 1e-6 * _stored(en)
     assert drift < 1e-6
+
+
+def test_extrinsic_face_inserted_in_compression_starts_at_its_traction(tmp_path):
+    """Extrinsic insertion, principal stresses (-5, -20, -60) MPa with matching pressures and a
+    cohesion of 2 MPa: the diagonal faces' shear (up to 27.5 MPa) is beyond Mohr-Coulomb's cap
+    (2 MPa - t_n tan 30 deg) at t = 0, so they are inserted in the first steps, in compression.
+    In a prestressed model an inserted face carries its compression from the start: its opening
+    shift is t_n / p_n, t_n = n . S0 . n of its tets (uniform: both alike), within 1e-6."""
+    principal = (-5e6, -20e6, -60e6)
+    path = _scenario(tmp_path, f"principal = {list(principal)}", _box_pressures(principal))
+    sim, dt = _build(path, ["material.interface.insertion=extrinsic", "material.interface.cohesion=2e6"])
+    m = sim.model
+    sim.advance(3, dt)
+    inserted = np.flatnonzero(m.ties.tied == 0)
+    assert len(inserted) > 0
+    n = np.cross(m.x0[m.ifs.na[inserted, 1]] - m.x0[m.ifs.na[inserted, 0]],
+                 m.x0[m.ifs.na[inserted, 2]] - m.x0[m.ifs.na[inserted, 0]])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    tn = np.einsum("ki,i,ki->k", n, np.array(principal), n)
+    assert np.all(tn < 0.0)
+    assert np.allclose(m.ifs.dn_shift[inserted], tn / m.ifs.pn[inserted], rtol=1e-6, atol=0.0)
