@@ -128,9 +128,9 @@ def test_principal_stress_with_matching_pressures_stays_at_rest(tmp_path, law):
     (10, 20, 30 MPa) on the six faces: the model starts in equilibrium. Over 1,000 steps the
     kinetic energy stays below 1e-6 of the stored energy, every tet's Cauchy stress equals the
     initial stress within 1e-6 of its largest component, no face damages, and the stored energy
-    at t = 0 is the closed form: bulk V (s:s - lam/(3 lam + 2 mu) tr(s)^2) / (4 mu), plus the
-    interfaces' t_n^2 / (2 p_n) A per face (all in compression, no shear on the cube's faces;
-    the diagonal faces of the structured cells carry shear: checked by the sum, within 1e-9)."""
+    at t = 0 is the closed form within 1e-9: bulk V (s:s - lam/(3 lam + 2 mu) tr(s)^2) / (4 mu)
+    (the elastic energy of the strain C^-1:s), plus each face's (t_n^2 / (2 p_n) + t_s^2 / (2 p_s)) A,
+    t = s . n (every face in compression; the cells' diagonal faces also carry shear)."""
     path = _scenario(tmp_path, f"principal = {list(PRINCIPAL)}", _box_pressures(PRINCIPAL), law=law)
     sim, dt = _build(path)
     m = sim.model
