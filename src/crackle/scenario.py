@@ -761,6 +761,105 @@ class PressureSpec(Strict):
         return self
 
 
+# The order of a stress's six components in a scenario, as in every stress crackle writes
+# (io.fields.STRESS_COMPONENTS): xx, yy, zz, xy, yz, xz.
+STRESS_ORDER = ("xx", "yy", "zz", "xy", "yz", "xz")
+
+
+class InitialStressSpec(Strict):
+    """[initial_stress]: the Cauchy stress the solid carries at t = 0 (an in-situ or geostatic
+    stress), tension positive and compression negative as every stress crackle reads and writes: a
+    uniform part (`stress`, or `principal` with `directions`) plus, with `density`, the weight of an
+    overburden growing with depth (Abaqus's geostatic step, Irazu's in-situ stress): sigma_v =
+    -density g depth along `vertical`, sigma_h = k0 sigma_v across it. The model starts in equilibrium
+    with it: with boundary tractions that match it (and, for the depth gradient, run.gravity = -g
+    vertical) it stays at rest; with free faces it relaxes. FDEM only for now."""
+
+    stress: tuple[float, float, float, float, float, float] | None = None
+    """Pa, the uniform stress as [xx, yy, zz, xy, yz, xz] (the order of the stress written to fields/*.vtu),
+    compression negative; or give principal"""
+    principal: Vec3 | None = None
+    """Pa, the uniform stress by its principal values [s1, s2, s3] (compression negative), s_i along
+    directions[i]; instead of stress"""
+    directions: tuple[Vec3, Vec3, Vec3] | None = None
+    """with principal: the three principal directions, mutually orthogonal (each normalised); default the x, y
+    and z axes"""
+    density: Positive | None = None
+    """kg/m^3, the overburden's density: adds sigma_v = -density g depth along vertical and k0 sigma_v across
+    it, depth = surface - X . vertical at a point X (a tet's centroid), none above the surface; unset: no
+    gradient"""
+    g: Positive = 9.81
+    """m/s^2, with density: the gravity of the overburden's weight (the model is in equilibrium with it under
+    run.gravity = -g vertical)"""
+    vertical: Vec3 = (0.0, 0.0, 1.0)
+    """with density: the upward direction (normalised); depth grows against it"""
+    surface: float = 0.0
+    """m, with density: the ground surface's height along vertical (depth = surface - X . vertical)"""
+    k0: Annotated[float, Field(ge=0)] = 1.0
+    """with density: the horizontal to vertical stress ratio sigma_h / sigma_v of the gradient (Abaqus's lateral
+    coefficient K0; 1: lithostatic, nu / (1 - nu): a laterally confined elastic layer)"""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if self.stress is not None and self.principal is not None:
+            raise ValueError("give the uniform stress once: either stress = [xx, yy, zz, xy, yz, xz] or principal = "
+                             "[s1, s2, s3] (with directions), not both")
+        if self.directions is not None and self.principal is None:
+            raise ValueError("directions: only with principal = [s1, s2, s3] (or remove it and give stress)")
+        if self.directions is not None:
+            d = [_unit(v, f"directions.{k}") for k, v in enumerate(self.directions)]
+            for a, b in ((0, 1), (0, 2), (1, 2)):
+                dot = sum(p * q for p, q in zip(d[a], d[b]))
+                if abs(dot) > 1e-6:
+                    raise ValueError(f"directions.{a} and directions.{b} are not orthogonal (cosine {dot:.3g}): give "
+                                     "three mutually orthogonal principal directions")
+        gradient_only = sorted({"g", "vertical", "surface", "k0"} & self.model_fields_set)
+        if self.density is None and gradient_only:
+            raise ValueError(f"{', '.join(gradient_only)}: only with density (kg/m^3), the overburden's weight")
+        if self.density is not None:
+            _unit(self.vertical, "vertical")
+            ElasticSpec._density_in_kg_per_m3(self.density)
+        if self.stress is None and self.principal is None and self.density is None:
+            raise ValueError("give stress = [xx, yy, zz, xy, yz, xz] (Pa), principal = [s1, s2, s3] or density "
+                             "(a gradient with depth), or remove [initial_stress]")
+        return self
+
+    def uniform(self) -> "np.ndarray":
+        """The uniform part as a symmetric 3 x 3 matrix (Pa)."""
+        import numpy as np
+
+        if self.stress is not None:
+            xx, yy, zz, xy, yz, xz = self.stress
+            return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]], dtype=float)
+        if self.principal is not None:
+            d = np.eye(3) if self.directions is None else np.array(self.directions, dtype=float)
+            d /= np.linalg.norm(d, axis=1)[:, None]
+            return np.einsum("k,ki,kj->ij", np.asarray(self.principal, float), d, d)
+        return np.zeros((3, 3))
+
+    def at(self, points: "np.ndarray") -> "np.ndarray":
+        """The stress at points (n, 3), as (n, 6) in STRESS_ORDER (Pa)."""
+        import numpy as np
+
+        points = np.asarray(points, dtype=float)
+        full = np.broadcast_to(self.uniform(), (len(points), 3, 3)).copy()
+        if self.density is not None:
+            v = np.asarray(self.vertical, float) / np.linalg.norm(self.vertical)
+            depth = np.maximum(self.surface - points @ v, 0.0)
+            vv = np.outer(v, v)
+            shape = vv + self.k0 * (np.eye(3) - vv)
+            full += (-self.density * self.g * depth)[:, None, None] * shape
+        rows, cols = (0, 1, 2, 0, 1, 0), (0, 1, 2, 1, 2, 2)
+        return full[:, rows, cols]
+
+
+def _unit(v, name: str) -> tuple[float, float, float]:
+    norm = math.sqrt(sum(c * c for c in v))
+    if norm == 0.0:
+        raise ValueError(f"{name} must be a non-zero vector")
+    return tuple(c / norm for c in v)
+
+
 class Stop(Strict):
     """[run.stop]: end the run before end_time."""
 
@@ -880,6 +979,8 @@ class ScenarioBase(Strict):
     """fixed, clamped and roller supports"""
     pressures: list[PressureSpec] = []
     """pressure histories on faces"""
+    initial_stress: InitialStressSpec | None = None
+    """the stress the solid carries at t = 0 (FDEM)"""
     analysis: AnalysisSpec = AnalysisSpec()
     """measurements"""
     run: RunSpec
@@ -891,6 +992,8 @@ class ScenarioBase(Strict):
     # method they are refused (a key silently ignored is a result the user did not ask for), and
     # `crackle keys METHOD` leaves them out. Each method's Scenario sets its own.
     unread_keys: ClassVar[dict[str, str]] = {}
+    # Whether the method starts from [initial_stress] (FDEM); the others refuse it.
+    reads_initial_stress: ClassVar[bool] = False
 
     @model_validator(mode="after")
     def _no_unread_keys(self):
@@ -898,6 +1001,13 @@ class ScenarioBase(Strict):
             section, name = key.rsplit(".", 1)
             if name in getattr(self, section).model_fields_set:
                 raise ValueError(f"{key}: method = \"{self.method}\" does not read it; {advice}")
+        return self
+
+    @model_validator(mode="after")
+    def _initial_stress_read(self):
+        if self.initial_stress is not None and not self.reads_initial_stress:
+            raise ValueError(f"initial_stress: not yet available for method = \"{self.method}\" (FDEM only for "
+                             "now); remove [initial_stress] or use method = \"fdem\"")
         return self
 
     @model_validator(mode="after")

@@ -1,7 +1,7 @@
 """The energy audit, shared by every method: external work (tools, pressures, gravity, initial
-kinetic energy) = kinetic + stored (elastic, cohesive, contact) + dissipated (damage, friction,
-damping). Each method reports its terms as `energy.*` history columns; this module is the one
-place that turns them into an imbalance."""
+kinetic energy, and the energy an initial stress stores at t = 0) = kinetic + stored (elastic,
+cohesive, contact) + dissipated (damage, friction, damping). Each method reports its terms as
+`energy.*` history columns; this module is the one place that turns them into an imbalance."""
 
 from __future__ import annotations
 

@@ -275,12 +275,15 @@ def face_traction(ta, tb, tet_stress, nx, ny, nz, law):
 
 @njit(cache=True, inline="always")
 def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_damage, e_inserted, tied, tet_stress,
-               law, pn, ps, nx, ny, nz):
+               law, pn, ps, nx, ny, nz, prestressed=False):
     """Insert tied interface i between tets ta (side A) and tb if the traction of its tets reaches
     the law's strength (face_traction): its law state then carries that traction (clamped on the
     strength envelope; no normal compression) at zero gap, and the energy that state holds is
     booked against e_damage[i] and kept in e_inserted[i]. True when inserted. x is read at the
-    rows na, nb (Ties.na_at, nb_at within a step)."""
+    rows na, nb (Ties.na_at, nb_at within a step). prestressed (a model with an initial stress,
+    fdem.prestress): a face inserted in compression carries it too (its opening shifted by tn / pn,
+    which its contact keeps once it fails): in such a model most faces are, and each would
+    otherwise drop its share of the initial stress at once."""
     tn, sx, sy, sz, reached = face_traction(ta, tb, tet_stress, nx, ny, nz, law)
     if not reached:
         return False
@@ -290,18 +293,20 @@ def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_dam
         tn_c = min(tn, ft)
         # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
         shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
+        if prestressed and tn_c < 0.0:
+            shift = tn_c / pn
         # The cap the law applies at zero gap: without a normal preload in compression, its
         # normal stress there is zero. A preload above it would be returned onto it in the first
         # step as if it had slid, booking less than the spring loses.
-        cap = shear_cap(max(tn_c, 0.0), 1.0, law)
+        cap = shear_cap(tn_c if prestressed else max(tn_c, 0.0), 1.0, law)
     elif law[LAW_INITIATION] == INITIATION_MAXIMUM:  # bilinear
         cap = law[LAW_TS]
-        shift = min(tn, ft) / pn if tn > 0.0 else 0.0
+        shift = min(tn, ft) / pn if tn > 0.0 or prestressed else 0.0
     else:  # bilinear, quadratic: the traction brought back onto the criterion along its own direction
         over = initiation_index(max(tn, 0.0), ts, law)
         back = 1.0 / over if over > 1.0 else 1.0
         cap = back * ts
-        shift = back * tn / pn if tn > 0.0 else 0.0
+        shift = back * tn / pn if tn > 0.0 else (tn / pn if prestressed else 0.0)
     scale = 1.0 if ts <= cap else cap / ts
     for p in range(3):
         # The shear spring ps (s - s_p) at zero slip carries the clamped shear traction.

@@ -123,6 +123,7 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
     force_mid, turning = ifs.force_mid, ifs.turning
     slip_plastic, dn_shift, reading_offset, pair_entry = ifs.slip_plastic, ifs.dn_shift, ifs.reading_offset, ifs.pair_entry
     tied, tet_stress = ties.tied, ties.tet_stress
+    prestressed = ifs.prestressed.shape[0] > 0
     released = False
     law_table, law_of = ifs.law_table, ifs.law
     e_damage, e_friction, reach = ifs.e_damage, ifs.e_friction, ifs.reach
@@ -138,7 +139,8 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
             # A tied face carries no force; once its tets' traction reaches the strength it is
             # inserted and carries its law from this step on.
             if not try_insert(i, na_copy[i, 0] // 4, nb_copy[i, 0] // 4, x, na, nb, area[i], damage, slip_plastic,
-                              dn_shift, e_damage, ifs.e_inserted, tied, tet_stress, law, pn, ps, nx, ny, nz):
+                              dn_shift, e_damage, ifs.e_inserted, tied, tet_stress, law, pn, ps, nx, ny, nz,
+                              prestressed):
                 continue
             released = True
         if state[i] == INTACT and intact_step(
@@ -156,12 +158,17 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
         mu = law[LAW_MU]
         reach2 = reach[i] * reach[i]
         depth = PASSED_THROUGH * reach[i]
+        # Under an initial stress a face keeps the compressive shift it carried its initial
+        # compression with (fdem.prestress) as its contact's reference: it goes on pressing.
+        shift = min(dn_shift[i], 0.0) if prestressed else 0.0
         # dE/dn of the pressed pairs' energy p_n (dn - entry)^2 A / 6: their slips turn it.
         qx = 0.0
         qy = 0.0
         qz = 0.0
         for p in range(3):
             dn, sx, sy, sz = opening(x, na, nb, i, p, nx, ny, nz)
+            if prestressed:
+                dn += shift
             if not (facing and _pair_touching(dn, sx, sy, sz, reach2, depth)):
                 pair_entry[i, p] = OUT_OF_CONTACT
                 traction_t[i, p, 0] = 0.0
@@ -185,10 +192,11 @@ def _interface_block(lo, hi, blk, t, dt, x, v, ifs, ties, released_blocks):
 
 
 @njit(cache=True, inline="always")
-def _tet_forces(e, x, rows, dm_inv, vol, lam, mu, f, tet_stress, keep_stress):
+def _tet_forces(e, x, rows, dm_inv, vol, lam, mu, s0, prestressed, f, tet_stress, keep_stress):
     """St Venant-Kirchhoff nodal forces of tet e into f (its own 4 nodes), its corners' positions
     read at x[rows[k]]; with keep_stress its Kirchhoff stress P F^T (xx, yy, zz, xy, yz, xz) into
-    tet_stress[e], for the insertion check."""
+    tet_stress[e], for the insertion check. prestressed: the tet's initial stress s0[e] (Tets.s0,
+    STRESS_ORDER) is added to its second Piola-Kirchhoff stress, S = C:E + S0 (see Tets)."""
     n0 = 4 * e
     r0, r1, r2, r3 = rows
     x0, y0, z0 = x[r0, 0], x[r0, 1], x[r0, 2]
@@ -230,6 +238,13 @@ def _tet_forces(e, x, rows, dm_inv, vol, lam, mu, f, tet_stress, keep_stress):
     s12 = mu2 * e12
     s13 = mu2 * e13
     s23 = mu2 * e23
+    if prestressed:
+        s11 += s0[e, 0]
+        s22 += s0[e, 1]
+        s33 += s0[e, 2]
+        s12 += s0[e, 3]
+        s23 += s0[e, 4]
+        s13 += s0[e, 5]
     # P = F S
     p11 = f11 * s11 + f12 * s12 + f13 * s13
     p12 = f11 * s12 + f12 * s22 + f13 * s23
@@ -276,7 +291,8 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
     ties.load not empty) the update is the node pass's (extrinsic.cluster_block): the forces and
     the mass go to its ties.load rows instead."""
     x, v, mass = nodes.x, nodes.v, nodes.mass
-    dm_inv, vol, lam, mu = tets.dm_inv, tets.vol, tets.lam, tets.mu
+    dm_inv, vol, lam, mu, s0 = tets.dm_inv, tets.vol, tets.lam, tets.mu, tets.s0
+    prestressed = s0.shape[0] > 0
     face_iface, face_side, face_pressure = tets.face_iface, tets.face_side, tets.face_pressure
     na, nb, if_force, force_mid, turning, if_state = ifs.na, ifs.nb, ifs.force, ifs.force_mid, ifs.turning, ifs.state
     node_slot = contact.node_slot
@@ -293,7 +309,7 @@ def _tet_block(lo, hi, slot, dt, kick, nodes, tets, ifs, contact, tools, pressur
         # Where each corner's motion is held: its cluster leader's row (extrinsic.state_row).
         rows = (state_row(n0, leader), state_row(n0 + 1, leader), state_row(n0 + 2, leader),
                 state_row(n0 + 3, leader))
-        _tet_forces(e, x, rows, dm_inv, vol, lam, mu, f, tet_stress, clustered)
+        _tet_forces(e, x, rows, dm_inv, vol, lam, mu, s0, prestressed, f, tet_stress, clustered)
         # Faces without an intact interface, as bits: where pressures act and tools can touch.
         free_faces = 0
         for face in range(4):
@@ -463,8 +479,17 @@ def interface_forces(t, dt, x, v, ifs, ties):
 @njit(parallel=True, cache=True)
 def tet_energy_and_stress(x, tets, energy, stress):
     """Per-tet St Venant-Kirchhoff energy V0 W(E) and Cauchy stress (xx, yy, zz, xy, yz, xz).
-    The 3 x 3 work arrays are allocated once per block of TET_BLOCK tets, not once per tet."""
+    The 3 x 3 work arrays are allocated once per block of TET_BLOCK tets, not once per tet.
+
+    With an initial stress S0 (Tets.s0) the stress is S = C:E + S0, the gradient of
+    W(E) = (E + E0):C:(E + E0) / 2 with E0 = C^-1:S0, the strain that would have built S0 from a
+    stress-free state: W = C:E:E / 2 + S0:E + S0:C^-1:S0 / 2. The last term, the energy the tet
+    holds at t = 0, is a constant: with it the stored energy at t = 0 is the initial state's, which
+    the simulation counts as work put in (FdemSimulation._initial_energy), so the audit closes
+    whatever the constant; S0:E is the work of the initial stress on the strain since."""
     n_tet = tets.vol.shape[0]
+    s0 = tets.s0
+    prestressed = s0.shape[0] > 0
     for blk in prange((n_tet + TET_BLOCK - 1) // TET_BLOCK):
         f = np.empty(9)  # F = [x1 - x0, x2 - x0, x3 - x0] Dm^-1, row-major
         g = np.empty(9)  # Green-Lagrange E = (F^T F - I) / 2, then S = lam tr(E) I + 2 mu E
@@ -489,10 +514,28 @@ def tet_energy_and_stress(x, tets, energy, stress):
             for k in range(9):
                 ee += g[k] * g[k]
             energy[e] = tets.vol[e] * (0.5 * lam * tr * tr + mu * ee)
+            if prestressed:
+                # g holds E: + S0:E and S0:C^-1:S0 / 2, C^-1:S = (S - lam / (3 lam + 2 mu) tr(S) I) / (2 mu).
+                a0, a1, a2, a3, a4, a5 = s0[e, 0], s0[e, 1], s0[e, 2], s0[e, 3], s0[e, 4], s0[e, 5]
+                work = a0 * g[0] + a1 * g[4] + a2 * g[8] + 2.0 * (a3 * g[1] + a4 * g[5] + a5 * g[2])
+                tr0 = a0 + a1 + a2
+                s0s0 = a0 * a0 + a1 * a1 + a2 * a2 + 2.0 * (a3 * a3 + a4 * a4 + a5 * a5)
+                held = (s0s0 - lam / (3.0 * lam + 2.0 * mu) * tr0 * tr0) / (4.0 * mu)
+                energy[e] += tets.vol[e] * (work + held)
             for k in range(9):
                 g[k] *= 2.0 * mu
             for i in range(3):
                 g[4 * i] += lam * tr
+            if prestressed:
+                g[0] += s0[e, 0]
+                g[4] += s0[e, 1]
+                g[8] += s0[e, 2]
+                g[1] += s0[e, 3]
+                g[3] += s0[e, 3]
+                g[5] += s0[e, 4]
+                g[7] += s0[e, 4]
+                g[2] += s0[e, 5]
+                g[6] += s0[e, 5]
             # sigma = F S F^T / J.
             J = (f[0] * (f[4] * f[8] - f[5] * f[7]) - f[1] * (f[3] * f[8] - f[5] * f[6])
                  + f[2] * (f[3] * f[7] - f[4] * f[6]))
@@ -522,6 +565,8 @@ def interface_energy(x, ifs, cohesive, contact):
             facing = mid_area >= MID_FACE_MIN * ifs.area[i]
             for p in range(3):
                 dn, sx, sy, sz = opening(x, ifs.na, ifs.nb, i, p, nx, ny, nz)
+                if ifs.prestressed.shape[0] > 0:
+                    dn += min(ifs.dn_shift[i], 0.0)
                 entry = ifs.pair_entry[i, p]
                 if facing and entry != OUT_OF_CONTACT and _pair_touching(dn, sx, sy, sz, reach2, depth):
                     pressed = min(dn - entry, 0.0)

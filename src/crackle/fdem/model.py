@@ -22,6 +22,7 @@ from ..materials import Material
 from ..materials.random_properties import draw, statistics
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
 from .kernels import TET_BLOCK
+from .prestress import preload_interfaces
 from .laws import LAW_COLUMNS, LAW_EXTRINSIC
 from .time_step import MassScaling, TimeStepReport, scale_masses, time_step, tool_penalty_advice
 from .topology import FACE_CORNERS, INTACT, PRECRACK
@@ -34,11 +35,13 @@ from .topology import FACE_CORNERS, INTACT, PRECRACK
 # The shared per-node arrays (solver.body; radius 0: a tet node touches the tools with its centre),
 # with the nodes' force (the tet pass's gather, which the tied clusters' pass reads).
 Nodes = namedtuple("Nodes", BODY_FIELDS + " force")
-Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure")
+# s0: each tet's initial stress (fdem.prestress; (m, 6) in scenario.STRESS_ORDER, its second
+# Piola-Kirchhoff stress at E = 0), or (0, 6) without one: the step then adds nothing.
+Tets = namedtuple("Tets", "dm_inv vol lam mu face_area face_iface face_side face_pressure s0")
 Interfaces = namedtuple(
     "Interfaces",
     "na nb area pn ps reach law law_table damage state fail_time fail_mode force force_mid turning traction_t slip_plastic dn_shift "
-    "reading_offset pair_entry e_damage e_friction e_inserted",
+    "reading_offset pair_entry e_damage e_friction e_inserted prestressed",
 )
 Controls = namedtuple("Controls", "gravity damping")
 
@@ -120,6 +123,7 @@ def build_fdem_model(
     penalty_keys: dict[str, str] | None = None,
     random_seed: int = 0,
     pair_laws: dict | None = None,
+    initial_stress: np.ndarray | None = None,
 ) -> FdemModel:
     """Explode `mesh`, put an interface on every internal face and set up the loads.
 
@@ -138,6 +142,8 @@ def build_fdem_model(
     `random_seed`: of the properties a material draws per face (Material.random).
     `pair_laws`: {(material a, material b): law} for the faces between two materials (both ways
     round); without one, such a face takes the law of the side with the lower tensile strength.
+    `initial_stress`: (m, 6) Cauchy stress of each tet at t = 0 (Pa, scenario.STRESS_ORDER); the
+    intact intrinsic interfaces are preloaded to carry it (fdem.prestress).
     """
     materials = [materials] if isinstance(materials, Material) else list(materials)
     if not materials or any(m.interface is None for m in materials):
@@ -165,8 +171,16 @@ def build_fdem_model(
 
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
     seating = seat_on_tools(tools, tool_table, nodes, "nodes")
-    tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure)
+    s0 = np.zeros((0, 6)) if initial_stress is None else np.ascontiguousarray(initial_stress, dtype=float)
+    tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure, s0)
     n_if = len(pairs.area)
+    # Extrinsic laws: their intact faces start tied (no force until inserted).
+    extrinsic = (pairs.law_table[pairs.law, LAW_EXTRINSIC] != 0.0) & (pairs.state == INTACT)
+    dn_shift, slip_plastic, traction_t = np.zeros(n_if), np.zeros((n_if, 3, 3)), np.zeros((n_if, 3, 3))
+    if len(s0):
+        dn_shift, slip_plastic, traction_t = preload_interfaces(
+            bulk.x0, pairs.na, pairs.ta, pairs.tb, pairs.law, pairs.law_table, pairs.pn, pairs.ps,
+            (pairs.state == INTACT) & ~extrinsic, s0, precrack=pairs.state == PRECRACK)
     ifs = Interfaces(
         na=pairs.na.astype(np.int64),
         nb=pairs.nb.astype(np.int64),
@@ -186,9 +200,9 @@ def build_fdem_model(
         # 1 where force_mid holds this step's forces (failed faces, damaged intact ones): one byte
         # for the tet pass's gather to read, not the state and the damage of every face.
         turning=np.zeros(n_if, dtype=np.uint8),
-        traction_t=np.zeros((n_if, 3, 3)),
-        slip_plastic=np.zeros((n_if, 3, 3)),
-        dn_shift=np.zeros(n_if),
+        traction_t=traction_t,
+        slip_plastic=slip_plastic,
+        dn_shift=dn_shift,
         reading_offset=np.zeros((n_if, 2)),
         # Per point pair of a failed face: the opening it entered paired contact at (kernels._pair_entry);
         # 0 on an intact face, so that a face that fails under compression goes on pressing.
@@ -196,9 +210,11 @@ def build_fdem_model(
         e_damage=np.zeros(n_if),
         e_friction=np.zeros(n_if),
         e_inserted=np.zeros(n_if),
+        # One element (1) in a model with an initial stress, empty otherwise: a face's
+        # compressive dn_shift (fdem.prestress) then stays its reference once it fails, and an
+        # extrinsic face inserted in compression gets one (fdem.extrinsic.try_insert).
+        prestressed=np.ones(1 if len(s0) else 0, dtype=np.uint8),
     )
-    # Extrinsic laws: their intact faces start tied (no force until inserted).
-    extrinsic = (pairs.law_table[pairs.law, LAW_EXTRINSIC] != 0.0) & (pairs.state == INTACT)
     ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
     tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
     surface_penalty = default_penalty if contact else 0.0

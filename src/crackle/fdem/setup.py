@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, ClassVar, Literal, Union
 
 import numpy as np
 from pydantic import Discriminator, Tag, model_validator
@@ -68,6 +68,7 @@ class Scenario(ScenarioBase):
 
     method: Literal["fdem"] = "fdem"
     """picks this method (the default)"""
+    reads_initial_stress: ClassVar[bool] = True
     specimen: Specimen
     """the solid and its mesh"""
     material: FdemMaterialSpec | None = None
@@ -184,6 +185,29 @@ def _unresolved_aggregates(scenario: Scenario, mesh) -> list[str]:
     return out
 
 
+def _initial_stress(scenario: Scenario, mesh) -> np.ndarray | None:
+    """Each tet's initial stress ([initial_stress] at its centroid), or None."""
+    spec = scenario.initial_stress
+    return None if spec is None else spec.at(mesh.points[mesh.tets].mean(axis=1))
+
+
+def _initial_stress_warnings(scenario: Scenario) -> list[str]:
+    """What keeps an initial stress from starting in equilibrium: a gradient with depth without
+    the gravity its weight balances."""
+    spec = scenario.initial_stress
+    if spec is None:
+        return []
+    out = []
+    if spec.density is not None:
+        vertical = np.asarray(spec.vertical, float) / np.linalg.norm(spec.vertical)
+        weight = -spec.g * vertical
+        if np.linalg.norm(np.asarray(scenario.run.gravity) - weight) > 0.01 * spec.g:
+            out.append(f"initial_stress.density: the stress growing with depth is in equilibrium under its own weight "
+                       f"only: set run.gravity = [{', '.join(f'{c + 0.0:.4g}' for c in weight)}] (m/s^2), or the specimen "
+                       "moves from t = 0")
+    return out
+
+
 def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
     """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
     tools, supports, pressures = build_loading(scenario, base)
@@ -240,13 +264,14 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
                 penalty_keys=scenario.plates.penalty_keys() if scenario.plates is not None else None,
                 random_seed=scenario.run.seed,
                 pair_laws=pair_laws,
+                initial_stress=_initial_stress(scenario, mesh),
             )
     except (ValueError, MeshError) as err:
         raise ScenarioError(str(err)) from None
     sizing = _clamped_size_warning(scenario.specimen, mesh)
     if sizing:
         model.warnings.insert(0, sizing)
-    model.warnings += _unresolved_aggregates(scenario, mesh)
+    model.warnings += _unresolved_aggregates(scenario, mesh) + _initial_stress_warnings(scenario)
     sim = FdemSimulation(model)
     _strength_test(sim, scenario, tools, supports, mesh, pressures)
     plane = scenario.analysis.fracture_plane

@@ -50,8 +50,19 @@ class FdemSimulation(SimulationBase):
         self._first_kick = -1.0  # the velocity span of the next compiled step, where the step changed
         self._fragments: Fragments | None = None
         self._fragments_failed = -1
-        # Energy present at t = 0 (initial velocities) counts as work put in.
-        self._initial_energy = self.kinetic_energy()
+        # Energy present at t = 0 (initial velocities, an initial stress) counts as work put in.
+        self._initial_stored = self.initial_stored_energy()
+        self._initial_energy = self.kinetic_energy() + self._initial_stored
+
+    def initial_stored_energy(self) -> float:
+        """J: the energy the tets and interfaces (intact, and pre-cracks pressed) hold at t = 0
+        under an initial stress (kernels.tet_energy_and_stress, fdem.prestress); 0 without one."""
+        m = self.model
+        if not len(m.tets.s0):
+            return 0.0
+        tet_energy_and_stress(m.x0, m.tets, self._tet_energy, self._stress)
+        interface_energy(m.x0, m.ifs, self._cohesive, self._contact)
+        return float(np.sum(self._tet_energy)) + float(np.sum(self._cohesive)) + float(np.sum(self._contact))
 
     # -- stepping ---------------------------------------------------------------------------
     @property
@@ -290,6 +301,9 @@ class FdemSimulation(SimulationBase):
             # Extrinsic faces: the energy their preload put into the law's springs at insertion,
             # booked as negative dissipation (fdem.extrinsic); none without extrinsic laws.
             "insertion_energy": insertion,
+            # [initial_stress]: the energy the tets and interfaces held at t = 0 (J), counted in
+            # energy.external as put in; None without one.
+            "initial_stored_energy": self._initial_stored if len(m.tets.s0) else None,
             "added_mass": m.mass_scaling.added_mass,
             "mass_scaling": m.mass_scaling.as_summary(m.mesh.label),
             "warnings": [*self.warnings, *self._insertion_warning(insertion)],

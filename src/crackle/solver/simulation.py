@@ -114,7 +114,9 @@ class SimulationBase:
     """
 
     method: str = ""
-    _initial_energy: float = 0.0  # J: kinetic energy at t = 0 (initial velocities), counted as work put in
+    # J: kinetic (initial velocities) and stored (FDEM's [initial_stress]) energy at t = 0, counted
+    # as work put in
+    _initial_energy: float = 0.0
     # Several materials ([materials.NAME]): their names in table order (the set-up sets it); the
     # method then gives failed_ids() and failure_materials(ids). None: one material.
     material_names: list[str] | None = None
