@@ -67,16 +67,19 @@ def test_bad_plans_are_refused_naming_the_problem(vary, zip_, message):
 def test_every_shipped_sweep_is_a_valid_family_of_scenarios():
     """brazilian-angles (4 runs), walnut-layouts (6 zipped layouts), mesh-ladder (3 sizes),
     tube-shots (3 zipped notches), tension-size-effect (3 zipped sizes x 10 seeds), layered-longmaxi
-    (7 angles), triaxial-envelope (4 confinements): every run's scenario validates."""
+    (7 angles), triaxial-envelope and dem-triaxial-envelope (4 confinements each): every run's scenario
+    validates."""
     assert set(list_sweeps()) == {"brazilian-angles", "walnut-layouts", "mesh-ladder", "tube-shots",
-                                  "tension-size-effect", "layered-longmaxi", "triaxial-envelope"}
+                                  "tension-size-effect", "layered-longmaxi", "triaxial-envelope",
+                                  "dem-triaxial-envelope"}
     sizes = {}
     for name in list_sweeps():
         plan = make_plan(name, [], [], False, False)
         assert check_runs(plan, plan.runs()) == {}
         sizes[name] = len(plan.runs())
     assert sizes == {"brazilian-angles": 4, "walnut-layouts": 6, "mesh-ladder": 3, "tube-shots": 3,
-                     "tension-size-effect": 30, "layered-longmaxi": 7, "triaxial-envelope": 4}
+                     "tension-size-effect": 30, "layered-longmaxi": 7, "triaxial-envelope": 4,
+                     "dem-triaxial-envelope": 4}
 
 
 def test_seeds_repeat_every_run_with_each_seed():
