@@ -766,6 +766,14 @@ class PressureSpec(Strict):
 STRESS_ORDER = ("xx", "yy", "zz", "xy", "yz", "xz")
 
 
+def stress_matrices(s) -> "np.ndarray":
+    """(k, 6) stresses in STRESS_ORDER as (k, 3, 3) symmetric matrices."""
+    import numpy as np
+
+    xx, yy, zz, xy, yz, xz = np.asarray(s, dtype=float).T
+    return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)
+
+
 class InitialStressSpec(Strict):
     """[initial_stress]: the Cauchy stress the solid carries at t = 0 (an in-situ or geostatic
     stress), tension positive and compression negative as every stress crackle reads and writes: a
@@ -773,7 +781,8 @@ class InitialStressSpec(Strict):
     overburden growing with depth (Abaqus's geostatic step, Irazu's in-situ stress): sigma_v =
     -density g depth along `vertical`, sigma_h = k0 sigma_v across it. The model starts in equilibrium
     with it: with boundary tractions that match it (and, for the depth gradient, run.gravity = -g
-    vertical) it stays at rest; with free faces it relaxes. FDEM only for now."""
+    vertical) it stays at rest; with free faces it relaxes. FDEM, and the DEM on a box specimen (its
+    bonds preloaded: dem.prestress)."""
 
     stress: tuple[float, float, float, float, float, float] | None = None
     """Pa, the uniform stress as [xx, yy, zz, xy, yz, xz] (the order of the stress written to fields/*.vtu),
@@ -980,7 +989,7 @@ class ScenarioBase(Strict):
     pressures: list[PressureSpec] = []
     """pressure histories on faces"""
     initial_stress: InitialStressSpec | None = None
-    """the stress the solid carries at t = 0 (FDEM)"""
+    """the stress the solid carries at t = 0 (FDEM; DEM on a box specimen)"""
     analysis: AnalysisSpec = AnalysisSpec()
     """measurements"""
     run: RunSpec
@@ -992,7 +1001,7 @@ class ScenarioBase(Strict):
     # method they are refused (a key silently ignored is a result the user did not ask for), and
     # `crackle keys METHOD` leaves them out. Each method's Scenario sets its own.
     unread_keys: ClassVar[dict[str, str]] = {}
-    # Whether the method starts from [initial_stress] (FDEM); the others refuse it.
+    # Whether the method starts from [initial_stress] (FDEM, DEM); the others refuse it.
     reads_initial_stress: ClassVar[bool] = False
 
     @model_validator(mode="after")
@@ -1006,9 +1015,25 @@ class ScenarioBase(Strict):
     @model_validator(mode="after")
     def _initial_stress_read(self):
         if self.initial_stress is not None and not self.reads_initial_stress:
-            raise ValueError(f"initial_stress: not yet available for method = \"{self.method}\" (FDEM only for "
-                             "now); remove [initial_stress] or use method = \"fdem\"")
+            raise ValueError(f"initial_stress: not yet available for method = \"{self.method}\" (FDEM and DEM "
+                             "only for now); remove [initial_stress] or use method = \"fdem\"")
         return self
+
+    def initial_stress_warnings(self) -> list[str]:
+        """What keeps [initial_stress] from starting in equilibrium: a gradient with depth without
+        the gravity its weight balances."""
+        import numpy as np
+
+        spec = self.initial_stress
+        if spec is None or spec.density is None:
+            return []
+        vertical = np.asarray(spec.vertical, float) / np.linalg.norm(spec.vertical)
+        weight = -spec.g * vertical
+        if np.linalg.norm(np.asarray(self.run.gravity) - weight) <= 0.01 * spec.g:
+            return []
+        return [f"initial_stress.density: the stress growing with depth is in equilibrium under its own weight only: "
+                f"set run.gravity = [{', '.join(f'{c + 0.0:.4g}' for c in weight)}] (m/s^2), or the specimen moves "
+                "from t = 0"]
 
     @model_validator(mode="after")
     def _tool_names(self):

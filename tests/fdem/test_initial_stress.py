@@ -301,15 +301,15 @@ def test_bad_initial_stress_is_refused(tmp_path, capsys, initial, overrides, mes
 
 
 def test_other_methods_refuse_initial_stress(tmp_path, capsys):
-    """method = "dem" (and every method but FDEM) with [initial_stress]: exit 2 before anything
-    runs, saying it is not yet available for that method (ScenarioError at validation)."""
+    """method = "shell" (and every method but FDEM and the DEM) with [initial_stress]: exit 2 before
+    anything runs, saying it is not yet available for that method (ScenarioError at validation)."""
     out = tmp_path / "out"
-    assert main(["run", "dem-ucs", "--out", str(out), "--set",
+    assert main(["run", "shell-centre-crack", "--out", str(out), "--set",
                  "initial_stress.stress=[-1e6, -1e6, -1e6, 0.0, 0.0, 0.0]"]) == 2
-    assert 'initial_stress: not yet available for method = "dem"' in capsys.readouterr().err
+    assert 'initial_stress: not yet available for method = "shell"' in capsys.readouterr().err
     assert not (out / "history.csv").exists()
-    with pytest.raises(ScenarioError, match='not yet available for method = "shell"'):
-        load_scenario("shell-centre-crack", ["initial_stress.principal=[-1e6, -1e6, -1e6]"])
+    with pytest.raises(ScenarioError, match='not yet available for method = "meshfree"'):
+        load_scenario("tube-shot1", ["initial_stress.principal=[-1e6, -1e6, -1e6]"])
 
 
 def test_extrinsic_faces_stay_tied_at_rest_under_initial_stress(tmp_path):

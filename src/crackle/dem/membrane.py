@@ -155,7 +155,7 @@ def _raster(s, u, v, r, level, depth, u0, v0, du, dv, nu, nv):
     return owner
 
 
-def _cells(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth: float | None):
+def face_cells(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth: float | None = None):
     """The face's cells: (owner of each cell, the cell's offset from its owner's centre (c, 3),
     the cell's area)."""
     radius = np.asarray(radius, dtype=float)
@@ -183,7 +183,7 @@ def exposed_areas(x: np.ndarray, radius: np.ndarray, face: Face, cell: float,
     """Per particle, the area (m^2) of `face` it takes (the rasterised rule of the module's
     docstring, cells about `cell` wide, hits within `depth` of the face, default DEPTH largest
     diameters); the areas sum to the face's area."""
-    owner, _, area = _cells(x, radius, face, cell, depth)
+    owner, _, area = face_cells(x, radius, face, cell, depth)
     return np.bincount(owner, minlength=len(radius)) * area
 
 
@@ -192,7 +192,7 @@ def face_loads(x: np.ndarray, radius: np.ndarray, face: Face, cell: float, depth
     the first moment of its cells' forces about its centre, sum of d (x) f over its cells (n, 3, 3),
     d from the centre to where the cell's ray meets the sphere (the cell's line of action: the
     face's moments about any axis are those of the uniform pressure)."""
-    owner, offset, area = _cells(x, radius, face, cell, depth)
+    owner, offset, area = face_cells(x, radius, face, cell, depth)
     n = len(radius)
     force = (np.bincount(owner, minlength=n) * area)[:, None] * face.inward[None, :]
     first = np.zeros((n, 3, 3))

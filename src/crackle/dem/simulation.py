@@ -50,8 +50,15 @@ class DemSimulation(SimulationBase):
         self.membrane = None
         self._membrane_args = no_membrane(len(radius))
         self._relist()
-        # Energy present at t = 0 (initial velocities) counts as work put in.
+        # Energy present at t = 0 (initial velocities; an initial stress: start_stored) counts as work put in.
+        self._initial_stored = None
         self._initial_energy = self.kinetic_energy()
+
+    def start_stored(self) -> None:
+        """The bonds have been preloaded ([initial_stress], dem.prestress): their energy at t = 0
+        counts as work put in, as the kinetic energy of initial velocities does."""
+        self._initial_stored = self.interaction_energy(0.0)
+        self._initial_energy = self.kinetic_energy() + self._initial_stored
 
     # -- stepping ----------------------------------------------------------------------------
     def advance(self, n_steps: int, dt: float) -> None:
@@ -284,6 +291,9 @@ class DemSimulation(SimulationBase):
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "random_properties": self.random_properties,
             "failures_by_material": self.failures_by_material(),
+            # [initial_stress]: the energy the preloaded bonds held at t = 0 (J), counted in the
+            # audit's input
+            "initial_stored_energy": self._initial_stored,
             "warnings": list(self.warnings),
         }
         return {**out, **self.probe_summary()}

@@ -48,6 +48,7 @@ from numba import njit
 from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, LAW_MU
 from .laws.bilinear import initiation_index
 from .laws.guo_munjiza import LAW_BETA, shear_cap, shear_strength
+from ..scenario import stress_matrices
 
 
 @njit(cache=True)
@@ -145,9 +146,3 @@ def preload_interfaces(x0, na, ta, tb, law_of, law_table, pn, ps, chosen, s0,
         scale = np.where(size > cap, cap / np.where(size > 0.0, size, 1.0), 1.0)
         traction_t[ids] = (scale[:, None] * ts)[:, None, :]
     return dn_shift, slip_plastic, traction_t
-
-
-def stress_matrices(s: np.ndarray) -> np.ndarray:
-    """(k, 6) stresses in STRESS_ORDER as (k, 3, 3) symmetric matrices."""
-    xx, yy, zz, xy, yz, xz = s.T
-    return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)

@@ -191,23 +191,6 @@ def _initial_stress(scenario: Scenario, mesh) -> np.ndarray | None:
     return None if spec is None else spec.at(mesh.points[mesh.tets].mean(axis=1))
 
 
-def _initial_stress_warnings(scenario: Scenario) -> list[str]:
-    """What keeps an initial stress from starting in equilibrium: a gradient with depth without
-    the gravity its weight balances."""
-    spec = scenario.initial_stress
-    if spec is None:
-        return []
-    out = []
-    if spec.density is not None:
-        vertical = np.asarray(spec.vertical, float) / np.linalg.norm(spec.vertical)
-        weight = -spec.g * vertical
-        if np.linalg.norm(np.asarray(scenario.run.gravity) - weight) > 0.01 * spec.g:
-            out.append(f"initial_stress.density: the stress growing with depth is in equilibrium under its own weight "
-                       f"only: set run.gravity = [{', '.join(f'{c + 0.0:.4g}' for c in weight)}] (m/s^2), or the specimen "
-                       "moves from t = 0")
-    return out
-
-
 def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
     """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
     tools, supports, pressures = build_loading(scenario, base)
@@ -271,7 +254,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     sizing = _clamped_size_warning(scenario.specimen, mesh)
     if sizing:
         model.warnings.insert(0, sizing)
-    model.warnings += _unresolved_aggregates(scenario, mesh) + _initial_stress_warnings(scenario)
+    model.warnings += _unresolved_aggregates(scenario, mesh) + scenario.initial_stress_warnings()
     sim = FdemSimulation(model)
     _strength_test(sim, scenario, tools, supports, mesh, pressures)
     plane = scenario.analysis.fracture_plane
