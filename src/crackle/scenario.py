@@ -630,6 +630,10 @@ class Where(Strict):
     """m, with radius: a point on the cylinder's axis"""
     axis_direction: Vec3 | None = None
     """with radius: the cylinder's axis"""
+    group: str | None = None
+    """a named surface of the specimen's mesh file (FDEM, specimen.shape = "mesh": a gmsh physical surface, a
+    meshio cell set of triangles): its faces (a pressure) or its nodes (a support); with the keys above, the
+    part of it they also select"""
     tol: Positive | None = None
     """m, distance to the plane (or cylinder) that counts as on it; default 1e-6 of the specimen size"""
 
@@ -639,9 +643,10 @@ class Where(Strict):
             raise ValueError("give both plane_point and plane_normal")
         if (self.radius is None) != (self.axis_point is None) or (self.radius is None) != (self.axis_direction is None):
             raise ValueError("a cylinder's side needs radius, axis_point and axis_direction together")
-        if self.plane_point is None and self.box_min is None and self.box_max is None and self.radius is None:
-            raise ValueError("choose nodes with plane_point + plane_normal, box_min / box_max and/or radius + "
-                             "axis_point + axis_direction")
+        if self.plane_point is None and self.box_min is None and self.box_max is None and self.radius is None and \
+                self.group is None:
+            raise ValueError("choose nodes with plane_point + plane_normal, box_min / box_max, radius + axis_point + "
+                             "axis_direction and/or group (a named surface of the mesh file)")
         return self
 
 
@@ -1010,6 +1015,15 @@ class ScenarioBase(Strict):
             section, name = key.rsplit(".", 1)
             if name in getattr(self, section).model_fields_set:
                 raise ValueError(f"{key}: method = \"{self.method}\" does not read it; {advice}")
+        return self
+
+    @model_validator(mode="after")
+    def _named_surfaces_of_a_mesh_file(self):
+        named = [f"{kind}.{i}.where.group" for kind in ("supports", "pressures")
+                 for i, item in enumerate(getattr(self, kind)) if item.where is not None and item.where.group]
+        if named and not (self.method == "fdem" and getattr(self.specimen, "shape", None) == "mesh"):
+            raise ValueError(f"{named[0]}: named surfaces are those of an FDEM specimen's mesh file (method = \"fdem\", "
+                             "specimen.shape = \"mesh\"); select by plane, box or cylinder instead")
         return self
 
     @model_validator(mode="after")

@@ -14,7 +14,7 @@ from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pullin
 from ..geometry import MeshError
 from ..budget import ModelTooLarge, check_model_size
 from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
-from ..loading.build import build_loading, build_precracks, touch_tools
+from ..loading.build import build_loading, build_precracks, touch_tools, with_named_surfaces
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
 from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
@@ -210,6 +210,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
         except ValueError as err:
             raise ScenarioError(str(err)) from None
     tools = touch_tools(tools, scenario.all_tools(), lambda tool: mesh.points)
+    try:
+        supports, pressures = with_named_surfaces(supports, pressures, mesh.points, mesh.surfaces)
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
     tet_material, pair_laws = None, {}
     if scenario.materials:
         material = [build_material(spec, name) for name, spec in scenario.materials.items()]

@@ -92,6 +92,9 @@ class TetMesh:
     # The file's named groups of tets (gmsh physical volumes, Abaqus *Elset, meshio cell sets):
     # name -> the tets' indices; None: the file named none.
     groups: dict[str, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    # The file's named groups of triangles (gmsh physical surfaces, meshio cell sets of triangles):
+    # name -> (k, 3) indices into points; None: the file named none.
+    surfaces: dict[str, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def label(self, index: int) -> int:
         """The number the user knows tet `index` by."""
@@ -749,10 +752,15 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     tets = np.concatenate(blocks).astype(np.int64)
     if tets.size and (tets.min() < 0 or tets.max() >= points.shape[0]):
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
+    used = np.zeros(len(points), dtype=bool)
+    used[tets.ravel()] = True
+    surfaces = {name: triangles for name, triangles in triangle_groups(m).items() if used[triangles].all()}
     points, tets = _compact(points, tets)
+    new_index = np.cumsum(used) - 1
     labels = _abaqus_tet_labels(path) if path.suffix.lower() == ".inp" else []
     mesh = TetMesh(points, tets, labels=np.asarray(labels) if len(labels) == len(tets) else None,
-                   groups=tet_groups(m) or None)
+                   groups=tet_groups(m) or None,
+                   surfaces={name: new_index[triangles] for name, triangles in surfaces.items()} or None)
     check_tets(mesh, source=f"mesh file {path}", label=lambda i: _element_label(path, i))
     return mesh
 
@@ -774,6 +782,20 @@ def tet_groups(m) -> dict[str, np.ndarray]:
                if block < len(per_block) and per_block[block] is not None and len(per_block[block])]
         if ids:
             groups[name] = np.unique(np.concatenate(ids))
+    return groups
+
+
+def triangle_groups(m) -> dict[str, np.ndarray]:
+    """A meshio mesh's named groups of triangles (cell sets: gmsh's physical surfaces by name), as
+    (k, 3) point indices of the file; gmsh's own bookkeeping sets are left out."""
+    groups = {}
+    for name, per_block in (m.cell_sets or {}).items():
+        if name.startswith("gmsh:"):
+            continue
+        rows = [m.cells[block].data[np.asarray(ids, dtype=np.int64)] for block, ids in enumerate(per_block)
+                if block < len(m.cells) and m.cells[block].type == "triangle" and ids is not None and len(ids)]
+        if rows:
+            groups[name] = np.concatenate(rows).astype(np.int64)
     return groups
 
 

@@ -9,6 +9,7 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..geometry.meshes import read_surface, surface_arrays
 from .arrays import SHAPE_CODES
@@ -172,11 +173,17 @@ class Selection:
     radius: float | None = None
     axis_point: tuple[float, float, float] | None = None
     axis_direction: tuple[float, float, float] | None = None
+    # On a named surface of the mesh file: its name, and (set by the method that has the mesh,
+    # loading.build.with_named_surfaces) its triangles' corners (k, 3, 3).
+    group: str | None = None
+    surface: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def mask(self, points: np.ndarray, scale: float) -> np.ndarray:
         p = np.asarray(points, dtype=float)
         keep = np.ones(len(p), dtype=bool)
         tol = self.tol if self.tol is not None else 1e-6 * scale
+        if self.group is not None:
+            keep &= _near(p, self.named_surface().reshape(-1, 3), tol)
         if self.plane_point is not None:
             n = _unit(self.plane_normal)
             keep &= np.abs((p - np.asarray(self.plane_point)) @ n) <= tol
@@ -195,6 +202,11 @@ class Selection:
         three corners it holds; on a cylinder's side, not a face of an end whose corners all lie on
         the rim (its normal along the axis)."""
         chosen = np.all(self.mask(points, scale)[corners], axis=1)
+        if self.group is not None and chosen.any():
+            # A face of the named surface, not one whose corners all lie on it (across a fold).
+            tol = self.tol if self.tol is not None else 1e-6 * scale
+            centroids = np.asarray(points, dtype=float)[corners[chosen]].mean(axis=1)
+            chosen[np.flatnonzero(chosen)] = _near(centroids, self.named_surface().mean(axis=1), tol)
         if self.radius is not None and chosen.any():
             p = np.asarray(points, dtype=float)[corners[chosen]]
             normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
@@ -202,6 +214,17 @@ class Selection:
             # A side face's normal is nearly radial, an end face's along the axis.
             chosen[np.flatnonzero(chosen)[np.abs(normal @ _unit(self.axis_direction)) > 0.5]] = False
         return chosen
+
+
+    def named_surface(self) -> np.ndarray:
+        if self.surface is None:
+            raise ValueError(f"where.group = {self.group!r}: named surfaces are those of an FDEM specimen's mesh file")
+        return self.surface
+
+
+def _near(points: np.ndarray, targets: np.ndarray, tol: float) -> np.ndarray:
+    """Which points lie within tol of one of the targets (a mask)."""
+    return cKDTree(targets).query(points, distance_upper_bound=tol)[0] <= tol
 
 
 @dataclass(frozen=True)

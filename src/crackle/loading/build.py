@@ -22,7 +22,26 @@ def _history_of(spec) -> History:
 
 def selection(where) -> Selection:
     return Selection(where.plane_point, where.plane_normal, where.box_min, where.box_max, where.tol, where.radius,
-                     where.axis_point, where.axis_direction)
+                     where.axis_point, where.axis_direction, where.group)
+
+
+def with_named_surfaces(supports: list, pressures: list, points: np.ndarray, surfaces: dict | None):
+    """The supports and pressures with each selection naming a group (where.group) given that
+    named surface's triangles ((k, 3, 3) corner positions, from the mesh's `surfaces`: name ->
+    (k, 3) indices into `points`); ValueError naming the file's surfaces for a name it lacks."""
+    surfaces = surfaces or {}
+
+    def resolved(sel):
+        if not isinstance(sel, Selection) or sel.group is None:
+            return sel
+        if sel.group not in surfaces:
+            known = ", ".join(sorted(surfaces)) or "none"
+            raise ValueError(f"where.group = {sel.group!r}: the mesh file has no surface of that name (its named "
+                             f"surfaces: {known}; gmsh: a physical surface group)")
+        return dataclasses.replace(sel, surface=points[surfaces[sel.group]])
+
+    return ([dataclasses.replace(s, where=resolved(s.where)) for s in supports],
+            [dataclasses.replace(p, faces=resolved(p.faces)) for p in pressures])
 
 
 def rotation_matrix(angle_deg: float, axis) -> np.ndarray:
