@@ -80,6 +80,38 @@ def _cmd_sweep(args) -> int:
     return 0 if all(s in COMPLETED for s in statuses) else 1
 
 
+def _cmd_validate(args) -> int:
+    from .scenario import ScenarioError
+    from .validation import exit_code, select, validate
+
+    if not _counts_at_least_one(args, ("jobs", "threads_per_run")):
+        return 2
+    try:
+        cases = select(args.papers, args.tier, args.cases)
+    except ValueError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out or f"crackle-out/validate-{args.tier}")
+    try:
+        results = validate(cases, out, args.scheduler, args.jobs, args.threads_per_run,
+                           report=lambda text: print(text, flush=True))
+    except ScenarioError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\ncrackle: validate interrupted: the finished runs are kept in {out}; the same command finishes the "
+              "others", file=sys.stderr)
+        return 130
+    for r in results:
+        if r.status in ("outside", "failed"):
+            print(f"  {r.case.name}: {r.status} ({r.value if r.value is not None else r.message}; band "
+                  f"{r.case.band[0]:g}-{r.case.band[1]:g} {r.case.unit})", flush=True)
+    statuses = [r.status for r in results]
+    print(f"validate: {len(results)} cases: " + ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses)))
+    print(f"  report in {out / 'report.md'}")
+    return exit_code(results)
+
+
 def _cmd_calibrate(args) -> int:
     from .scenario import ScenarioError
     from .sweep.calibrate import CalibrationFailed, calibrate
@@ -217,6 +249,21 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, help="local workers (default: one per core)")
     p.add_argument("--threads-per-run", type=int, help="numba threads per run")
     p.set_defaults(func=_cmd_calibrate)
+    p = sub.add_parser("validate", help="run the papers' benchmark cases and check them against their bands",
+                       description="Run the benchmark cases of the chosen papers at the chosen tier (each case: a "
+                       "run, the number read from it, the paper's value and the band crackle's value must fall in, "
+                       "with its source), on Dask as crackle sweep; write report.md and report.json. Exit 1 when a "
+                       "case is outside its band or its run failed. Rerun the same command to finish an "
+                       "interrupted validation.")
+    p.add_argument("papers", nargs="*", metavar="PAPER", help="000, 001, 002, 003, 004 or closed-form (default: all)")
+    p.add_argument("--tier", default="quick", help="quick (the examples' quick forms, the default), full (the "
+                   "full forms) or paper (the papers' own meshes and samples)")
+    p.add_argument("--cases", nargs="+", metavar="NAME", help="only these cases (any tier)")
+    p.add_argument("--out", help="the report's folder (default crackle-out/validate-TIER)")
+    p.add_argument("--jobs", type=int, help="local workers (default: one per core, at most one per run)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
+    p.add_argument("--threads-per-run", type=int, help="numba threads per run")
+    p.set_defaults(func=_cmd_validate)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)
     p = sub.add_parser("keys", help="every scenario key: unit, default, range (docs/keys.md)")

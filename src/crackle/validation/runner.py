@@ -1,0 +1,185 @@
+"""`crackle validate`: run the chosen cases (on Dask, as `crackle sweep`), read their numbers,
+write the report and say whether every case is inside its band.
+
+Each distinct run (scenario, tier, overrides) runs once, in its own folder under the output
+folder (named by the scenario and a hash of its settings, with run.json saying which); a folder
+holding a finished run of the same settings is read, not run again, so an interrupted validation
+continues where it stopped.
+
+A case's status: "pass" (inside its band), "not reproduced" (inside its band, the case saying
+why crackle does not reach the paper), "outside" (outside its band: crackle has drifted), or
+"failed" (its run did not finish: refused, unstable, an error). Exit 1 when any is outside or
+failed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .cases import PAPERS, Case
+
+PASS, NOT_REPRODUCED, OUTSIDE, FAILED = "pass", "not reproduced", "outside", "failed"
+REPORT = "report.md"
+
+
+@dataclass
+class CaseResult:
+    case: Case
+    value: float | None
+    status: str
+    run: str  # the run's folder, relative to the output folder
+    wall_time: float | None  # s, the run's
+    message: str = ""
+
+
+def run_folder(case: Case) -> str:
+    """The folder name of a case's run: its scenario and a hash of its settings."""
+    digest = hashlib.sha1(json.dumps(_settings(case), sort_keys=True).encode()).hexdigest()[:8]
+    return f"{Path(case.scenario).stem}-{case.tier}-{digest}"
+
+
+def _settings(case: Case) -> dict:
+    return {"scenario": case.scenario, "quick": case.quick, "overrides": {k: repr(v) for k, v in case.overrides.items()}}
+
+
+def validate(cases: list[Case], out_dir: str | Path, scheduler: str | None = None, jobs: int | None = None,
+             threads_per_run: int | None = None, report=print) -> list[CaseResult]:
+    """Run the cases' runs not finished yet in out_dir, read every case, write report.md and
+    report.json there; the results in the cases' order."""
+    from ..sweep.runner import finished_summary
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    runs: dict[str, Case] = {}
+    for case in cases:
+        runs.setdefault(run_folder(case), case)
+    todo = [name for name in runs if not _finished_here(out / name, runs[name])]
+    report(f"validate: {len(cases)} cases in {len(runs)} runs in {out}: {len(runs) - len(todo)} finished before, "
+           f"{len(todo)} to run")
+    outcome = _run_on_dask(out, {name: runs[name] for name in todo}, scheduler, jobs, threads_per_run, report) \
+        if todo else {}
+    results = []
+    for case in cases:
+        name = run_folder(case)
+        summary = finished_summary(out / name)
+        if summary is None or summary.get("status") not in ("completed", "stopped"):
+            got = outcome.get(name, {"message": "no finished summary.json"})
+            message = got.get("message") or (summary or {}).get("message", "")
+            results.append(CaseResult(case, None, FAILED, name, None, message))
+            continue
+        value = case.value(summary)
+        if value is None:
+            results.append(CaseResult(case, None, FAILED, name, summary.get("wall_time"),
+                                      f"summary.json has no number at {case.read!r}"))
+            continue
+        low, high = case.band
+        inside = low <= value <= high
+        status = OUTSIDE if not inside else (NOT_REPRODUCED if case.reason else PASS)
+        results.append(CaseResult(case, value, status, name, summary.get("wall_time")))
+    write_report(out, results)
+    return results
+
+
+def _finished_here(folder: Path, case: Case) -> bool:
+    from ..sweep.runner import finished_summary
+
+    try:
+        same = json.loads((folder / "run.json").read_text()) == _settings(case)
+    except (OSError, ValueError):
+        same = False
+    return same and finished_summary(folder) is not None
+
+
+def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
+    from distributed import as_completed
+
+    from ..sweep.runner import dask_client, outcome_of, run_one
+
+    outcome = {}
+    with dask_client(scheduler, jobs, threads_per_run, len(runs), report) as (client, threads):
+        futures = {}
+        for name, case in runs.items():
+            folder = out / name
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / "run.json").write_text(json.dumps(_settings(case), indent=2) + "\n")
+            futures[client.submit(run_one, case.scenario, str(folder.resolve()), dict(case.overrides), case.quick,
+                                  threads, pure=False)] = name
+        for future in as_completed(futures):
+            name = futures[future]
+            outcome[name] = outcome_of(future)
+            report(f"  {name}: {outcome[name]['status']}")
+    return outcome
+
+
+def exit_code(results: list[CaseResult]) -> int:
+    return 1 if any(r.status in (OUTSIDE, FAILED) for r in results) else 0
+
+
+def _format(value: float | None) -> str:
+    if value is None:
+        return "none"
+    return f"{value:.4g}"
+
+
+def provenance() -> dict:
+    """The commit and machine a validation ran on."""
+    here = Path(__file__).resolve().parent
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
+                                check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+                               capture_output=True, text=True, check=True).stdout.strip()
+        commit += " (with uncommitted changes)" if dirty else ""
+    except (OSError, subprocess.CalledProcessError):
+        from .. import __version__
+
+        commit = f"crackle {__version__} (not a git checkout)"
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"commit": commit, "machine": f"{cpu}, {os.cpu_count()} cores, {platform.system()}",
+            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+
+
+def write_report(out: Path, results: list[CaseResult]) -> None:
+    """report.md (a table per paper) and report.json."""
+    where = provenance()
+    lines = ["# crackle validate", "", f"Commit {where['commit']}; {where['machine']}; {where['date']}.", "",
+             "A case passes inside its band; 'not reproduced' is inside its band with the reason crackle does not "
+             "reach the paper; 'outside' means crackle has drifted from its band.", ""]
+    for paper, title in PAPERS.items():
+        rows = [r for r in results if r.case.paper == paper]
+        if not rows:
+            continue
+        lines += [f"## {title}", "", "| case | quantity | paper | crackle | band | status | run (wall time) |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in rows:
+            c = r.case
+            unit = f" {c.unit}" if c.unit else ""
+            wall = f" ({r.wall_time:.0f} s)" if r.wall_time is not None else ""
+            status = r.status + (f": {r.message}" if r.message else "")
+            lines.append(f"| {c.name} | {c.quantity} | {c.paper_value} | {_format(r.value)}{unit} | "
+                         f"{_format(c.band[0])}-{_format(c.band[1])}{unit} | {status} | [{r.run}]({r.run}/){wall} |")
+        lines.append("")
+        for r in rows:
+            lines.append(f"- **{r.case.name}**: band: {r.case.band_source}."
+                         + (f" Not reproduced: {r.case.reason}." if r.case.reason else ""))
+        lines.append("")
+    (out / REPORT).write_text("\n".join(lines))
+    (out / "report.json").write_text(json.dumps({
+        **where,
+        "cases": [{"name": r.case.name, "paper": r.case.paper, "tier": r.case.tier, "value": r.value,
+                   "unit": r.case.unit, "band": list(r.case.band), "status": r.status, "run": r.run,
+                   "wall_time": r.wall_time, "message": r.message} for r in results]}, indent=2) + "\n")

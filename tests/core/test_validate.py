@@ -1,0 +1,89 @@
+"""`crackle validate`: cases read from runs, their bands, the report and the exit code.
+
+The shipped cases are the papers' (validation.cases.CASES, minutes each); these tests put one
+quick case in their place: the quick 10 m/s sphere impact (paper 001 section 5, 672 tets, about
+12 s), whose ball rebounds at 9.85 m/s.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from crackle.cli import main
+from crackle.validation import cases as case_registry
+from crackle.validation.cases import Case, select
+
+REBOUND = Case("001-sphere-rebound", "001", "quick", "sphere-impact-slow", "the ball's rebound speed",
+               "largest_fragment_velocity.2", "m/s", (9.0, 10.5),
+               "the ball's rebound at 10 m/s: nearly elastic, 9.85 m/s measured; +-7 %", "(slightly damaged, bounces)")
+
+
+@pytest.fixture(scope="module")
+def shared_out(tmp_path_factory):
+    """One output folder for the module: a run finished by one test is read by the next."""
+    return tmp_path_factory.mktemp("validate") / "report"
+
+
+@pytest.fixture
+def one_case(monkeypatch):
+    def use(*cases):
+        monkeypatch.setattr(case_registry, "CASES", tuple(cases))
+    return use
+
+
+def test_a_case_in_its_band_passes_and_a_broken_one_is_named(shared_out, one_case, capsys):
+    """The rebound case passes (exit 0, report.md and report.json say so, with the commit);
+    the same case stopped at 80 us (an override changed on purpose), the ball still pressing
+    into the base (-8.5 m/s), reads no rebound: exit 1, the case named as outside its band. Rerun, the first run is read
+    from its folder, not run again."""
+    one_case(REBOUND)
+    out = shared_out
+    assert main(["validate", "001", "--out", str(out), "--jobs", "1"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    (row,) = report["cases"]
+    assert row["status"] == "pass" and 9.0 <= row["value"] <= 10.5 and report["commit"]
+    assert "| 001-sphere-rebound |" in (out / "report.md").read_text()
+    capsys.readouterr()
+    assert main(["validate", "001", "--out", str(out), "--jobs", "1"]) == 0
+    assert "1 finished before, 0 to run" in capsys.readouterr().out
+
+    broken = Case(**{**REBOUND.__dict__, "overrides": {"run.end_time": 8e-5}})
+    one_case(broken)
+    assert main(["validate", "001", "--out", str(out), "--jobs", "1"]) == 1
+    said = capsys.readouterr().out
+    assert "001-sphere-rebound: outside" in said
+    (row,) = json.loads((out / "report.json").read_text())["cases"]
+    assert row["status"] == "outside" and row["value"] < 0.0
+
+
+def test_a_case_not_reproduced_says_why_and_does_not_fail(shared_out, one_case):
+    """A case with a reason, inside its band: status "not reproduced", its reason in the report,
+    exit 0 (its run, the same settings as the first test's, read from the shared folder when that
+    test ran first)."""
+    why = Case(**{**REBOUND.__dict__, "name": "001-sphere-why", "reason": "a stated reason"})
+    one_case(why)
+    out = shared_out
+    assert main(["validate", "--out", str(out), "--jobs", "1"]) == 0
+    assert json.loads((out / "report.json").read_text())["cases"][0]["status"] == "not reproduced"
+    assert "Not reproduced: a stated reason." in (out / "report.md").read_text()
+
+
+def test_bad_choices_are_refused(capsys):
+    """An unknown paper, tier or case name: exit 2 naming it and the choices."""
+    assert main(["validate", "007"]) == 2
+    assert "unknown paper '007'" in capsys.readouterr().err
+    assert main(["validate", "--tier", "huge"]) == 2
+    assert "--tier huge: choose one of quick, full, paper" in capsys.readouterr().err
+    assert main(["validate", "--cases", "nope"]) == 2
+    assert "unknown case 'nope'" in capsys.readouterr().err
+
+
+def test_shipped_cases_are_complete():
+    """Every shipped case names a known paper and tier, a band low <= high with its source, and the
+    paper's value; the quick tier has a case of papers 001, 003 and 004."""
+    for case in case_registry.CASES:
+        assert case.paper in case_registry.PAPERS and case.tier in case_registry.TIERS
+        assert case.band[0] <= case.band[1] and case.band_source and case.paper_value
+    assert {c.paper for c in select(None, "quick")} >= {"001", "003", "004"}
