@@ -67,8 +67,9 @@ CASES: tuple[Case, ...] = (
          "peak_forces.top", "N", (624.0, 762.0),
          "crackle's own value, 693 N, +-10 %: the paper gives no number, only that its coarse meshes over-estimate "
          "the converged peak by < 8 %", "coarse meshes within +8 % of the converged peak",
-         reason="crackle's coarse mesh under-estimates its converged peak (832.8 N at h = 5 mm) by 17 % instead of "
-                "over-estimating it: the default law's strength depends on the mesh (docs/validation.md, paper 001)"),
+         reason="crackle's coarse mesh under-estimates its own converged peak (832.8 N at h = 5 mm) by 17 %, where "
+                "the paper's coarse meshes over-estimate theirs by < 8 % (docs/validation.md, paper 001, "
+                "three-point bending)"),
     # -- paper 003: DEM -------------------------------------------------------------------------------
     Case("003-ucs-quick", "003", "quick", "dem-ucs", "uniaxial compressive strength", "peak_stress", "MPa",
          (59.0, 75.0),
@@ -89,8 +90,8 @@ CASES: tuple[Case, ...] = (
          (217.6, 266.0),
          "crackle's own quick value, 241.8 N, +-10 % (the quick mesh's peaks over code changes 241.8-244.6 N; "
          "219-228 N between 40 and 200 mm/s)", "~237 N (converged, 0.95 mm)",
-         reason="the quick 3 mm mesh's 242 N beside the paper's 237 N is a coincidence of its coarseness: converged "
-                "(1.0 and 0.95 mm at the paper's 40 mm/s) crackle reads 182-186 N, 0.77 of the paper's "
+         reason="the quick 3 mm mesh at 1.25 m/s reads 242 N, but the agreement does not carry to the converged "
+                "mesh: at 1.0 and 0.95 mm and the paper's 40 mm/s crackle reads 182-186 N, 0.77 of the paper's "
                 "(docs/validation.md, paper 004)"),
 )
 
