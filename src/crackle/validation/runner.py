@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import platform
 import subprocess
@@ -122,10 +123,14 @@ def exit_code(results: list[CaseResult]) -> int:
     return 1 if any(r.status in (OUTSIDE, FAILED) for r in results) else 0
 
 
-def _format(value: float | None) -> str:
+def _format(value: float | None, case: Case) -> str:
+    """4 significant digits, more where the band is narrower than that shows."""
     if value is None:
         return "none"
-    return f"{value:.4g}"
+    low, high = case.band
+    span = (high - low) / max(abs(high), abs(low), 1e-300)
+    digits = 4 if span >= 1e-3 else min(15, 3 + math.ceil(-math.log10(max(span, 1e-15))))
+    return f"{value:.{digits}g}"
 
 
 def provenance() -> dict:
@@ -170,8 +175,9 @@ def write_report(out: Path, results: list[CaseResult]) -> None:
             unit = f" {c.unit}" if c.unit else ""
             wall = f" ({r.wall_time:.0f} s)" if r.wall_time is not None else ""
             status = r.status + (f": {r.message}" if r.message else "")
-            lines.append(f"| {c.name} | {c.quantity} | {c.paper_value} | {_format(r.value)}{unit} | "
-                         f"{_format(c.band[0])}-{_format(c.band[1])}{unit} | {status} | [{r.run}]({r.run}/){wall} |")
+            lines.append(f"| {c.name} | {c.quantity} | {c.paper_value} | {_format(r.value, c)}{unit} | "
+                         f"{_format(c.band[0], c)} to {_format(c.band[1], c)}{unit} | {status} | "
+                         f"[{r.run}]({r.run}/){wall} |")
         lines.append("")
         for r in rows:
             lines.append(f"- **{r.case.name}**: band: {r.case.band_source}."
