@@ -83,6 +83,7 @@ def _cmd_sweep(args) -> int:
 def _cmd_validate(args) -> int:
     from .scenario import ScenarioError
     from .validation import exit_code, select, validate
+    from .validation.runner import write_document
 
     if not _counts_at_least_one(args, ("jobs", "threads_per_run")):
         return 2
@@ -102,6 +103,12 @@ def _cmd_validate(args) -> int:
         print(f"\ncrackle: validate interrupted: the finished runs are kept in {out}; the same command finishes the "
               "others", file=sys.stderr)
         return 130
+    if args.document:
+        try:
+            write_document(args.document, results)
+        except (OSError, ValueError) as err:
+            print(f"crackle: error: --document: {err}", file=sys.stderr)
+            return 2
     for r in results:
         if r.status in ("outside", "failed"):
             print(f"  {r.case.name}: {r.status} ({r.value if r.value is not None else r.message}; band "
@@ -263,6 +270,9 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, help="local workers (default: one per core, at most one per run)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
     p.add_argument("--threads-per-run", type=int, help="numba threads per run")
+    p.add_argument("--document", metavar="MARKDOWN", help="also write the cases' values and commits into this "
+                   "document's <!--validate:begin--> ... <!--validate:end--> block (docs/validation.md); rows of "
+                   "cases not run keep their last values")
     p.set_defaults(func=_cmd_validate)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)

@@ -19,6 +19,7 @@ import json
 import math
 import os
 import platform
+import re
 import subprocess
 import time
 from dataclasses import dataclass
@@ -38,6 +39,8 @@ class CaseResult:
     run: str  # the run's folder, relative to the output folder
     wall_time: float | None  # s, the run's
     message: str = ""
+    commit: str = ""  # what the run ran at, and when (run.json)
+    date: str = ""
 
 
 def run_folder(case: Case) -> str:
@@ -83,19 +86,25 @@ def validate(cases: list[Case], out_dir: str | Path, scheduler: str | None = Non
         low, high = case.band
         inside = low <= value <= high
         status = OUTSIDE if not inside else (NOT_REPRODUCED if case.reason else PASS)
-        results.append(CaseResult(case, value, status, name, summary.get("wall_time")))
+        record = _run_record(out / name)
+        results.append(CaseResult(case, value, status, name, summary.get("wall_time"),
+                                  commit=record.get("commit", ""), date=record.get("date", "")))
     write_report(out, results)
     return results
+
+
+def _run_record(folder: Path) -> dict:
+    """run.json: the run's settings, and the commit and date it ran at."""
+    try:
+        return json.loads((folder / "run.json").read_text())
+    except (OSError, ValueError):
+        return {}
 
 
 def _finished_here(folder: Path, case: Case) -> bool:
     from ..sweep.runner import finished_summary
 
-    try:
-        same = json.loads((folder / "run.json").read_text()) == _settings(case)
-    except (OSError, ValueError):
-        same = False
-    return same and finished_summary(folder) is not None
+    return _run_record(folder).get("settings") == _settings(case) and finished_summary(folder) is not None
 
 
 def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
@@ -109,7 +118,9 @@ def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_
         for name, case in runs.items():
             folder = out / name
             folder.mkdir(parents=True, exist_ok=True)
-            (folder / "run.json").write_text(json.dumps(_settings(case), indent=2) + "\n")
+            where = provenance()
+            (folder / "run.json").write_text(json.dumps({"settings": _settings(case), "commit": where["commit"],
+                                                         "date": where["date"]}, indent=2) + "\n")
             futures[client.submit(run_one, case.scenario, str(folder.resolve()), dict(case.overrides), case.quick,
                                   threads, pure=False)] = name
         for future in as_completed(futures):
@@ -141,7 +152,7 @@ def provenance() -> dict:
                                 check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
                                capture_output=True, text=True, check=True).stdout.strip()
-        commit += " (with uncommitted changes)" if dirty else ""
+        commit += "-dirty" if dirty else ""  # git describe's mark: uncommitted changes
     except (OSError, subprocess.CalledProcessError):
         from .. import __version__
 
@@ -189,3 +200,51 @@ def write_report(out: Path, results: list[CaseResult]) -> None:
         "cases": [{"name": r.case.name, "paper": r.case.paper, "tier": r.case.tier, "value": r.value,
                    "unit": r.case.unit, "band": list(r.case.band), "status": r.status, "run": r.run,
                    "wall_time": r.wall_time, "message": r.message} for r in results]}, indent=2) + "\n")
+
+
+# The block of a document that `crackle validate --document` writes: a table per paper of every
+# declared case, each row with the value and commit of the case's last run (cases not run this
+# time keep theirs), and the same rows as JSON in a comment for the next update and the tests.
+BEGIN, END = "<!--validate:begin-->", "<!--validate:end-->"
+DATA = re.compile(r"<!--validate-data (?P<json>.*?)-->", re.S)
+
+
+def document_rows(text: str) -> dict[str, dict]:
+    """The rows a document's validate block records: {case name: {"value", "status", "commit", "date"}}."""
+    found = DATA.search(text)
+    return json.loads(found["json"]) if found else {}
+
+
+def write_document(path: str | Path, results: list[CaseResult]) -> None:
+    """Rewrite the validate block of the document at `path` (between BEGIN and END) with this
+    run's results over the rows it recorded before; ValueError when it has no block."""
+    from .cases import CASES
+
+    path = Path(path)
+    text = path.read_text()
+    if BEGIN not in text or END not in text:
+        raise ValueError(f"{path}: no {BEGIN} ... {END} block to write the cases into")
+    head, rest = text.split(BEGIN, 1)
+    block, tail = rest.split(END, 1)
+    rows = document_rows(block)
+    for r in results:
+        rows[r.case.name] = {"value": r.value, "status": r.status, "commit": r.commit or "unknown",
+                             "date": r.date[:10]}
+    rows = {c.name: rows[c.name] for c in CASES if c.name in rows}
+    lines = ["", f"<!--validate-data {json.dumps(rows)}-->", ""]
+    for paper, title in PAPERS.items():
+        cases = [c for c in CASES if c.paper == paper]
+        if not cases:
+            continue
+        lines += [f"**{title}**", "", "| case | tier | quantity | paper | crackle (commit and date of its run) | band | status |",
+                  "|---|---|---|---|---|---|---|"]
+        for c in cases:
+            row = rows.get(c.name)
+            unit = f" {c.unit}" if c.unit else ""
+            got = (f"{_format(row['value'], c)}{unit} ({row['commit']} {row['date']})"
+                   if row and row["value"] is not None else "not run yet" if not row else f"none ({row['commit']})")
+            status = row["status"] if row else ""
+            lines.append(f"| {c.name} | {c.tier} | {c.quantity} | {c.paper_value} | {got} | "
+                         f"{_format(c.band[0], c)} to {_format(c.band[1], c)}{unit} | {status} |")
+        lines.append("")
+    path.write_text(head + BEGIN + "\n".join(lines) + END + tail)
