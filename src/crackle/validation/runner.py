@@ -150,7 +150,8 @@ def provenance() -> dict:
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
                                 check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+        # Uncommitted changes of the package's code (documents and tests do not change a result).
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "."], cwd=here.parent,
                                capture_output=True, text=True, check=True).stdout.strip()
         commit += "-dirty" if dirty else ""  # git describe's mark: uncommitted changes
     except (OSError, subprocess.CalledProcessError):
