@@ -121,7 +121,10 @@ def test_hydrostatic_pressure_gives_its_stress(hydrostatic):
 @pytest.fixture(scope="module")
 def triaxial(tmp_path_factory):
     """Coarse quick runs (COARSE) of dem-ucs, of dem-triaxial without [[pressures]] and of
-    dem-triaxial at sigma_3 = 0, 2 and 5 MPa: {"ucs" | "none" | sigma_3: (summary, history bytes)}."""
+    dem-triaxial at sigma_3 = 0, 2 and 5 MPa: {"ucs" | "none" | sigma_3: (summary, history bytes)}.
+    Each stops once the platen force has stayed below 95 % of its peak for 10 us (COARSE's 80 %
+    raised): the five peaks are the same to the bit as with 80 %, in 6 % fewer steps (94,480
+    against 100,670)."""
     from crackle.api import run_scenario
 
     tmp = tmp_path_factory.mktemp("triaxial")
@@ -130,7 +133,8 @@ def triaxial(tmp_path_factory):
             *[(p, "dem-triaxial", [f"pressures.0.value={p}"]) for p in (0.0, 2e6, 5e6)]]
     for key, name, extra in runs:
         folder = tmp / f"{name}-{key}"
-        run_scenario(name, folder, [*COARSE, *extra], quick=True, progress=False, plots=False)
+        run_scenario(name, folder, [*COARSE, "run.stop.force_drop=0.95", *extra], quick=True, progress=False,
+                     plots=False)
         out[key] = json.loads((folder / "summary.json").read_text()), (folder / "history.csv").read_bytes()
     return out
 
@@ -155,7 +159,7 @@ def test_triaxial_peak_rises_with_confinement(triaxial):
     62.0, 128.3 and 147.7 MPa at 0, 2 and 5 MPa; 197.6 and 265.0 MPa at 10 and 20 MPa, not run
     here); confining_pressure reports sigma_3 (1e-6 Pa) and deviator_at_peak = peak_stress -
     sigma_3 (1e-12); every run's energy audit, with the membrane's work, closes within 1 %
-    (measured at most 0.03 %)."""
+    (measured at most 0.0064 %; 0.016 % at COARSE's later stop)."""
     free, low, high = (triaxial[k][0]["peak_stress"] for k in (0.0, 2e6, 5e6))
     assert free < low < high
     assert low > 1.2 * free
