@@ -44,22 +44,25 @@ def test_a_box_with_a_hole_is_meshed_finer_at_the_wall():
 
 def test_hoop_stress_at_the_wall_follows_kirsch(tmp_path):
     """The quick borehole (2 mm tets at the wall), elastic (faces never inserted), sigma_H = 20
-    MPa along x and sigma_h = 10 MPa along y ramped over 0.1 ms and held, damped to rest by 0.4 ms:
-    the hoop stress of the tets next to the wall (centroids within 2 mm of it, within 0.2 rad of
-    an axis) against Kirsch's at the same centroids, within 5 %: on the sigma_h axis, where the
-    wall runs parallel to sigma_H and the wall's hoop stress is 3 sigma_H - sigma_h = 50 MPa
-    (measured +2.9 %: the finite block, 16 hole radii across, carries the far field 1.8 % higher
-    than applied), and on the sigma_H axis, 3 sigma_h - sigma_H = 10 MPa (measured -0.1 %). The
-    compression there is 4 times higher on the sigma_h axis: the wall fails there first."""
+    MPa along x and sigma_h = 10 MPa along y ramped over 0.08 ms and held, damped (6e4 /s) to
+    rest by 0.25 ms: the hoop stress of the tets next to the wall (centroids within 2 mm of it,
+    within 0.2 rad of an axis) against Kirsch's at the same centroids, within 5 %: on the sigma_h
+    axis, where the wall runs parallel to sigma_H and the wall's hoop stress is 3 sigma_H -
+    sigma_h = 50 MPa (measured +2.6 %: the finite block, 16 hole radii across, carries the far
+    field 1.8 % higher than applied), and on the sigma_H axis, 3 sigma_h - sigma_H = 10 MPa
+    (measured -2.8 %; a run ramped over 0.1 ms and damped at 2e4 /s to 0.8 ms, at rest: +2.7 % and
+    -2.4 %; stopped at 0.4 ms, still ringing: +2.9 % and -0.1 %). The compression there is 4
+    times higher on the sigma_h axis: the wall fails there first."""
     text = (examples_dir() / "borehole.toml").read_text()
-    text = text.replace("rate = 5e10", f"value = {SIGMA_H:g}\nramp_time = 1e-4")
-    text = text.replace("rate = 2.5e10", f"value = {SIGMA_h:g}\nramp_time = 1e-4")
-    text = text.replace("end_time = 1.2e-3", "end_time = 4e-4\ndamping = 2e4")
+    text = text.replace("rate = 5e10", f"value = {SIGMA_H:g}\nramp_time = 8e-5")
+    text = text.replace("rate = 2.5e10", f"value = {SIGMA_h:g}\nramp_time = 8e-5")
+    text = text.replace("end_time = 1.2e-3", "end_time = 2.5e-4\ndamping = 6e4")
     scenario = tmp_path / "borehole-elastic.toml"
     scenario.write_text(text)
     out = tmp_path / "out"
     result = run_scenario(str(scenario), out, quick=True, progress=False, plots=False, overrides=[
-        "material.interface.tensile_strength=1e9", "material.interface.cohesion=1e10", "run.field_frames=1"])
+        "material.interface.tensile_strength=1e9", "material.interface.cohesion=1e10", "run.field_frames=1",
+        "run.history_samples=25"])  # the field frame is what it reads: 25 rows, not the example's 300
     assert result.summary["broken"] == 0
     frame = meshio.read(sorted(glob.glob(str(out / "fields" / "*.vtu")))[-1])
     block = next(k for k, cells in enumerate(frame.cells) if cells.type == "tetra")
