@@ -8,12 +8,17 @@ quick case in their place: the quick 10 m/s sphere impact (paper 001 section 5, 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from crackle.cli import main
 from crackle.validation import cases as case_registry
-from crackle.validation.cases import Case, select
+from crackle.validation import validate
+from crackle.validation.cases import FAST_CASES, Case, select
+from crackle.validation.runner import document_rows
+
+DOCUMENT = Path(__file__).resolve().parents[2] / "docs" / "validation.md"
 
 REBOUND = Case("001-sphere-rebound", "001", "quick", "sphere-impact-slow", "the ball's rebound speed",
                "largest_fragment_velocity.2", "m/s", (9.0, 10.5),
@@ -87,3 +92,18 @@ def test_shipped_cases_are_complete():
         assert case.paper in case_registry.PAPERS and case.tier in case_registry.TIERS
         assert case.band[0] <= case.band[1] and case.band_source and case.paper_value
     assert {c.paper for c in select(None, "quick")} == set(case_registry.PAPERS)
+
+
+def test_the_document_agrees_with_the_fast_cases(tmp_path):
+    """docs/validation.md's validate block (written by crackle validate --document) has a row for
+    every declared case, and the fast cases (runs of seconds) rerun now read each value the
+    block records within 1 % (measured: equal on the machine that wrote it), inside their bands:
+    the document and the code agree."""
+    text = DOCUMENT.read_text()
+    rows = document_rows(text)
+    for case in case_registry.CASES:
+        assert f"| {case.name} |" in text
+    results = validate(select(None, "quick", list(FAST_CASES)), tmp_path, jobs=1, report=lambda *_: None)
+    for r in results:
+        assert r.status in ("pass", "not reproduced"), (r.case.name, r.status, r.message)
+        assert r.value == pytest.approx(rows[r.case.name]["value"], rel=0.01, abs=1e-12), r.case.name

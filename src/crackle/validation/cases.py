@@ -140,6 +140,11 @@ CASES: tuple[Case, ...] = (
 )
 
 
+# The cases whose runs take seconds: what the test suite reruns to check docs/validation.md's
+# validate block against the code (tests/core/test_validate.py).
+FAST_CASES = ("closed-form-direct-tension", "002-centre-crack-j-quick", "000-plate-impact-petals-quick")
+
+
 def select(papers: list[str] | None, tier: str, names: list[str] | None = None) -> list[Case]:
     """The cases of these papers (all when none) at this tier, or those named (ValueError for a
     name or paper that is not one)."""
