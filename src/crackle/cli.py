@@ -267,7 +267,8 @@ def main(argv=None) -> int:
                    "full forms) or paper (the papers' own meshes and samples)")
     p.add_argument("--cases", nargs="+", metavar="NAME", help="only these cases (any tier)")
     p.add_argument("--out", help="the report's folder (default crackle-out/validate-TIER)")
-    p.add_argument("--jobs", type=int, help="local workers (default: one per core, at most one per run)")
+    p.add_argument("--jobs", type=int, help="local workers (default: one per core, at most one per run; 1: the "
+                   "runs one after the other in this process, no cluster)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
     p.add_argument("--threads-per-run", type=int, help="numba threads per run")
     p.add_argument("--document", metavar="MARKDOWN", help="also write the cases' values and commits into this "

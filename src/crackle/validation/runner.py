@@ -1,7 +1,8 @@
 """`crackle validate`: run the chosen cases (on Dask, as `crackle sweep`), read their numbers,
 write the report and say whether every case is inside its band.
 
-Each distinct run (scenario, tier, overrides) runs once, in its own folder under the output
+Each distinct run (scenario, tier, overrides) runs once (on a Dask cluster; with --jobs 1 and no
+scheduler, one after the other in the calling process), in its own folder under the output
 folder (named by the scenario and a hash of its settings, with run.json saying which); a folder
 holding a finished run of the same settings is read, not run again, so an interrupted validation
 continues where it stopped.
@@ -67,8 +68,13 @@ def validate(cases: list[Case], out_dir: str | Path, scheduler: str | None = Non
     todo = [name for name in runs if not _finished_here(out / name, runs[name])]
     report(f"validate: {len(cases)} cases in {len(runs)} runs in {out}: {len(runs) - len(todo)} finished before, "
            f"{len(todo)} to run")
-    outcome = _run_on_dask(out, {name: runs[name] for name in todo}, scheduler, jobs, threads_per_run, report) \
-        if todo else {}
+    todo_runs = {name: runs[name] for name in todo}
+    if not todo:
+        outcome = {}
+    elif scheduler is None and jobs == 1:
+        outcome = _run_here(out, todo_runs, threads_per_run, report)
+    else:
+        outcome = _run_on_dask(out, todo_runs, scheduler, jobs, threads_per_run, report)
     results = []
     for case in cases:
         name = run_folder(case)
@@ -107,6 +113,30 @@ def _finished_here(folder: Path, case: Case) -> bool:
     return _run_record(folder).get("settings") == _settings(case) and finished_summary(folder) is not None
 
 
+def _claim(out: Path, name: str, case: Case) -> Path:
+    """The run's folder, with run.json saying its settings and the commit and date it runs at."""
+    folder = out / name
+    folder.mkdir(parents=True, exist_ok=True)
+    where = provenance()
+    (folder / "run.json").write_text(json.dumps({"settings": _settings(case), "commit": where["commit"],
+                                                 "date": where["date"]}, indent=2) + "\n")
+    return folder
+
+
+def _run_here(out: Path, runs: dict[str, Case], threads_per_run, report) -> dict[str, dict]:
+    """One job and no scheduler: the runs one after the other in this process (no cluster to start)."""
+    from ..sweep.runner import run_one
+
+    threads = threads_per_run or os.cpu_count() or 1
+    report(f"  in this process, {threads} numba thread(s) per run")
+    outcome = {}
+    for name, case in runs.items():
+        folder = _claim(out, name, case)
+        outcome[name] = run_one(case.scenario, str(folder.resolve()), dict(case.overrides), case.quick, threads)
+        report(f"  {name}: {outcome[name]['status']}")
+    return outcome
+
+
 def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
     from distributed import as_completed
 
@@ -116,11 +146,7 @@ def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_
     with dask_client(scheduler, jobs, threads_per_run, len(runs), report) as (client, threads):
         futures = {}
         for name, case in runs.items():
-            folder = out / name
-            folder.mkdir(parents=True, exist_ok=True)
-            where = provenance()
-            (folder / "run.json").write_text(json.dumps({"settings": _settings(case), "commit": where["commit"],
-                                                         "date": where["date"]}, indent=2) + "\n")
+            folder = _claim(out, name, case)
             futures[client.submit(run_one, case.scenario, str(folder.resolve()), dict(case.overrides), case.quick,
                                   threads, pure=False)] = name
         for future in as_completed(futures):
