@@ -752,15 +752,16 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     tets = np.concatenate(blocks).astype(np.int64)
     if tets.size and (tets.min() < 0 or tets.max() >= points.shape[0]):
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
+    # Named surfaces of the tets' nodes, renumbered as _compact does (a group of other nodes is no face).
     used = np.zeros(len(points), dtype=bool)
     used[tets.ravel()] = True
-    surfaces = {name: triangles for name, triangles in triangle_groups(m).items() if used[triangles].all()}
-    points, tets = _compact(points, tets)
     new_index = np.cumsum(used) - 1
+    surfaces = {name: new_index[triangles] for name, triangles in triangle_groups(m).items() if used[triangles].all()}
+    points, tets = _compact(points, tets)
     labels = _abaqus_tet_labels(path) if path.suffix.lower() == ".inp" else []
     mesh = TetMesh(points, tets, labels=np.asarray(labels) if len(labels) == len(tets) else None,
                    groups=tet_groups(m) or None,
-                   surfaces={name: new_index[triangles] for name, triangles in surfaces.items()} or None)
+                   surfaces=surfaces or None)
     check_tets(mesh, source=f"mesh file {path}", label=lambda i: _element_label(path, i))
     return mesh
 

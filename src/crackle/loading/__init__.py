@@ -215,7 +215,6 @@ class Selection:
             chosen[np.flatnonzero(chosen)[np.abs(normal @ _unit(self.axis_direction)) > 0.5]] = False
         return chosen
 
-
     def named_surface(self) -> np.ndarray:
         if self.surface is None:
             raise ValueError(f"where.group = {self.group!r}: named surfaces are those of an FDEM specimen's mesh file")
