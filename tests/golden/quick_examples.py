@@ -45,14 +45,9 @@ def platform_key() -> str:
     import numba
     import numpy
 
-    cpu = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        cpu = platform.processor()
+    from crackle.validation.runner import cpu_model
+
+    cpu = cpu_model()
     # The model name alone ("AMD EPYC") hides the generation, and numba compiles for the host's
     # (e.g. znver3 against znver4 with AVX-512): results differ in the last bits.
     from llvmlite.binding import get_host_cpu_name

@@ -114,8 +114,8 @@ class SimulationBase:
     """
 
     method: str = ""
-    # J: kinetic (initial velocities) and stored (FDEM's [initial_stress]) energy at t = 0, counted
-    # as work put in
+    # J: kinetic (initial velocities) and stored ([initial_stress]: FDEM's tets and faces, the DEM's
+    # bonds) energy at t = 0, counted as work put in
     _initial_energy: float = 0.0
     # Several materials ([materials.NAME]): their names in table order (the set-up sets it); the
     # method then gives failed_ids() and failure_materials(ids). None: one material.

@@ -184,16 +184,23 @@ def provenance() -> dict:
         from .. import __version__
 
         commit = f"crackle {__version__} (not a git checkout)"
-    cpu = platform.processor() or platform.machine()
+    from llvmlite.binding import get_host_cpu_name
+
+    # numba compiles for the host's generation (get_host_cpu_name): results differ in the last bits across them.
+    cpu = f"{cpu_model() or platform.machine()} ({get_host_cpu_name()})"
+    return {"commit": commit, "machine": f"{cpu}, {os.cpu_count()} cores, {platform.system()}",
+            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+
+
+def cpu_model() -> str:
+    """The processor's model name (/proc/cpuinfo), or what the platform says ("" when nothing)."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
+                return line.split(":", 1)[1].strip()
+        return ""
     except OSError:
-        pass
-    return {"commit": commit, "machine": f"{cpu}, {os.cpu_count()} cores, {platform.system()}",
-            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+        return platform.processor()
 
 
 def write_report(out: Path, results: list[CaseResult]) -> None:
