@@ -83,19 +83,23 @@ def _cmd_sweep(args) -> int:
 def _cmd_validate(args) -> int:
     from .scenario import ScenarioError
     from .validation import exit_code, select, validate
-    from .validation.runner import write_document
+    from .validation.runner import document_runs, write_document
 
     if not _counts_at_least_one(args, ("jobs", "threads_per_run")):
         return 2
     try:
         cases = select(args.papers, args.tier, args.cases)
-    except ValueError as err:
+        # The document's own numbers: the runs its markers name, of these papers at this tier.
+        also = () if not args.document or args.cases else tuple(
+            run for run in document_runs(Path(args.document).read_text())
+            if (not args.papers or run.paper in args.papers) and run.quick == (args.tier == "quick"))
+    except (OSError, ValueError) as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
     out = Path(args.out or f"crackle-out/validate-{args.tier}")
     try:
         results = validate(cases, out, args.scheduler, args.jobs, args.threads_per_run,
-                           report=lambda text: print(text, flush=True))
+                           report=lambda text: print(text, flush=True), also=also)
     except ScenarioError as err:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
@@ -105,10 +109,13 @@ def _cmd_validate(args) -> int:
         return 130
     if args.document:
         try:
-            write_document(args.document, results)
+            changes = write_document(args.document, results, out)
         except (OSError, ValueError) as err:
             print(f"crackle: error: --document: {err}", file=sys.stderr)
             return 2
+        print(f"validate: {args.document}: " + (f"{len(changes)} numbers changed" if changes else "every number as before"))
+        for change in changes:
+            print(f"  {change}")
     for r in results:
         if r.status in ("outside", "failed"):
             print(f"  {r.case.name}: {r.status} ({r.value if r.value is not None else r.message}; band "
@@ -271,9 +278,11 @@ def main(argv=None) -> int:
                    "runs one after the other in this process, no cluster)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
     p.add_argument("--threads-per-run", type=int, help="numba threads per run")
-    p.add_argument("--document", metavar="MARKDOWN", help="also write the cases' values and commits into this "
-                   "document's <!--validate:begin--> ... <!--validate:end--> block (docs/validation.md); rows of "
-                   "cases not run keep their last values")
+    p.add_argument("--document", metavar="MARKDOWN", help="also run the runs this document's <!--q:RUN:...--> "
+                   "markers name (of these papers, at this tier; none with --cases), and write their numbers there, "
+                   "each line stamped with its runs' commits, and the cases' values and commits into its "
+                   "<!--validate:begin--> ... <!--validate:end--> block (docs/validation.md); numbers and cases "
+                   "not run keep their last values")
     p.set_defaults(func=_cmd_validate)
     p = sub.add_parser("examples", help="list the shipped examples")
     p.set_defaults(func=_cmd_examples)

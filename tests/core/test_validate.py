@@ -15,12 +15,13 @@ import pytest
 from crackle.cli import main
 from crackle.validation import cases as case_registry
 from crackle.validation import validate
-from crackle.validation.cases import FAST_CASES, Case, select
-from crackle.validation.runner import document_rows
+from crackle.validation.cases import FAST_CASES, NUMBER, RUNS, Case, Run, select
+from crackle.validation.runner import MARKER, STAMP, document_data, stamp_text, write_document
 
 DOCUMENT = Path(__file__).resolve().parents[2] / "docs" / "validation.md"
 
-REBOUND = Case("001-sphere-rebound", "001", "quick", "sphere-impact-slow", "the ball's rebound speed",
+REBOUND_RUN = Run("sphere-rebound", "001", "sphere-impact-slow")
+REBOUND = Case("001-sphere-rebound", "001", "quick", REBOUND_RUN, "the ball's rebound speed",
                "largest_fragment_velocity.2", "m/s", (9.0, 10.5),
                "the ball's rebound at 10 m/s: nearly elastic, 9.85 m/s measured; +-7 %", "(slightly damaged, bounces)")
 
@@ -54,7 +55,8 @@ def test_a_case_in_its_band_passes_and_a_broken_one_is_named(shared_out, one_cas
     assert main(["validate", "001", "--out", str(out), "--jobs", "1"]) == 0
     assert "1 finished before, 0 to run" in capsys.readouterr().out
 
-    broken = Case(**{**REBOUND.__dict__, "overrides": {"run.end_time": 8e-5}})
+    broken = Case(**{**REBOUND.__dict__, "run": Run("sphere-pressing", "001", "sphere-impact-slow",
+                                                     overrides={"run.end_time": 8e-5})})
     one_case(broken)
     assert main(["validate", "001", "--out", str(out), "--jobs", "1"]) == 1
     said = capsys.readouterr().out
@@ -100,10 +102,49 @@ def test_the_document_agrees_with_the_fast_cases(tmp_path):
     block records within 1 % (measured: equal on the machine that wrote it), inside their bands:
     the document and the code agree."""
     text = DOCUMENT.read_text()
-    rows = document_rows(text)
+    rows = document_data(text)["cases"]
     for case in case_registry.CASES:
         assert f"| {case.name} |" in text
     results = validate(select(None, "quick", list(FAST_CASES)), tmp_path, jobs=1, report=lambda *_: None)
     for r in results:
         assert r.status in ("pass", "not reproduced"), (r.case.name, r.status, r.message)
         assert r.value == pytest.approx(rows[r.case.name]["value"], rel=0.01, abs=1e-12), r.case.name
+
+
+def test_the_documents_markers_name_declared_runs_and_each_line_its_commits():
+    """Every number between markers in docs/validation.md names a declared run and a number of the
+    form KEY[*|/FACTOR]; every line holding markers has one stamp, and it says the commits and dates
+    the block records for those runs (none "not run yet"): no generated number without its commit."""
+    text = DOCUMENT.read_text()
+    runs = document_data(text)["runs"]
+    lines = [line for line in text.splitlines() if MARKER.search(line)]
+    assert len(lines) > 20
+    for line in lines:
+        names = list(dict.fromkeys(m["run"] for m in MARKER.finditer(line)))
+        assert all(n in RUNS for n in names), names
+        assert all(NUMBER.match(m["number"]) for m in MARKER.finditer(line))
+        stamps = STAMP.findall(line)
+        assert len(stamps) == 1, line[:120]
+        assert stamps[0] == stamp_text(names, runs) and "not run" not in stamps[0], (names, stamps[0])
+
+
+def test_write_document_fills_markers_and_stamps(shared_out, one_case, monkeypatch, tmp_path):
+    """A document with a validate block and a line with a marker of the rebound run: --document
+    runs that run too (read from the shared folder when the first test ran), writes the rebound
+    speed with its format and suffix, stamps the line with the run's commit and date, and puts the
+    case's row in the block; a marker of a run not declared is refused (exit 2)."""
+    one_case(REBOUND)
+    monkeypatch.setitem(RUNS, REBOUND_RUN.name, REBOUND_RUN)
+    document = tmp_path / "doc.md"
+    document.write_text("# doc\n\n<!--validate:begin--><!--validate:end-->\n\n| rebound | "
+                        "<!--q:sphere-rebound:largest_fragment_velocity.2:.2f| m/s-->old<!--/q--> "
+                        "(<!--q-stamp--><!--/q-->) |\n")
+    assert main(["validate", "001", "--out", str(shared_out), "--jobs", "1", "--document", str(document)]) == 0
+    text = document.read_text()
+    speed = float(MARKER.search(text)["text"].removesuffix(" m/s"))
+    assert 9.0 <= speed <= 10.5
+    commit = json.loads((shared_out / "report.json").read_text())["commit"]
+    assert STAMP.search(text)["text"].startswith(f"run at commit {commit.split('-')[0]}")
+    assert "| 001-sphere-rebound | quick |" in text and document_data(text)["runs"]["sphere-rebound"]
+    document.write_text(text.replace("sphere-rebound:", "no-such-run:"))
+    assert main(["validate", "001", "--out", str(shared_out), "--jobs", "1", "--document", str(document)]) == 2

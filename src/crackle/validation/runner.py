@@ -15,7 +15,6 @@ failed.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -26,7 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cases import PAPERS, Case
+from .cases import PAPERS, Case, Run, read_number
 
 PASS, NOT_REPRODUCED, OUTSIDE, FAILED = "pass", "not reproduced", "outside", "failed"
 REPORT = "report.md"
@@ -44,50 +43,39 @@ class CaseResult:
     date: str = ""
 
 
-def run_folder(case: Case) -> str:
-    """The folder name of a case's run: its scenario and a hash of its settings."""
-    digest = hashlib.sha1(json.dumps(_settings(case), sort_keys=True).encode()).hexdigest()[:8]
-    return f"{Path(case.scenario).stem}-{case.tier}-{digest}"
-
-
-def _settings(case: Case) -> dict:
-    return {"scenario": case.scenario, "quick": case.quick, "overrides": {k: repr(v) for k, v in case.overrides.items()}}
-
-
 def validate(cases: list[Case], out_dir: str | Path, scheduler: str | None = None, jobs: int | None = None,
-             threads_per_run: int | None = None, report=print) -> list[CaseResult]:
-    """Run the cases' runs not finished yet in out_dir, read every case, write report.md and
-    report.json there; the results in the cases' order."""
+             threads_per_run: int | None = None, report=print, also: tuple[Run, ...] = ()) -> list[CaseResult]:
+    """Run the cases' runs (and the runs `also` names) not finished yet in out_dir, read every
+    case, write report.md and report.json there; the results in the cases' order."""
     from ..sweep.runner import finished_summary
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    runs: dict[str, Case] = {}
-    for case in cases:
-        runs.setdefault(run_folder(case), case)
-    todo = [name for name in runs if not _finished_here(out / name, runs[name])]
-    report(f"validate: {len(cases)} cases in {len(runs)} runs in {out}: {len(runs) - len(todo)} finished before, "
-           f"{len(todo)} to run")
-    todo_runs = {name: runs[name] for name in todo}
+    runs: dict[str, Run] = {}
+    for run in [case.run for case in cases] + list(also):
+        runs.setdefault(run.folder(), run)
+    todo = {name: run for name, run in runs.items() if not _finished_here(out / name, run)}
+    report(f"validate: {len(cases)} cases" + (f" and {len(also)} more runs" if also else "")
+           + f" in {len(runs)} runs in {out}: {len(runs) - len(todo)} finished before, {len(todo)} to run")
     if not todo:
         outcome = {}
     elif scheduler is None and jobs == 1:
-        outcome = _run_here(out, todo_runs, threads_per_run, report)
+        outcome = _run_here(out, todo, threads_per_run, report)
     else:
-        outcome = _run_on_dask(out, todo_runs, scheduler, jobs, threads_per_run, report)
+        outcome = _run_on_dask(out, todo, scheduler, jobs, threads_per_run, report)
     results = []
     for case in cases:
-        name = run_folder(case)
+        name = case.run.folder()
         summary = finished_summary(out / name)
         if summary is None or summary.get("status") not in ("completed", "stopped"):
             got = outcome.get(name, {"message": "no finished summary.json"})
             message = got.get("message") or (summary or {}).get("message", "")
             results.append(CaseResult(case, None, FAILED, name, None, message))
             continue
-        value = case.value(summary)
+        value = case.value(summary, out / name)
         if value is None:
             results.append(CaseResult(case, None, FAILED, name, summary.get("wall_time"),
-                                      f"summary.json has no number at {case.read!r}"))
+                                      f"the run has no number {case.read!r}"))
             continue
         low, high = case.band
         inside = low <= value <= high
@@ -107,37 +95,37 @@ def _run_record(folder: Path) -> dict:
         return {}
 
 
-def _finished_here(folder: Path, case: Case) -> bool:
+def _finished_here(folder: Path, run: Run) -> bool:
     from ..sweep.runner import finished_summary
 
-    return _run_record(folder).get("settings") == _settings(case) and finished_summary(folder) is not None
+    return _run_record(folder).get("settings") == run.settings() and finished_summary(folder) is not None
 
 
-def _claim(out: Path, name: str, case: Case) -> Path:
+def _claim(out: Path, name: str, run: Run) -> Path:
     """The run's folder, with run.json saying its settings and the commit and date it runs at."""
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     where = provenance()
-    (folder / "run.json").write_text(json.dumps({"settings": _settings(case), "commit": where["commit"],
+    (folder / "run.json").write_text(json.dumps({"settings": run.settings(), "commit": where["commit"],
                                                  "date": where["date"]}, indent=2) + "\n")
     return folder
 
 
-def _run_here(out: Path, runs: dict[str, Case], threads_per_run, report) -> dict[str, dict]:
+def _run_here(out: Path, runs: dict[str, Run], threads_per_run, report) -> dict[str, dict]:
     """One job and no scheduler: the runs one after the other in this process (no cluster to start)."""
     from ..sweep.runner import run_one
 
     threads = threads_per_run or os.cpu_count() or 1
     report(f"  in this process, {threads} numba thread(s) per run")
     outcome = {}
-    for name, case in runs.items():
-        folder = _claim(out, name, case)
-        outcome[name] = run_one(case.scenario, str(folder.resolve()), dict(case.overrides), case.quick, threads)
+    for name, run in runs.items():
+        folder = _claim(out, name, run)
+        outcome[name] = run_one(run.scenario, str(folder.resolve()), dict(run.overrides), run.quick, threads)
         report(f"  {name}: {outcome[name]['status']}")
     return outcome
 
 
-def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
+def _run_on_dask(out: Path, runs: dict[str, Run], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
     from distributed import as_completed
 
     from ..sweep.runner import dask_client, outcome_of, run_one
@@ -145,9 +133,9 @@ def _run_on_dask(out: Path, runs: dict[str, Case], scheduler, jobs, threads_per_
     outcome = {}
     with dask_client(scheduler, jobs, threads_per_run, len(runs), report) as (client, threads):
         futures = {}
-        for name, case in runs.items():
-            folder = _claim(out, name, case)
-            futures[client.submit(run_one, case.scenario, str(folder.resolve()), dict(case.overrides), case.quick,
+        for name, run in runs.items():
+            folder = _claim(out, name, run)
+            futures[client.submit(run_one, run.scenario, str(folder.resolve()), dict(run.overrides), run.quick,
                                   threads, pure=False)] = name
         for future in as_completed(futures):
             name = futures[future]
@@ -236,49 +224,113 @@ def write_report(out: Path, results: list[CaseResult]) -> None:
                    "wall_time": r.wall_time, "message": r.message} for r in results]}, indent=2) + "\n")
 
 
-# The block of a document that `crackle validate --document` writes: a table per paper of every
-# declared case, each row with the value and commit of the case's last run (cases not run this
-# time keep theirs), and the same rows as JSON in a comment for the next update and the tests.
+# A document's generated parts (docs/validation.md), written by `crackle validate --document`:
+# - its validate block, between BEGIN and END: a table per paper of every declared case, each row
+#   with the value and commit of the case's last run (cases not run this time keep theirs), and, in
+#   a comment, the same rows and each run's commit and date as JSON, for the next update and the tests;
+# - numbers anywhere in its text between MARKERs, `<!--q:RUN:NUMBER:FORMAT-->value<!--/q-->`: RUN a
+#   name of cases.RUNS, NUMBER a number of that run (cases.read_number), FORMAT a Python format
+#   spec, optionally followed by `|` and a suffix written after the number (` deg`); a missing value
+#   reads "none";
+# - on each line holding markers, one STAMP, `<!--q-stamp-->...<!--/q-->`: the commits and dates of
+#   the runs those markers name.
 BEGIN, END = "<!--validate:begin-->", "<!--validate:end-->"
 DATA = re.compile(r"<!--validate-data (?P<json>.*?)-->", re.S)
+MARKER = re.compile(r"<!--q:(?P<run>[\w.-]+):(?P<number>[\w.*/+-]+):(?P<format>[^>]*?)-->(?P<text>.*?)<!--/q-->")
+STAMP = re.compile(r"<!--q-stamp-->(?P<text>.*?)<!--/q-->")
 
 
-def document_rows(text: str) -> dict[str, dict]:
-    """The rows a document's validate block records: {case name: {"value", "status", "commit", "date"}}."""
+def document_data(text: str) -> dict:
+    """What a document's validate block records: {"cases": {name: {"value", "status", "commit",
+    "date"}}, "runs": {run name: {"commit", "date"}}}."""
     found = DATA.search(text)
-    return json.loads(found["json"]) if found else {}
+    data = json.loads(found["json"]) if found else {}
+    return {"cases": data.get("cases", {}), "runs": data.get("runs", {})}
 
 
-def write_document(path: str | Path, results: list[CaseResult]) -> None:
-    """Rewrite the validate block of the document at `path` (between BEGIN and END) with this
-    run's results over the rows it recorded before; ValueError when it has no block."""
-    from .cases import CASES
+def document_runs(text: str) -> list[Run]:
+    """The runs a document's markers name (ValueError for a name cases.RUNS does not have)."""
+    from .cases import RUNS
 
-    path = Path(path)
+    names = list(dict.fromkeys(m["run"] for m in MARKER.finditer(text)))
+    unknown = [n for n in names if n not in RUNS]
+    if unknown:
+        raise ValueError(f"markers name runs crackle does not declare: {', '.join(unknown)} (validation/cases.py RUNS)")
+    return [RUNS[n] for n in names]
+
+
+def stamp_text(names: list[str], runs: dict[str, dict]) -> str:
+    """The stamp of a line whose markers name these runs: their commits and dates."""
+    made = [runs.get(n) for n in names]
+    if any(m is None for m in made):
+        return "not run by crackle validate yet"
+    groups: dict[str, list[str]] = {}
+    for m in made:
+        groups.setdefault(m["commit"], []).append(m["date"])
+    said = [f"commit {commit}, {max(dates)}" for commit, dates in groups.items()]
+    return ("run at " if len(made) == 1 else "runs at ") + "; ".join(said)
+
+
+def write_document(path: str | Path, results: list[CaseResult], out_dir: str | Path) -> list[str]:
+    """Rewrite the generated parts of the document at `path` with this validation's results (the
+    validate block) and the runs finished in out_dir (the markers naming them, and every line's
+    stamp); ValueError when it has no block. The changed numbers, as "run:number: old -> new"."""
+    from ..sweep.runner import finished_summary
+    from .cases import CASES, RUNS
+
+    path, out = Path(path), Path(out_dir)
     text = path.read_text()
     if BEGIN not in text or END not in text:
         raise ValueError(f"{path}: no {BEGIN} ... {END} block to write the cases into")
-    head, rest = text.split(BEGIN, 1)
-    block, tail = rest.split(END, 1)
-    rows = document_rows(block)
+    data = document_data(text)
+    rows, runs = data["cases"], data["runs"]
     for r in results:
         rows[r.case.name] = {"value": r.value, "status": r.status, "commit": r.commit or "unknown",
                              "date": r.date[:10]}
+    summaries = {}
+    for run in document_runs(text):
+        summary = finished_summary(out / run.folder())
+        if summary is not None and summary.get("status") in ("completed", "stopped"):
+            summaries[run.name] = summary
+            record = _run_record(out / run.folder())
+            runs[run.name] = {"commit": record.get("commit", "unknown"), "date": record.get("date", "")[:10]}
+    changes = []
+
+    def number(m):
+        if m["run"] not in summaries:
+            return m[0]
+        value = read_number(m["number"], summaries[m["run"]], out / RUNS[m["run"]].folder())
+        spec, _, suffix = m["format"].partition("|")
+        new = "none" if value is None else format(value, spec) + suffix
+        if new != m["text"]:
+            changes.append(f"{m['run']}:{m['number']}: {m['text']} -> {new}")
+        return f"<!--q:{m['run']}:{m['number']}:{m['format']}-->{new}<!--/q-->"
+
+    def stamped(line: str) -> str:
+        line = MARKER.sub(number, line)
+        names = list(dict.fromkeys(m["run"] for m in MARKER.finditer(line)))
+        return STAMP.sub(lambda _: f"<!--q-stamp-->{stamp_text(names, runs)}<!--/q-->", line) if names else line
+
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    head, tail = ("\n".join(stamped(line) for line in part.split("\n")) for part in (head, tail))
     rows = {c.name: rows[c.name] for c in CASES if c.name in rows}
-    lines = ["", f"<!--validate-data {json.dumps(rows)}-->", ""]
+    runs = {n: runs[n] for n in RUNS if n in runs}
+    block = ["", f"<!--validate-data {json.dumps({'cases': rows, 'runs': runs})}-->", ""]
     for paper, title in PAPERS.items():
         cases = [c for c in CASES if c.paper == paper]
         if not cases:
             continue
-        lines += [f"**{title}**", "", "| case | tier | quantity | paper | crackle (commit and date of its run) | band | status |",
-                  "|---|---|---|---|---|---|---|"]
+        block += [f"**{title}**", "", "| case | tier | quantity | paper | crackle (commit and date of its run) | band | "
+                  "status |", "|---|---|---|---|---|---|---|"]
         for c in cases:
             row = rows.get(c.name)
             unit = f" {c.unit}" if c.unit else ""
             got = (f"{_format(row['value'], c)}{unit} ({row['commit']} {row['date']})"
                    if row and row["value"] is not None else "not run yet" if not row else f"none ({row['commit']})")
             status = row["status"] if row else ""
-            lines.append(f"| {c.name} | {c.tier} | {c.quantity} | {c.paper_value} | {got} | "
+            block.append(f"| {c.name} | {c.tier} | {c.quantity} | {c.paper_value} | {got} | "
                          f"{_format(c.band[0], c)} to {_format(c.band[1], c)}{unit} | {status} |")
-        lines.append("")
-    path.write_text(head + BEGIN + "\n".join(lines) + END + tail)
+        block.append("")
+    path.write_text(head + BEGIN + "\n".join(block) + END + tail)
+    return changes
