@@ -68,13 +68,16 @@ def test_a_case_in_its_band_passes_and_a_broken_one_is_named(shared_out, one_cas
 def test_a_case_not_reproduced_says_why_and_does_not_fail(shared_out, one_case):
     """A case with a reason, inside its band: status "not reproduced", its reason in the report,
     exit 0 (its run, the same settings as the first test's, read from the shared folder when that
-    test ran first)."""
-    why = Case(**{**REBOUND.__dict__, "name": "001-sphere-why", "reason": "a stated reason"})
+    test ran first). Given a curve (the base's load against its displacement), the report shows it
+    as figures/CASE.png."""
+    why = Case(**{**REBOUND.__dict__, "name": "001-sphere-why", "reason": "a stated reason", "curve": "load"})
     one_case(why)
     out = shared_out
     assert main(["validate", "--out", str(out), "--jobs", "1"]) == 0
     assert json.loads((out / "report.json").read_text())["cases"][0]["status"] == "not reproduced"
-    assert "Not reproduced: a stated reason." in (out / "report.md").read_text()
+    report = (out / "report.md").read_text()
+    assert "Not reproduced: a stated reason." in report
+    assert "](figures/001-sphere-why.png)" in report and (out / "figures" / "001-sphere-why.png").stat().st_size > 1000
 
 
 def test_bad_choices_are_refused(capsys):

@@ -149,6 +149,8 @@ class Case:
     band_source: str  # where the band comes from
     paper_value: str  # the paper's number, as the paper gives it (a value, a range)
     reason: str | None = None  # set when crackle does not reproduce the paper: why
+    curve: str | None = None  # the report's figure: a curve of validation.figures.CURVES, in `unit`
+    paper_number: float | None = None  # the paper's value in `unit`, drawn on that figure
 
     def value(self, summary: dict, folder: Path) -> float | None:
         return read_number(self.read, summary, folder)
@@ -180,7 +182,7 @@ CASES: tuple[Case, ...] = (
          "the converged peak by < 8 %", "coarse meshes within +8 % of the converged peak",
          reason="crackle's coarse mesh under-estimates its own converged peak (832.8 N at h = 5 mm) by 17 %, where "
                 "the paper's coarse meshes over-estimate theirs by < 8 % (docs/validation.md, paper 001, "
-                "three-point bending)"),
+                "three-point bending)", curve="load"),
     Case("001-brazilian-0-quick", "001", "quick", RUNS["brazilian-0"], "Brazilian disc's peak load, theta = 0",
          "peak_force", "N", (3044.0, 3720.0),
          "crackle's own quick value, 3382 N, +-10 % (the quick disc's peaks over loading angles and half the platen "
@@ -188,7 +190,7 @@ CASES: tuple[Case, ...] = (
          reason="the paper's mean is 0.79 ft by the elastic Brazilian relation, below the tensile strength it gave "
                 "its rock: faces that open at ft split the disc at ~ft (crackle at the paper's 1.2 mm mesh: 1.05 ft, "
                 "2968 N over four angles, CV 4.0 %); the quick 4 mm tets add about 15 % (docs/validation.md, paper "
-                "001 section 4)"),
+                "001 section 4)", curve="load", paper_number=2220.0),
     # -- paper 002: Kirchhoff-Love shell ------------------------------------------------------------
     Case("002-centre-crack-j-quick", "002", "quick", RUNS["shell-centre-crack"],
          "J of the centre crack (2a/2b = 0.5, 100 MPa) over K^2 / E", "j_ratio", "", (0.80, 0.90),
@@ -202,7 +204,7 @@ CASES: tuple[Case, ...] = (
     Case("003-ucs-quick", "003", "quick", RUNS["dem-ucs"], "uniaxial compressive strength", "peak_stress*1e-6", "MPa",
          (59.0, 75.0),
          "crackle's quick sample over twelve round-off draws: 59.4-73.8 MPa (docs/validation.md, paper 003); the "
-         "paper's two samples (~70 MPa, 5 % apart) lie inside", "~70 MPa"),
+         "paper's two samples (~70 MPa, 5 % apart) lie inside", "~70 MPa", curve="stress_strain", paper_number=70.0),
     Case("003-modulus-quick", "003", "quick", RUNS["dem-ucs"], "Young's modulus from the platen (20-50 % of the peak)",
          "platen_modulus*1e-9", "GPa", (49.5, 60.5),
          "the paper's ~55 GPa read from its stress-strain curve, +-10 % (it gives no scatter); crackle's draws "
@@ -216,23 +218,23 @@ CASES: tuple[Case, ...] = (
          "peak_stress*1e-6", "MPa", (58.4, 71.4), "crackle's own quick value, 64.9 MPa (2026-12-06), +-10 % (round-off "
          "scatter)", "56 MPa",
          reason="the quick sample reads 16 % above the paper, as its intact strength rises with the particle size "
-                "(docs/validation.md, paper 003, the UCS rows); the full form reads 57.3 MPa, +2 % (003-open-flaw-90-full)"),
+                "(docs/validation.md, paper 003, the UCS rows); the full form reads 57.3 MPa, +2 % (003-open-flaw-90-full)", curve="stress_strain", paper_number=56.0),
     Case("003-open-flaw-90-full", "003", "full", RUNS["dem-flaw-90-full"], "strength with an open flaw at theta = 90 deg "
          "(20,538 particles)", "peak_stress*1e-6", "MPa", (47.6, 64.4),
          "the paper's 56 MPa (Fig. 9-10), +-15 %: crackle's round-off scatter (~5 % a draw) and the paper's two "
-         "intact samples 5 % apart; crackle's full form read 57.3 MPa (2026-11-27)", "56 MPa"),
+         "intact samples 5 % apart; crackle's full form read 57.3 MPa (2026-11-27)", "56 MPa", curve="stress_strain", paper_number=56.0),
     Case("003-open-flaw-0-quick", "003", "quick", RUNS["dem-flaw-0"], "strength with an open flaw at theta = 0",
          "peak_stress*1e-6", "MPa", (36.4, 44.5), "crackle's own quick value, 40.5 MPa (2026-12-06), +-10 % (round-off "
          "scatter)",
          "29 MPa",
          reason="the 0-deg flaw weakens crackle's sample less than the paper's (0.58 of the intact strength against "
                 "0.41; full form 35.0 MPa, 2026-11-27): neither the particle size nor the slot's width closes it "
-                "(docs/validation.md, paper 003)"),
+                "(docs/validation.md, paper 003)", curve="stress_strain", paper_number=29.0),
     Case("003-ucs-full", "003", "full", RUNS["dem-ucs-full"], "uniaxial compressive strength (20,703 particles)",
          "peak_stress*1e-6", "MPa", (55.0, 66.0),
          "crackle's three full-form runs, 58.0 / 62.0 / 61.0 MPa, and their round-off scatter (+-5 %)", "~70 MPa",
          reason="the full form reads 60.3 MPa on average, -14 %, at the paper's particle size and density "
-                "(docs/validation.md, 'Full forms at the paper's density')"),
+                "(docs/validation.md, 'Full forms at the paper's density')", curve="stress_strain", paper_number=70.0),
     Case("003-modulus-full", "003", "full", RUNS["dem-ucs-full"], "Young's modulus from the platen (20,703 particles)",
          "platen_modulus*1e-9", "GPa", (49.5, 60.5),
          "the paper's ~55 GPa read from its stress-strain curve, +-10 %; crackle's full runs 55.6 and 55.7 GPa",
@@ -253,7 +255,7 @@ CASES: tuple[Case, ...] = (
          "219-228 N between 40 and 200 mm/s)", "~237 N (converged, 0.95 mm)",
          reason="the quick 3 mm mesh at 1.25 m/s reads 242 N, but the agreement does not carry to the converged "
                 "mesh: at 1.0 and 0.95 mm and the paper's 40 mm/s crackle reads 182-186 N, 0.77 of the paper's "
-                "(docs/validation.md, paper 004)"),
+                "(docs/validation.md, paper 004)", curve="load", paper_number=236.6),
 )
 
 

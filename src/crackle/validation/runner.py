@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .cases import PAPERS, Case, Run, read_number
+from .figures import case_figure
 
 PASS, NOT_REPRODUCED, OUTSIDE, FAILED = "pass", "not reproduced", "outside", "failed"
 REPORT = "report.md"
@@ -216,6 +217,10 @@ def write_report(out: Path, results: list[CaseResult]) -> None:
             lines.append(f"- **{r.case.name}**: band: {r.case.band_source}."
                          + (f" Not reproduced: {r.case.reason}." if r.case.reason else ""))
         lines.append("")
+        for r in rows:
+            figure = case_figure(r.case, out / r.run, r.value, out / "figures" / f"{r.case.name}.png")
+            if figure is not None:
+                lines += [f"![{r.case.name}: {r.case.quantity}](figures/{figure.name})", ""]
     (out / REPORT).write_text("\n".join(lines))
     (out / "report.json").write_text(json.dumps({
         **where,
