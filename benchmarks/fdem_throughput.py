@@ -40,6 +40,8 @@ Examples:
     python benchmarks/fdem_throughput.py --law bilinear --sizes 13000 50000   # paper-004 walnut law
     python benchmarks/fdem_throughput.py --insertion extrinsic --sizes 50000   # tied faces, node pass
     python benchmarks/fdem_throughput.py --mesh gmsh --sizes 50000             # unstructured, Morton-ordered
+    python benchmarks/fdem_throughput.py --mesh file --sizes 50000             # the same read from a .msh file
+    python benchmarks/fdem_throughput.py --mesh file-order --sizes 50000       # in gmsh's own order
 """
 
 from __future__ import annotations
@@ -79,9 +81,11 @@ def parse_args(argv=None):
     p.add_argument("--steps", type=int, default=None, help="fixed step count per repeat (overrides --seconds)")
     p.add_argument("--cell", type=float, default=4e-3,
                    help="cell edge of the structured box in m (default 4 mm; 24 tets per cell)")
-    p.add_argument("--mesh", choices=("structured", "gmsh"), default="structured",
+    p.add_argument("--mesh", choices=("structured", "gmsh", "file", "file-order"), default="structured",
                    help="the beam meshed by structured_box (default) or by gmsh (unstructured, the same "
-                        "box, its element size set for about the --sizes tet count)")
+                        "box, its element size set for about the --sizes tet count); file: that gmsh mesh "
+                        "written to a .msh and read back as a scenario's `specimen.file` is; file-order: the "
+                        "gmsh mesh in gmsh's own order, as a file's mesh was stepped before it was ordered")
     p.add_argument("--breakdown", action="store_true",
                    help="also time the interface pass alone (interface_forces)")
     p.add_argument("--in-process", action="store_true",
@@ -118,17 +122,33 @@ def material(law: str, insertion: str = "intrinsic"):
     return Material(2340.0, 26e9, 0.2, GuoMunjizaLaw(3e6, 15e6, 30.0, 10.0, insertion=insertion), name="rock")
 
 
-def gmsh_beam(size, target_tets: int):
+def gmsh_beam(size, target_tets: int, kind: str = "gmsh"):
     """The box meshed by gmsh with about target_tets tets: meshed once at a guessed element size,
     then again at the size scaled by the cube root of the count's ratio; in the order a scenario's
-    gmsh mesh gets (locality_order)."""
+    gmsh mesh gets (locality_order), or (kind "file") written to a gmsh file and read back as a
+    scenario's specimen file is, or (kind "file-order") in gmsh's own order."""
+    import tempfile
+    import types
+    from pathlib import Path
+
+    import meshio
+
     from crackle.geometry import gmsh_box
     from crackle.geometry.meshes import locality_order
+    from crackle.geometry.specimens import specimen_mesh
 
     h = (size[0] * size[1] * size[2] * 6.0 / target_tets) ** (1.0 / 3.0)
     mesh = gmsh_box(size, h)
     h *= (len(mesh.tets) / target_tets) ** (1.0 / 3.0)
-    return locality_order(gmsh_box(size, h))[0], h
+    mesh = gmsh_box(size, h)
+    if kind == "file-order":
+        return mesh, h
+    if kind == "file":
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / "beam.msh"
+            meshio.write(path, meshio.Mesh(mesh.points, [("tetra", mesh.tets)]), file_format="gmsh22", binary=False)
+            return specimen_mesh(types.SimpleNamespace(shape="mesh", file=str(path), scale=1.0), None)[0], h
+    return locality_order(mesh)[0], h
 
 
 def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: str = "intrinsic",
@@ -141,8 +161,8 @@ def build(target_tets: int, cell: float, law: str = "guo-munjiza", insertion: st
     rock = material(law, insertion)
     nx, ny, nz = beam_cells(target_tets)
     L, W, H = nx * cell, ny * cell, nz * cell
-    if mesh_kind == "gmsh":
-        mesh, h = gmsh_beam((L, W, H), target_tets)
+    if mesh_kind != "structured":
+        mesh, h = gmsh_beam((L, W, H), target_tets, mesh_kind)
         reach = 0.5 * h  # the line supports take the bottom nodes within half an element
     else:
         mesh = structured_box((L, W, H), cell)

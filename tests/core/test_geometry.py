@@ -343,3 +343,37 @@ def test_abaqus_labels_reach_the_summary(tmp_path):
         warnings.simplefilter("ignore")  # the coarse-mesh advice: two 10 mm tets
         model = build_fdem_model(mesh, rock())
     assert model.time_step.as_summary(mesh.label)["element"] == 1000 + model.time_step.element
+
+
+def test_a_mesh_file_is_ordered_for_the_cache_and_keeps_the_files_numbers(tmp_path):
+    """A specimen read from a file (a gmsh disc written in a shuffled order) is stepped in the
+    locality order crackle gives its own meshes (the file's order stepped 1.8-2.1x slower), and
+    every tet keeps its number in the file: label - 1 is its row there (the same four points).
+    Groups of tets and named surfaces follow the renumbering (the same tets and triangles in space)."""
+    import types
+
+    from crackle.geometry.meshes import locality_order
+    from crackle.geometry.specimens import specimen_mesh
+
+    disc = gmsh_cylinder(0.02, 0.015, 0.004)
+    shuffled = np.random.default_rng(7).permutation(disc.n_tets)
+    path = tmp_path / "disc.vtu"
+    meshio.write(path, meshio.Mesh(disc.points, [("tetra", disc.tets[shuffled])]))
+    file_mesh = read_mesh(path)
+
+    mesh, _ = specimen_mesh(types.SimpleNamespace(shape="mesh", file=str(path), scale=1.0), None)
+    expected, _ = locality_order(file_mesh)
+    np.testing.assert_array_equal(mesh.points[mesh.tets], expected.points[expected.tets])
+    np.testing.assert_array_equal(mesh.points[mesh.tets], file_mesh.points[file_mesh.tets[mesh.labels - 1]])
+    assert sorted(mesh.labels.tolist()) == list(range(1, disc.n_tets + 1))
+    assert not np.array_equal(mesh.labels, np.arange(1, disc.n_tets + 1))  # reordered, numbered as in the file
+    assert mesh.label(0) == int(mesh.labels[0])
+
+    centroids = file_mesh.points[file_mesh.tets].mean(axis=1)
+    left = np.flatnonzero(centroids[:, 0] < 0.0)
+    ends = np.flatnonzero(np.isclose(file_mesh.points[:, 2], 0.0))[:3][None, :]
+    grouped = TetMesh(file_mesh.points, file_mesh.tets, groups={"left": left}, surfaces={"end": ends})
+    ordered, _ = locality_order(grouped)
+    again = ordered.points[ordered.tets].mean(axis=1)[ordered.groups["left"]]
+    assert np.array_equal(np.sort(again, axis=0), np.sort(centroids[left], axis=0))
+    np.testing.assert_array_equal(ordered.points[ordered.surfaces["end"]], file_mesh.points[ends])

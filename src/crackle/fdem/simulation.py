@@ -228,7 +228,8 @@ class FdemSimulation(SimulationBase):
             "blocks": [
                 ("tetra", np.arange(4 * n_tets).reshape(-1, 4),
                  {"stress": self._stress.copy(), "damage": tet_damage, "fragment": self.fragments().labels,
-                  "material": np.asarray(m.tet_material, dtype=np.int64)}),
+                  "material": np.asarray(m.tet_material, dtype=np.int64),
+                  "element": m.mesh.labels if m.mesh.labels is not None else np.arange(1, n_tets + 1)}),
                 ("triangle", m.ifs.na, {"damage": m.ifs.damage.copy(), "state": m.ifs.state.astype(np.int64),
                                         **self._drawn_face_values()}),
             ],

@@ -14,15 +14,20 @@ from .walnut import shell_from_surface, walnut_shell
 
 def specimen_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh, np.ndarray | None]:
     """The specimen's tet mesh and its per-tet region ids (walnut, shell: 0 face, 1 suture; else
-    None). Raises MeshError; relative file names are taken from `base`. Generated unstructured
-    meshes come in a cache-friendly order (locality_order); a structured box keeps its regular
-    order, a mesh file its own (so that element numbers in messages are the file's). `planes`
+    None). Raises MeshError; relative file names are taken from `base`. Unstructured meshes, a
+    file's too, come in a cache-friendly order (locality_order: a file's own order stepped 1.8-2.1x
+    slower); a file's tets keep the numbers the file gives them (`TetMesh.labels`: its Abaqus labels,
+    else their place in the file from 1), which messages and outputs use. A structured box keeps
+    its regular order. `planes`
     ((point, normal) pairs: the material zones' bounding planes) cut a gmsh-meshed box, cylinder,
     disc or sphere so that faces lie on them."""
     from ..scenario import resolve_path
 
     if spec.shape == "mesh":
         mesh = read_mesh(resolve_path(spec.file, base))
+        if mesh.labels is None:
+            mesh = dataclasses.replace(mesh, labels=np.arange(1, mesh.n_tets + 1))
+        mesh, _ = locality_order(mesh)
         return (mesh if spec.scale == 1.0 else dataclasses.replace(mesh, points=mesh.points * spec.scale)), None
     if spec.shape in ("box", "beam") and spec.mesh == "structured":
         return structured_box(spec.size, spec.element_size, origin=spec.origin), None
