@@ -296,7 +296,12 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true", help="print one JSON object (lengths in m)")
     p.set_defaults(func=_cmd_fpz)
     args = parser.parse_args(argv)
-    return args.func(args)
+    from .io.progress import guarded_standard_streams
+    from .solver.driver import request_stop
+
+    # A closed pipe or terminal stops a run as Ctrl-C does (summary, checkpoint, lock released), no traceback.
+    with guarded_standard_streams(lambda stream: request_stop(f"as its {stream} closed")):
+        return args.func(args)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import json
 import os
 import re
 import resource
+import signal
 import subprocess
 import sys
 import time
@@ -323,3 +324,46 @@ def test_a_tool_started_inside_is_named_as_the_cause_not_the_step(tmp_path, caps
                       r"1 outer", message)
     assert where, message
     assert 240 <= float(where.group(1)) <= 260, message
+
+
+def _bending_run_printing(out, stop):
+    """The quick bending run in a child process with its output piped, progress lines every 0.2 s;
+    `stop(proc)` once the first one is read. (exit code, stderr)."""
+    proc = subprocess.Popen([sys.executable, "-m", "crackle.cli", "run", *BENDING, "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "CRACKLE_LOG_INTERVAL": "0.2"})
+    for line in proc.stdout:
+        if "steps/s" in line:
+            break
+    stop(proc)
+    err = proc.stderr.read()
+    return proc.wait(timeout=600), err
+
+
+def _stopped_as_by_ctrl_c(out, code, err, why):
+    """What Ctrl-C leaves: exit 130, summary.json "interrupted" saying why, status.json final, a
+    checkpoint to resume from, the folder's lock released, no traceback."""
+    from crackle.solver.checkpoint import CHECKPOINT_FILE
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert code == 130 and summary["status"] == "interrupted" and why in summary["message"], (code, err)
+    assert json.loads((out / "status.json").read_text())["state"] != "running"
+    assert (out / CHECKPOINT_FILE).is_file() and not (out / LOCK_FILE).exists()
+    assert "Traceback" not in err
+
+
+def test_a_closed_output_pipe_stops_the_run_like_ctrl_c(tmp_path):
+    """`crackle run ... | head -1`: the reader closes the pipe after the first progress line; the
+    run's next line finds it closed and the run stops after its chunk, keeping its outputs (it
+    died in a BrokenPipeError traceback with status.json "running" and a stale lock)."""
+    out = tmp_path / "piped"
+    code, err = _bending_run_printing(out, lambda proc: proc.stdout.close())
+    _stopped_as_by_ctrl_c(out, code, err, "as its stdout closed")
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
+def test_a_closed_terminal_sighup_stops_the_run_like_ctrl_c(tmp_path):
+    """SIGHUP (the terminal closed) during a run: the same as Ctrl-C, the summary saying why."""
+    out = tmp_path / "hung-up"
+    code, err = _bending_run_printing(out, lambda proc: proc.send_signal(signal.SIGHUP))
+    _stopped_as_by_ctrl_c(out, code, err, "as its terminal closed (SIGHUP)")

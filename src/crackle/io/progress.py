@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import sys
@@ -17,6 +19,56 @@ def _stdout_is_terminal() -> bool:
         return sys.stdout.isatty()
     except (AttributeError, ValueError):  # replaced or closed stdout
         return False
+
+
+class _GuardedStream:
+    """stdout or stderr that survives its reader going away (a pipe closed: `crackle run ... |
+    head`; a terminal closed: EIO): the first failed write sends the stream to the null device
+    from then on (its file descriptor too, so that nothing buffered fails at exit) and calls
+    `on_lost`, once."""
+
+    LOST = (errno.EPIPE, errno.EIO)
+
+    def __init__(self, stream, on_lost):
+        self._stream, self._on_lost, self._lost = stream, on_lost, False
+
+    def _guard(self, call, *args):
+        try:
+            return call(*args)
+        except OSError as err:
+            if err.errno not in self.LOST:
+                raise
+            if not self._lost:
+                self._lost = True
+                with contextlib.suppress(OSError, ValueError):
+                    null = os.open(os.devnull, os.O_WRONLY)
+                    os.dup2(null, self._stream.fileno())
+                    os.close(null)
+                self._on_lost()
+            return None
+
+    def write(self, text):
+        return len(text) if self._lost else (self._guard(self._stream.write, text) or len(text))
+
+    def flush(self):
+        if not self._lost:
+            self._guard(self._stream.flush)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def guarded_standard_streams(on_lost):
+    """sys.stdout and sys.stderr as _GuardedStreams for the block; `on_lost(stream name)` when one
+    is lost."""
+    saved = sys.stdout, sys.stderr
+    sys.stdout = _GuardedStream(saved[0], lambda: on_lost("stdout"))
+    sys.stderr = _GuardedStream(saved[1], lambda: on_lost("stderr"))
+    try:
+        yield
+    finally:
+        sys.stdout, sys.stderr = saved
 
 
 # Wall seconds between the plain progress lines of a run without a terminal (CRACKLE_LOG_INTERVAL

@@ -354,7 +354,7 @@ def _advance_rows(sim, control: RunControl, out: Path, scenario, state: _DriverS
             state.status, state.message = "stopped", reason
             return
         if interrupt.requested:
-            state.status, state.message = "interrupted", f"interrupted by the user at t = {sim.time:.4e} s"
+            state.status, state.message = "interrupted", f"interrupted {interrupt.why} at t = {sim.time:.4e} s"
             return
         if control.checkpoint and wallclock.perf_counter() - last_checkpoint >= control.checkpoint_every:
             # After this row's driver state (energy scale, force-drop clock) is updated: a run
@@ -545,28 +545,52 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, low_since, no
 
 
 class _InterruptRequest:
-    """Ctrl-C (or a polite kill, SIGTERM, e.g. a batch system's time limit) during a run asks it
-    to stop after the chunk in progress, so that the history, the events, the summary and the
-    checkpoint end at the same consistent state; a second one interrupts at once."""
+    """Ctrl-C (or a polite kill, SIGTERM, e.g. a batch system's time limit, or SIGHUP, its terminal
+    closed) during a run asks it to stop after the chunk in progress, so that the history, the
+    events, the summary and the checkpoint end at the same consistent state; a second one
+    interrupts at once. `request_stop` asks the same when the run's output stream is lost (a pipe
+    closed: `crackle run ... | head`)."""
+
+    active: _InterruptRequest | None = None  # the run's, while one runs in this process
+    pending: str | None = None  # request_stop's reason, for runs that start after it (the stream stays lost)
+    SIGNALS = {signal.SIGINT: "by the user", signal.SIGTERM: "by SIGTERM",
+               **({signal.SIGHUP: "as its terminal closed (SIGHUP)"} if hasattr(signal, "SIGHUP") else {})}
 
     def __init__(self):
         self.requested = False
+        self.why = "by the user"
         self._previous = None
 
     def _handler(self, signum, frame):
         if self.requested:
             raise KeyboardInterrupt
-        self.requested = True
+        self.ask(self.SIGNALS.get(signum, "by a signal"))
         print("\ncrackle: stopping after this chunk (Ctrl-C again to stop at once)", file=sys.stderr, flush=True)
+
+    def ask(self, why: str) -> None:
+        if not self.requested:
+            self.requested, self.why = True, why
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
-            self._previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+            self._previous = {sig: signal.signal(sig, self._handler) for sig in self.SIGNALS}
+        _InterruptRequest.active = self
+        if _InterruptRequest.pending:
+            self.ask(_InterruptRequest.pending)
         return self
 
     def __exit__(self, *exc):
+        _InterruptRequest.active = None
         for sig, handler in (self._previous or {}).items():
             signal.signal(sig, handler)
+
+
+def request_stop(why: str) -> None:
+    """Ask the run in progress in this process to stop after its chunk, as Ctrl-C does, and every
+    run that starts later after its first."""
+    _InterruptRequest.pending = why
+    if _InterruptRequest.active is not None:
+        _InterruptRequest.active.ask(why)
 
 
 # What a run writes into its output folder (and a rerun into the same folder removes first): the
