@@ -367,3 +367,15 @@ def test_a_closed_terminal_sighup_stops_the_run_like_ctrl_c(tmp_path):
     out = tmp_path / "hung-up"
     code, err = _bending_run_printing(out, lambda proc: proc.send_signal(signal.SIGHUP))
     _stopped_as_by_ctrl_c(out, code, err, "as its terminal closed (SIGHUP)")
+
+
+@pytest.mark.parametrize("value", ["abc", "", "-1", "nan"])
+def test_a_bad_log_interval_is_said_and_replaced(value):
+    """CRACKLE_LOG_INTERVAL that is no positive number of seconds (it crashed crackle at import):
+    one line saying so, the default 30 s used, the command runs (exit 0); empty is unset."""
+    code, stdout, err = _cli("fpz", "--E", "26e9", "--Gf", "50", "--ft", "3e6", env={"CRACKLE_LOG_INTERVAL": value})
+    assert code == 0 and "Traceback" not in err and "plastic zone" in stdout, (code, err)
+    if value:
+        assert f"CRACKLE_LOG_INTERVAL={value!r} is not a positive number of seconds; using 30" in err
+    else:
+        assert err == ""

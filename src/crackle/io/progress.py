@@ -71,9 +71,25 @@ def guarded_standard_streams(on_lost):
         sys.stdout, sys.stderr = saved
 
 
-# Wall seconds between the plain progress lines of a run without a terminal (CRACKLE_LOG_INTERVAL
-# sets another: a cluster log may want fewer).
-LOG_INTERVAL = float(os.environ.get("CRACKLE_LOG_INTERVAL", "30"))
+def _log_interval(default: float = 30.0) -> float:
+    """Wall seconds between the plain progress lines of a run without a terminal: CRACKLE_LOG_INTERVAL
+    (a cluster log may want fewer), else `default`; a value that is no positive number says so and
+    takes the default (it must not stop crackle from starting)."""
+    text = os.environ.get("CRACKLE_LOG_INTERVAL", "").strip()
+    if not text:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 < value < float("inf"):
+        print(f"crackle: CRACKLE_LOG_INTERVAL={text!r} is not a positive number of seconds; using {default:g}",
+              file=sys.stderr)
+        return default
+    return value
+
+
+LOG_INTERVAL = _log_interval()
 
 
 class Progress:
