@@ -201,6 +201,28 @@ class VelocityTable(Strict):
     speed: list[float]
     """m/s for a tool (Pa for a pressure table), one per time"""
 
+    @model_validator(mode="after")
+    def _a_history(self):
+        if not self.time or len(self.time) != len(self.speed):
+            raise ValueError(f"time and speed need one value each per row: {len(self.time)} times and "
+                             f"{len(self.speed)} values given")
+        if not all(math.isfinite(v) for v in self.speed):
+            raise ValueError("speed: every value must be a finite number")
+        later = [i for i in range(1, len(self.time)) if self.time[i] <= self.time[i - 1]]
+        if later:
+            i = later[0]
+            raise ValueError(f"time must increase: {self.time[i]:g} s (row {i + 1}) follows {self.time[i - 1]:g} s")
+        return self
+
+
+def check_one_motion(spec, motion_keys: tuple[str, ...] = ("speed", "ramp_time")) -> None:
+    """A tool or support moves by speed (and ramp_time) or by speed_table, not both: a table given
+    beside them was silently preferred. (Zero beside a table is allowed: --set cannot remove a key.)"""
+    beside = [k for k in motion_keys if getattr(spec, k)]
+    if spec.speed_table is not None and beside:
+        raise ValueError(f"speed_table replaces {' and '.join(motion_keys)}: remove {', '.join(beside)} or set "
+                         f"{' and '.join(beside)} to 0 (or remove the table)")
+
 
 class ToolSpec(Strict):
     """[[tools]]: a rigid tool moving by translation along `direction` (plane, box, cylinder, sphere
@@ -279,6 +301,7 @@ class ToolSpec(Strict):
                              "remove one of them")
         if self.touch and self.shape not in ("box", "sphere"):
             raise ValueError("touch = true is for box and sphere tools")
+        check_one_motion(self)
         driven = sorted({"ramp_time", "speed_table"} & self.model_fields_set)
         if self.mass is not None and driven:
             raise ValueError(f"{', '.join(driven)}: a tool with a mass is free and starts at `speed`; "
@@ -679,6 +702,7 @@ class SupportSpec(Strict):
 
     @model_validator(mode="after")
     def _motion(self):
+        check_one_motion(self)
         if not self.moves:
             motion_only = sorted({"direction", "ramp_time", "name"} & self.model_fields_set)
             if motion_only:

@@ -379,3 +379,37 @@ def test_a_bad_log_interval_is_said_and_replaced(value):
         assert f"CRACKLE_LOG_INTERVAL={value!r} is not a positive number of seconds; using 30" in err
     else:
         assert err == ""
+
+
+@pytest.mark.parametrize("sets, expected", [
+    (["tools.0.speed_table={time=[0, 1e-4, 5e-5], speed=[0, 0.1, 0.1]}"],
+     "time must increase: 5e-05 s (row 3) follows 0.0001 s"),
+    (["tools.0.speed_table={time=[0, 1e-4], speed=[0, 0.1, 0.1]}"],
+     "time and speed need one value each per row: 2 times and 3 values given"),
+    (["tools.0.speed_table={time=[], speed=[]}"], "time and speed need one value each per row: 0 times"),
+    (["tools.0.speed_table={time=[0, 1e-4], speed=[0, 0.1]}"],
+     "speed_table replaces speed and ramp_time: remove speed, ramp_time or set speed and ramp_time to 0"),
+    (["supports.0.speed_table={time=[0, 1e-4], speed=[0, 0.01]}", "supports.0.speed=0.01"],
+     "speed_table replaces speed and ramp_time: remove speed"),
+    (["supports.0.speed_table={time=[0, 2e-4, 1e-4], speed=[0, 0.01, 0.01]}"], "time must increase"),
+])
+def test_a_speed_table_that_is_no_history_is_refused_naming_the_row(tmp_path, capsys, sets, expected):
+    """Speed tables of tools and moving supports (issue 71 item 4): times that do not increase or
+    lists of unequal length crashed the set-up; a table beside `speed` was silently preferred. Exit
+    2, one line naming the key and the fix, nothing written. (The dem-tension top support and the
+    bending beam's top tool, which have a speed; `--set tools.0.speed=0` beside a table is taken.)"""
+    example = "dem-tension" if sets[0].startswith("supports") else "three-point-bending"
+    argv = ["run", example, "--quick", "--out", str(tmp_path / "o")] + [a for s in sets for a in ("--set", s)]
+    assert main(argv) == 2
+    assert expected in _one_line(capsys.readouterr().err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_speed_table_with_speed_set_to_zero_is_taken():
+    """Zeroing speed and ramp_time beside a table (what --set can do: it cannot remove a key) is
+    the table alone."""
+    from crackle.scenario import load_scenario
+
+    scenario, _ = load_scenario("three-point-bending", ["tools.0.speed=0", "tools.0.ramp_time=0",
+                                                        "tools.0.speed_table={time=[0, 1e-4], speed=[0, 0.1]}"], True)
+    assert scenario.tools[0].speed_table.speed == [0.0, 0.1]
