@@ -330,18 +330,32 @@ def test_text_sphere_list_from_another_code_gives_the_same_run(tmp_path):
     ("0.001 0.001 0.001 -0.0005\n0.002 0.002 0.002 0.0005\n", "line 1: '0.001 0.001 0.001 -0.0005': the radius must be > 0"),
     ("1 1 1 0.5\n2 2 2 0.5\n", "2 of 2 sphere centres lie outside the specimen"),
     ("# nothing\n", "fewer than two spheres"),
+    # a clump's members or a doubled export (crashed the step with a SystemError)
+    ("0.01 0.005 0.02 0.001\n0.012 0.005 0.02 0.001\n# again\n0.01 0.005 0.02 0.001\n",
+     "1 pairs of spheres share their centre, the first on lines 1 and 4 at [0.01, 0.005, 0.02] m"),
+    # a 4 mm cluster in the 27 x 12 x 54 mm specimen (a UCS read 14-57x too small)
+    ("0.001 0.001 0.001 0.0005\n0.002 0.002 0.002 0.0005\n", "short of its faces along z"),
+    ("sphere-file.npz", "not a packing crackle saved (KeyError"),
+    ("junk.npz", "not a packing crackle saved"),
 ])
 def test_bad_sphere_list_exits_2_naming_the_line(tmp_path, capsys, content, expected):
     """A sphere list the reader cannot take: exit code 2, one line naming packing.file, the file,
-    the line (or what is wrong), and no output folder."""
+    the line (or what is wrong), and no output folder. An .npz that is not crackle's (another
+    code's arrays, junk bytes): the same, saying what goes in a sphere list."""
     from crackle.cli import main
 
-    (tmp_path / "spheres.txt").write_text(content)
-    code = main(["run", "dem-ucs", "--quick", "--set", f"packing.file={tmp_path / 'spheres.txt'}",
+    if content == "sphere-file.npz":
+        np.savez(tmp_path / "spheres.npz", xyz=np.zeros((2, 3)), r=np.ones(2))
+    elif content == "junk.npz":
+        (tmp_path / "spheres.npz").write_bytes(bytes(range(256)) * 4)
+    else:
+        (tmp_path / "spheres.txt").write_text(content)
+    name = "spheres.npz" if content.endswith(".npz") else "spheres.txt"
+    code = main(["run", "dem-ucs", "--quick", "--set", f"packing.file={tmp_path / name}",
                  "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 2
-    assert "packing.file" in err and "spheres.txt" in err and expected in err
+    assert "packing.file" in err and name in err and expected in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
 

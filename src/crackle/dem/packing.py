@@ -25,6 +25,7 @@ outward gradient of the signed distance) and `description()` (a JSON-able dict):
 from __future__ import annotations
 
 import json
+import zipfile
 import math
 import os
 from dataclasses import dataclass, field
@@ -582,11 +583,15 @@ class Packing:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Packing:
-        """The packing written by `save`."""
-        with np.load(path, allow_pickle=False) as z:
-            return cls(centers=z["centers"], radii=z["radii"], domain=json.loads(str(z["domain"])),
-                       seed=int(z["seed"]), porosity=float(z["porosity"]), max_overlap=float(z["max_overlap"]),
-                       mean_overlap=float(z["mean_overlap"]), sweeps=int(z["sweeps"]))
+        """The packing written by `save`; ValueError for a file that is not one (another .npz, junk)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return cls(centers=z["centers"], radii=z["radii"], domain=json.loads(str(z["domain"])),
+                           seed=int(z["seed"]), porosity=float(z["porosity"]), max_overlap=float(z["max_overlap"]),
+                           mean_overlap=float(z["mean_overlap"]), sweeps=int(z["sweeps"]))
+        except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+            raise ValueError(f"not a packing crackle saved ({type(err).__name__}: {err}); a packing from another code "
+                             "goes in a text sphere list, one 'x y z r' line per sphere (m)") from None
 
 
 def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
@@ -597,12 +602,13 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
     every centre must lie inside it. ValueError naming the line for anything else. The
     spheres keep the file's order; overlaps are measured, not removed (bonds rest where the
     spheres lie)."""
-    rows = []
+    rows, lines = [], []
     with open(path, encoding="utf-8", errors="replace") as f:
         for number, line in enumerate(f, start=1):
             text = line.split("#", 1)[0].replace(",", " ").split()
             if not text:
                 continue
+            lines.append(number)
             try:
                 values = [float(v) for v in text[:4]]
             except ValueError:
@@ -625,6 +631,8 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
             f"{len(outside)} of {len(radii)} sphere centres lie outside the specimen (the first is sphere "
             f"{outside[0] + 1}, at {centers[outside[0]].tolist()} m; the specimen spans {lo.tolist()} to "
             f"{hi.tolist()} m): give the specimen the packing's place and size, and the file in metres")
+    _check_no_coincident_spheres(centers, radii, lines)
+    _check_the_packing_fills(centers, radii, domain)
     # The overlap statistics of a generated packing, on a copy numbered by cell as they need.
     lo, hi = domain.bounds
     cell = 2.0 * float(radii.max())
@@ -634,6 +642,44 @@ def read_sphere_list(path: str | os.PathLike, domain) -> Packing:
     solid = float(np.sum(4.0 / 3.0 * math.pi * radii**3))
     return Packing(centers=centers, radii=radii, domain=domain.description(), seed=0,
                    porosity=1.0 - solid / domain.volume, max_overlap=max_overlap, mean_overlap=mean_overlap, sweeps=0)
+
+
+# Spheres whose centres lie closer than this fraction of the smallest radius are one place twice.
+COINCIDENT = 1e-6
+
+
+def _check_no_coincident_spheres(centers: np.ndarray, radii: np.ndarray, lines: list[int]) -> None:
+    """ValueError for spheres sharing a centre (a clump's members, a list written twice): no
+    direction joins them, so a bond or contact between them is undefined (it crashed the step)."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(centers).query_pairs(COINCIDENT * float(radii.min()), output_type="ndarray")
+    if len(pairs):
+        a, b = sorted(pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))][0])
+        raise ValueError(f"{len(pairs)} pairs of spheres share their centre, the first on lines {lines[a]} and "
+                         f"{lines[b]} at {centers[a].tolist()} m (a clump's members, or a list written twice): "
+                         "keep one sphere per place")
+
+
+# How far the spheres may stop short of the specimen's faces: two of the largest radii (a packing
+# grown between walls reaches them; one from another code may fill a smaller box).
+FILL_MARGIN_RADII = 2.0
+
+
+def _check_the_packing_fills(centers: np.ndarray, radii: np.ndarray, domain) -> None:
+    """ValueError when the spheres fill a smaller box than the specimen's: stresses are forces over
+    the specimen's section, so an imported 54 mm packing in a 100 mm specimen read a UCS 14-57x
+    too small. The message gives the packing's extent to set instead."""
+    lo, hi = domain.bounds
+    reach_lo, reach_hi = (centers - radii[:, None]).min(axis=0), (centers + radii[:, None]).max(axis=0)
+    short = np.maximum(reach_lo - lo, hi - reach_hi)
+    if np.any(short > FILL_MARGIN_RADII * float(radii.max())):
+        axis = "xyz"[int(np.argmax(short))]
+        raise ValueError(
+            f"the spheres fill {reach_lo.tolist()} to {reach_hi.tolist()} m, the specimen {lo.tolist()} to "
+            f"{hi.tolist()} m: {float(short.max()) * 1e3:.3g} mm short of its faces along {axis} (stresses are "
+            f"forces over the specimen's section); give the specimen the packing's extent (a box: origin = "
+            f"{reach_lo.tolist()}, size = {(reach_hi - reach_lo).tolist()})")
 
 
 def read_sphere_labels(path: str | os.PathLike, column: int) -> np.ndarray:

@@ -298,9 +298,9 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
         path = resolve_path(spec.file, base)
         if not path.is_file():
             raise ScenarioError(f"packing.file: {path} does not exist")
-        if path.suffix.lower() == ".npz":
-            return Packing.load(path)
         try:
+            if path.suffix.lower() == ".npz":
+                return Packing.load(path)
             return read_sphere_list(path, domain_of(scenario.specimen))
         except (ValueError, UnicodeDecodeError) as err:
             raise ScenarioError(f"packing.file: {path}: {err}") from None
