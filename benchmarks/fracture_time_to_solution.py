@@ -307,6 +307,20 @@ def build_case(case: str, insertion: str, args, mesh_file: Path | None):
     return sim, (1e-6 * args.until_us if args.until_us is not None else end)
 
 
+def median_phases(tables: list[dict]) -> dict:
+    """Phase tables of repeated runs: the timed numbers their medians, the steps the first run's
+    (the same in every run of a deterministic code)."""
+    phases = {}
+    for name in PHASES:
+        rows = [t[name] for t in tables]
+        median = dict(rows[0])
+        for key in ("wall_s", "wall_s_per_us", "ms_per_compiled_step", "tet_steps_per_s"):
+            values = [r[key] for r in rows if r[key] is not None]
+            median[key] = statistics.median(values) if values else None
+        phases[name] = median
+    return phases
+
+
 def time_case(case: str, insertion: str, args, mesh_file: Path | None) -> dict:
     """Warm-up, then `args.repeat` timed runs from fresh builds; medians per phase."""
     sim, end = build_case(case, insertion, args, mesh_file)
@@ -320,14 +334,7 @@ def time_case(case: str, insertion: str, args, mesh_file: Path | None) -> dict:
         chunks = run_through_fracture(sim, dt, end, 1e-6 * args.chunk_us)
         runs.append({"build_s": build_s, "chunks": chunks, "phases": phase_table(chunks, sim.model.n_tets),
                      "wall_s": sum(c.wall for c in chunks)})
-    phases = {}
-    for name in PHASES:
-        rows = [r["phases"][name] for r in runs]
-        median = dict(rows[0])
-        for key in ("wall_s", "wall_s_per_us", "ms_per_compiled_step", "tet_steps_per_s"):
-            values = [r[key] for r in rows if r[key] is not None]
-            median[key] = statistics.median(values) if values else None
-        phases[name] = median
+    phases = median_phases([r["phases"] for r in runs])
     return {
         "case": case,
         "insertion": insertion,
@@ -350,19 +357,23 @@ def _fmt(value, spec: str) -> str:
     return "-" if value is None else format(value, spec)
 
 
+def print_phases(phases: dict, indent: str = "  ") -> None:
+    print(f"{indent}{'phase':10s} {'from-to (us)':>14s} {'wall (s)':>9s} {'s per us':>9s} {'driver':>7s} "
+          f"{'compiled':>9s} {'step (ns)':>10s} {'ms/step':>8s} {'M tet-steps/s':>14s}")
+    for name, p in phases.items():
+        span = f"{p['start_us']:.3g}-{p['end_us']:.3g}" if p["start_us"] is not None else "-"
+        tps = None if p["tet_steps_per_s"] is None else p["tet_steps_per_s"] / 1e6
+        print(f"{indent}{name:10s} {span:>14s} {p['wall_s']:9.3f} {_fmt(p['wall_s_per_us'], '9.3f')} "
+              f"{p['driver_steps']:7d} {p['compiled_steps']:9d} {_fmt(p['step_ns'], '10.4g')} "
+              f"{_fmt(p['ms_per_compiled_step'], '8.3f')} {_fmt(tps, '14.3f')}")
+
+
 def print_result(r: dict) -> None:
     e = r["end"]
     print(f"\n{r['case']} {r['insertion']}: {r['tets']:,} tets, {r['interfaces']:,} interfaces, driver step "
           f"{r['dt_ns']:.4g} ns ({r['tied_substeps']} compiled steps of {r['compiled_dt_ns']:.4g} ns after the tied "
           f"phase), to {r['end_us']:.3g} us: {r['wall_s']:.2f} s of stepping (median of {len(r['wall_s_runs'])})")
-    print(f"  {'phase':10s} {'from-to (us)':>14s} {'wall (s)':>9s} {'s per us':>9s} {'driver':>7s} {'compiled':>9s} "
-          f"{'step (ns)':>10s} {'ms/step':>8s} {'M tet-steps/s':>14s}")
-    for name, p in r["phases"].items():
-        span = f"{p['start_us']:.3g}-{p['end_us']:.3g}" if p["start_us"] is not None else "-"
-        tps = None if p["tet_steps_per_s"] is None else p["tet_steps_per_s"] / 1e6
-        print(f"  {name:10s} {span:>14s} {p['wall_s']:9.3f} {_fmt(p['wall_s_per_us'], '9.3f')} {p['driver_steps']:7d} "
-              f"{p['compiled_steps']:9d} {_fmt(p['step_ns'], '10.4g')} {_fmt(p['ms_per_compiled_step'], '8.3f')} "
-              f"{_fmt(tps, '14.3f')}")
+    print_phases(r["phases"])
     print(f"  end: {e['faces_reached']:,} faces reached their strength, {e['broken']:,} failed, {e['fragments']} "
           f"fragments; tied until {_fmt(e['tied_until_us'], '.3g')} us, failures {_fmt(e['first_failure_us'], '.3g')}-"
           f"{_fmt(e['last_failure_us'], '.3g')} us; energies (J): "
