@@ -5,9 +5,10 @@ driver's step: safety x `sim.stable_dt`, which for an extrinsic run is the tied 
 step; after the first insertion each driver step is `sim.substeps` compiled steps), times each
 chunk, and sorts the chunks into four phases by what the simulation exposes after the chunk:
 
-  tied        extrinsic: every face still tied (`sim.tied_phase`); intrinsic, its counterpart:
-              no face has reached its strength yet (every `ifs.damage` is 0: a Guo-Munjiza face
-              is damaged from its peak on, where an extrinsic face is inserted)
+  tied        extrinsic: every face still tied (`ties.tied`; while `sim.tied_phase` lasts, the
+              driver's step is one long compiled step); intrinsic, its counterpart: no face has
+              reached its strength yet (every `ifs.damage` is 0: a Guo-Munjiza face is damaged
+              from its peak on, where an extrinsic face is inserted)
   inserting   a face has reached its strength (extrinsic: inserted, `ties.tied` no longer TIED;
               intrinsic: damaged) and none has failed yet (`sim.broken` == 0)
   failing     faces fail: from the chunk of the first failure to the last chunk in which
@@ -191,26 +192,30 @@ class Chunk:
     wall: float  # s
     driver_steps: int
     compiled_steps: int
-    tied: bool  # extrinsic: every face still tied; intrinsic: no face damaged
+    tied: bool  # no face has reached its strength (extrinsic: every face tied; intrinsic: none damaged)
     reached: int  # faces that reached their strength (inserted / damaged)
     broken: int
 
 
 def faces_reached(sim) -> int:
-    """Faces past their strength: extrinsic ones no longer tied, intrinsic ones damaged."""
+    """Faces past their strength: extrinsic ones inserted (their law row extrinsic, no longer
+    tied), intrinsic ones damaged; pre-cracks not counted."""
     from crackle.fdem.extrinsic import TIED
+    from crackle.fdem.laws.row import LAW_EXTRINSIC
+    from crackle.fdem.topology import PRECRACK
 
     ifs, ties = sim.model.ifs, sim.model.ties
-    if len(ties.load):  # extrinsic faces
-        return int(np.count_nonzero(ties.tied != TIED))
-    return int(np.count_nonzero(ifs.damage > 0.0))
+    reached = ifs.damage > 0.0
+    if len(ties.load):  # some faces extrinsic
+        extrinsic = ifs.law_table[ifs.law, LAW_EXTRINSIC] > 0
+        reached |= extrinsic & (ties.tied != TIED)
+    return int(np.count_nonzero(reached & (ifs.state != PRECRACK)))
 
 
 def run_through_fracture(sim, dt: float, end_time: float, chunk_time: float, max_chunks: int | None = None):
     """Advance `sim` from its start to end_time in chunks of about chunk_time; the chunks."""
     steps_per_chunk = max(1, round(chunk_time / dt))
     total = max(1, round(end_time / dt))
-    extrinsic = bool(len(sim.model.ties.load))
     chunks = []
     while sim.steps < total and (max_chunks is None or len(chunks) < max_chunks):
         n = min(steps_per_chunk, total - sim.steps)
@@ -222,8 +227,7 @@ def run_through_fracture(sim, dt: float, end_time: float, chunk_time: float, max
         tied_steps = n if sim.tied_phase else (round(sim.tied_until / dt) - first if was_tied else 0)
         compiled = tied_steps + (n - tied_steps) * sim.model.tied_substeps
         reached = faces_reached(sim)
-        tied = sim.tied_phase if extrinsic else reached == 0
-        chunks.append(Chunk(sim.time, wall, n, compiled, bool(tied), reached, sim.broken))
+        chunks.append(Chunk(sim.time, wall, n, compiled, reached == 0, reached, sim.broken))
     return chunks
 
 
