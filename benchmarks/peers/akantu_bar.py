@@ -100,6 +100,7 @@ class AkantuBar:
         self.model.initFull(_analysis_method=aka._explicit_lumped_mass, _is_extrinsic=self.extrinsic)
         x = self.mesh.getNodes()  # after an intrinsic insertion: with the facets' duplicated nodes
         self.model.getVelocity()[:] = fts.bar_velocity(np.asarray(x))
+        self.initial_kinetic = float(self.model.getEnergy("kinetic"))  # all the energy there is
         self.steps = 0
 
     def stable_dt(self) -> float:
@@ -133,6 +134,7 @@ class AkantuBar:
                 energies[name] = float(self.model.getEnergy(name))
             except Exception as err:  # an energy this version does not name: say so, keep going
                 energies[name] = f"{type(err).__name__}: {err}"
+        energies["initial kinetic"] = self.initial_kinetic
         return {"cohesive_elements": n, "reached": reached, "broken": broken, "energies": energies}
 
 
