@@ -365,7 +365,7 @@ def print_phases(phases: dict, indent: str = "  ") -> None:
     print(f"{indent}{'phase':10s} {'from-to (us)':>14s} {'wall (s)':>9s} {'s per us':>9s} {'driver':>7s} "
           f"{'compiled':>9s} {'step (ns)':>10s} {'ms/step':>8s} {'M tet-steps/s':>14s}")
     for name, p in phases.items():
-        span = f"{p['start_us']:.3g}-{p['end_us']:.3g}" if p["start_us"] is not None else "-"
+        span = f"{p['start_us']:.4g}-{p['end_us']:.4g}" if p["start_us"] is not None else "-"
         tps = None if p["tet_steps_per_s"] is None else p["tet_steps_per_s"] / 1e6
         print(f"{indent}{name:10s} {span:>14s} {p['wall_s']:9.3f} {_fmt(p['wall_s_per_us'], '9.3f')} "
               f"{p['driver_steps']:7d} {p['compiled_steps']:9d} {_fmt(p['step_ns'], '10.4g')} "
@@ -379,8 +379,8 @@ def print_result(r: dict) -> None:
           f"phase), to {r['end_us']:.3g} us: {r['wall_s']:.2f} s of stepping (median of {len(r['wall_s_runs'])})")
     print_phases(r["phases"])
     print(f"  end: {e['faces_reached']:,} faces reached their strength, {e['broken']:,} failed, {e['fragments']} "
-          f"fragments; tied until {_fmt(e['tied_until_us'], '.3g')} us, failures {_fmt(e['first_failure_us'], '.3g')}-"
-          f"{_fmt(e['last_failure_us'], '.3g')} us; energies (J): "
+          f"fragments; tied until {_fmt(e['tied_until_us'], '.4g')} us, failures {_fmt(e['first_failure_us'], '.4g')}-"
+          f"{_fmt(e['last_failure_us'], '.4g')} us; energies (J): "
           + ", ".join(f"{k} {v:.4g}" for k, v in e["energies"].items()))
 
 
