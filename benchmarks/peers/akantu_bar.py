@@ -231,13 +231,15 @@ def main(argv=None) -> int:
             a, c = r["akantu_end"], r["crackle_end"]
             print(f"{insertion}: {r['tets']:,} tets; medians akantu {r['medians']['akantu']:.2f} s, crackle "
                   f"{r['medians']['crackle']:.2f} s ({threads} threads): wall crackle / akantu "
-                  f"{r['crackle_over_akantu']:.3f}, crackle {r['akantu_over_crackle']:.2f}x faster; akantu {r['akantu_us_per_tet_step']:.3g} us per tet-step")
+                  f"{r['crackle_over_akantu']:.3f}, crackle {r['akantu_over_crackle']:.2f}x faster; akantu "
+                  f"{r['akantu_us_per_tet_step']:.3g} us per tet-step")
             print(f"  akantu  ({r['akantu_law']}, step {r['akantu_dt_ns']:.4g} ns; its getStableTimeStep "
                   f"{r['akantu_stable_dt_ns']:.4g} ns): {a['cohesive_elements']:,} cohesive elements, {a['reached']:,} "
                   f"past sigma_c, {a['broken']:,} broken; energies (J) "
                   + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in a["energies"].items()))
             print(f"  crackle (step {r['crackle_dt_ns']:.4g} ns, compiled {r['crackle_compiled_dt_ns']:.4g} ns, tied "
-                  f"until {fts._fmt(r['tied_until_us'], '.3g')} us): {c['interfaces']:,} interfaces, {c['reached']:,} past their "
+                  f"until {fts._fmt(r['tied_until_us'], '.3g')} us): {c['interfaces']:,} interfaces, "
+                  f"{c['reached']:,} past their "
                   f"strength, {c['broken']:,} broken; energies (J) "
                   + ", ".join(f"{k} {v:.4g}" for k, v in c["energies"].items()), flush=True)
             for code in ("akantu", "crackle"):

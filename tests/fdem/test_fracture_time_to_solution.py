@@ -36,7 +36,8 @@ def test_the_phases_add_up_to_the_run(report, insertion):
     phases = r["phases"]
     assert list(phases) == ["tied", "inserting", "failing", "contact"]
     driver_steps = round(r["end_us"] / r["dt_ns"] * 1e3)
-    assert sum(p["driver_steps"] for p in phases.values()) == driver_steps == sum(c["driver_steps"] for c in r["chunks"])
+    chunk_steps = sum(c["driver_steps"] for c in r["chunks"])
+    assert sum(p["driver_steps"] for p in phases.values()) == driver_steps == chunk_steps
     assert sum(p["compiled_steps"] for p in phases.values()) == sum(c["compiled_steps"] for c in r["chunks"])
     simulated = 1e6 * r["chunks"][-1]["t_end"]
     assert sum(p["simulated_us"] for p in phases.values()) == pytest.approx(simulated, rel=1e-9)
