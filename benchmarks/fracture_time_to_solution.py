@@ -28,7 +28,7 @@ in every repeat: the run is deterministic).
 Cases:
 
   bar    the Akantu anchor's bar (issue 68): a 200 x 50 x 50 mm box meshed by gmsh at element size
-         `--size` mm (4 mm: ~50k tets), written as a gmsh 2.2 ascii file (what Akantu reads:
+         `--size` mm (3.6 mm: 50,835 tets), written as a gmsh 2.2 ascii file (what Akantu reads:
          benchmarks/peers/akantu_bar.py reads the same file) and read back with `read_mesh`, then in
          locality order (`--file-order` keeps the file's: issue 68 item 4); paper 001's rock
          (E 26 GPa, nu 0.2, 2340 kg/m^3, Guo-Munjiza ft 3 MPa, c 15 MPa, phi 30 deg) with
@@ -77,7 +77,8 @@ def parse_args(argv=None):
                    help="the Akantu anchor's bar and/or the brazilian-disc example (default: bar)")
     p.add_argument("--insertion", nargs="+", choices=("intrinsic", "extrinsic"), default=["intrinsic", "extrinsic"],
                    help="material.interface.insertion (default: both)")
-    p.add_argument("--size", type=float, default=4.0, help="bar: gmsh element size in mm (default 4: ~50k tets)")
+    p.add_argument("--size", type=float, default=3.6,
+                   help="bar: gmsh element size in mm (default 3.6: 50,835 tets)")
     p.add_argument("--file-order", action="store_true",
                    help="bar: keep the mesh file's tet order (default: locality order, as a generated mesh)")
     p.add_argument("--quick", action="store_true", help="disc: the example's quick form (4 mm mesh)")

@@ -61,7 +61,7 @@ AKANTU_SOFTENING_LAW = {"intrinsic": "cohesive_bilinear", "extrinsic": "cohesive
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--insertion", nargs="+", choices=("intrinsic", "extrinsic"), default=["intrinsic", "extrinsic"])
-    p.add_argument("--size", type=float, default=4.0, help="gmsh element size in mm (default 4: ~50k tets)")
+    p.add_argument("--size", type=float, default=3.6, help="gmsh element size in mm (default 3.6: 50,835 tets)")
     p.add_argument("--until-us", type=float, default=20.0, help="simulated time in us (default 20)")
     p.add_argument("--safety", type=float, default=0.7, help="step = safety x stable step (default 0.7)")
     p.add_argument("--chunk-us", type=float, default=1.0,
