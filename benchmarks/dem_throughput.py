@@ -69,34 +69,49 @@ def cached_packing(domain, cache_dir: str, **kwargs):
     return packing
 
 
+MEAN_RADIUS = 1e-3  # m
+
+
+def sample_packing(n_particles: int, particle_density: float, cache_dir: str):
+    """n spheres packed in a side x side x 2 side box at the density (or at porosity 0.4 with
+    particle_density 0): the packing, the side (m) and the seconds the packing took (or its load)."""
+    import numpy as np
+
+    from crackle.dem.packing import Box
+
+    if particle_density > 0.0:
+        volume = n_particles * (2.0 * MEAN_RADIUS) ** 3 / particle_density
+    else:
+        volume = n_particles * 4.0 / 3.0 * math.pi * MEAN_RADIUS**3 * 1.05 / 0.6
+    side = (volume / 2.0) ** (1.0 / 3.0)
+    started = time.perf_counter()
+    packing = cached_packing(Box(np.zeros(3), np.array([side, side, 2 * side])), cache_dir, porosity=0.4,
+                             mean_radius=MEAN_RADIUS, seed=1, particle_density=particle_density or None)
+    return packing, side, time.perf_counter() - started
+
+
+def table1_law():
+    """Paper 003's Table 1 bond law."""
+    from crackle.dem.model import BondLaw
+
+    return BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
+
+
 def build_sample(n_particles: int, particle_density: float, cache_dir: str):
     """The benchmark's sample: n spheres packed in a 1 x 1 x 2 box at the density (or at porosity
     0.4 with particle_density 0), bonded with paper 003's Table 1 law between two platens, the top
     one moving down. Returns the simulation, the packing and the seconds the packing took."""
-    import numpy as np
-
     from crackle.dem.build import build_dem_simulation
-    from crackle.dem.model import BondLaw
-    from crackle.dem.packing import Box
     from crackle.loading import History, Tool
 
-    mean_radius = 1e-3
-    if particle_density > 0.0:
-        volume = n_particles * (2.0 * mean_radius) ** 3 / particle_density
-    else:
-        volume = n_particles * 4.0 / 3.0 * math.pi * mean_radius**3 * 1.05 / 0.6
-    side = (volume / 2.0) ** (1.0 / 3.0)
-    started = time.perf_counter()
-    packing = cached_packing(Box(np.zeros(3), np.array([side, side, 2 * side])), cache_dir, porosity=0.4,
-                             mean_radius=mean_radius, seed=1, particle_density=particle_density or None)
-    packing_s = time.perf_counter() - started
+    mean_radius = MEAN_RADIUS
+    packing, side, packing_s = sample_packing(n_particles, particle_density, cache_dir)
     plate = (3 * side, 3 * side, 10 * mean_radius)
     top = Tool("top", "box", (0.0, 0.0, -1.0), History.ramp(0.1, 1e-5),
                center=(0.5 * side, 0.5 * side, 2 * side + 5 * mean_radius), size=plate)
     bottom = Tool("bottom", "box", (0.0, 0.0, 1.0), History.constant(0.0),
                   center=(0.5 * side, 0.5 * side, -5 * mean_radius), size=plate)
-    law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
-    sim = build_dem_simulation(packing.centers, packing.radii, 2500.0, law, bonds_per_particle=12.0,
+    sim = build_dem_simulation(packing.centers, packing.radii, 2500.0, table1_law(), bonds_per_particle=12.0,
                                tools=[top, bottom], damping=0.2)
     return sim, packing, packing_s
 
