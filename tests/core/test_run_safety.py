@@ -299,6 +299,9 @@ def _junk(tmp_path, name, data: bytes):
     # a shell element larger than its plate (not a roller's fault), a shell thicker than its plate
     (lambda p: ["shell-tear", "--quick", "--set", "shell.element_size=1"], "element_size = 1 m is larger than the rectangle"),
     (lambda p: ["shell-tear", "--quick", "--set", "shell.thickness=1"], "thickness = 1 m is not thin"),
+    # a DEM support that selects nothing: the support by its place, not "flaw:" (issue 71 item 9)
+    (lambda p: ["dem-tension", "--quick", "--set", "supports.1.where.box_min=[5,5,5]", "--set",
+                "supports.1.where.box_max=[6,6,6]"], "error: supports.1: the roller support selects no node"),
 ])
 def test_messages_name_the_right_thing(tmp_path, capsys, argv, expected):
     assert main(["run", *argv(tmp_path), "--out", str(tmp_path / "o")]) == 2

@@ -361,9 +361,11 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
             joint=flaw.joint() if flaw is not None and flaw.kind == "closed" else None,
             random=dict(mat.random), seed=scenario.run.seed, material=mat.name,
         )
-    except ValueError as err:
-        field = "material.bonds_per_particle" if "bonds_per_particle" in str(err) else "flaw"
-        raise ScenarioError(f"{field}: {err}") from None
+    except ValueError as err:  # the message names its subject; the key it belongs to, where it does not
+        text = str(err)
+        field = "material.bonds_per_particle: " if "bonds_per_particle" in text else \
+            "flaw: " if "flaw" in text and not text.startswith("flaw") else ""
+        raise ScenarioError(f"{field}{text}") from None
     sim.packing = packing
     sim.material_names = list(scenario.materials) or None
     if scenario.packing.file is not None and scenario.packing.mean_radius is not None:

@@ -141,10 +141,10 @@ def support_constraints(supports, points: np.ndarray, scale: float) -> tuple[np.
     supports is an error (which one would it follow?)."""
     normals_of = {}
     grip_of = {}
-    for sup in supports:
+    for k, sup in enumerate(supports):
         sel = sup.where.mask(points, scale)
         if not sel.any():
-            raise ValueError(f"a {sup.kind} support selects no node: check its plane or box")
+            raise ValueError(f"supports.{k}: the {sup.kind} support selects no node: check its plane or box")
         if sup.kind in ("fixed", "clamped"):  # a shell also holds a clamped edge's rotation (shell.model)
             blocked = np.eye(3)
         elif sup.kind == "roller":
