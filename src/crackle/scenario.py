@@ -908,7 +908,7 @@ class Stop(Strict):
     force_drop: Annotated[float, Field(gt=0, lt=1)] | None = None
     """after a failure, once the largest tool force has stayed below this fraction of its peak for force_drop_hold"""
     force_drop_hold: NonNegative | None = None
-    """s; default 5 % of end_time"""
+    """s; default 5 % of end_time, at most half the time of the peak force"""
 
 
 class RunSpec(Strict):
@@ -937,7 +937,7 @@ class RunSpec(Strict):
     """of the random material properties ([material.random]): the same seed, the same values on any machine and
     thread count; `crackle sweep --seeds N` runs seeds 0 .. N-1"""
     history_samples: Annotated[int, Field(ge=1)] = 400
-    """rows of history.csv over end_time"""
+    """rows of history.csv over end_time (a row at least every 1,000 steps)"""
     field_frames: Annotated[int, Field(ge=0)] = 10
     """ParaView snapshots over end_time (0: none)"""
     load_cell_window: Positive | None = None

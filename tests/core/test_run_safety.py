@@ -416,3 +416,19 @@ def test_a_speed_table_with_speed_set_to_zero_is_taken():
     scenario, _ = load_scenario("three-point-bending", ["tools.0.speed=0", "tools.0.ramp_time=0",
                                                         "tools.0.speed_table={time=[0, 1e-4], speed=[0, 0.1]}"], True)
     assert scenario.tools[0].speed_table.speed == [0.0, 0.1]
+
+
+def test_an_end_time_meant_as_until_it_breaks_stops_at_the_break(tmp_path, capsys):
+    """`run.end_time=10` on the quick bending beam (it breaks at ~0.9 ms; issue 71 item 2): the
+    force-drop hold (5 % of end_time, 0.5 s) is capped at half the peak's time and the rows come
+    at least every MAX_STEPS_PER_ROW steps, so the run stops within 2 ms with a history, where it
+    ran silently for minutes, missed the fracture and ended "unstable" with 2 rows."""
+    from crackle.solver.driver import MAX_STEPS_PER_ROW
+
+    out = tmp_path / "o"
+    assert main(["run", *BENDING, "--set", "run.end_time=10", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "stopped" and "below 10% of its peak" in summary["message"]
+    assert summary["end_time"] < 2e-3 and summary["broken"] > 0
+    rows = (out / "history.csv").read_text().splitlines()[1:]
+    assert len(rows) >= summary["steps"] // MAX_STEPS_PER_ROW >= 10
