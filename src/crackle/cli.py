@@ -186,6 +186,13 @@ def _cmd_fpz(args) -> int:
         if not (0 < value < float("inf")):  # also refuses nan
             print(f"crackle: error: --{name} must be a positive finite number, not {value}", file=sys.stderr)
             return 2
+    # The scenario's ranges: a solid's modulus from 1e5 Pa, a strength from 1 kPa (a value in GPa or MPa slipped in).
+    for name, least, meant in (("E", 1e5, "GPa, write {v:g}e9"), ("ft", 1e3, "MPa, write {v:g}e6")):
+        value = getattr(args, name)
+        if value < least:
+            print(f"crackle: error: --{name} {value:g} Pa is below {least:g} Pa, less than any solid's: if that is "
+                  + meant.format(v=value), file=sys.stderr)
+            return 2
     pz = process_zone(args.E, args.Gf, args.ft)
     if args.json:
         print(json.dumps(pz.as_dict()))

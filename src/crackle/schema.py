@@ -6,7 +6,7 @@ from __future__ import annotations
 import typing
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 Vec3 = tuple[float, float, float]
 # Finite: an infinite time, size or modulus is a mistake (inf where it means "none" is
@@ -23,6 +23,41 @@ STRICT_DATACLASS = ConfigDict(extra="forbid", use_attribute_docstrings=True, all
 
 class Strict(BaseModel):
     model_config = STRICT
+
+    @model_validator(mode="after")
+    def _no_unit_slip(self):
+        check_unit_slips(self)
+        return self
+
+
+# The least positive value of a key in these units that a solid's input has: below it the value is
+# taken for one in the unit named (a strength of 300 meant as MPa nucleated 42 cracks; a penalty of
+# 5 meant as N/mm^3). (unit: floor, the unit meant, its factor as written after a number)
+UNIT_FLOORS = {"Pa": (1e3, "MPa", "e6"), "N/m^3": (1e6, "N/mm^3", "e9"), "Pa/m": (1e6, "N/mm^3", "e9")}
+
+
+def field_unit(description: str | None) -> str:
+    """The unit a field's description starts with ("Pa, ft: ..." -> "Pa"); "" when none or when the
+    unit is another key's ("Pa (the property's unit)")."""
+    text = (description or "").strip()
+    if "the property's unit" in text:
+        return ""
+    return text.split(" ")[0].rstrip(",;:") if text else ""
+
+
+def check_unit_slips(instance) -> None:
+    """ValueError naming the first field set below its unit's floor (UNIT_FLOORS) and the value
+    meant, the way youngs_modulus and density say so."""
+    for name, field in schema_fields(type(instance)).items():
+        floor = UNIT_FLOORS.get(field_unit(field.description))
+        value = getattr(instance, name, None)
+        if floor is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        least, meant, factor = floor
+        if 0.0 < value < least:
+            unit = field_unit(field.description)
+            raise ValueError(f"{name} = {value:g} {unit} is below {least:g} {unit}, less than any solid's: if that "
+                             f"is {meant}, write {value:g}{factor}")
 
 
 def schema_fields(model) -> dict:

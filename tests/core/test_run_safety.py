@@ -432,3 +432,28 @@ def test_an_end_time_meant_as_until_it_breaks_stops_at_the_break(tmp_path, capsy
     assert summary["end_time"] < 2e-3 and summary["broken"] > 0
     rows = (out / "history.csv").read_text().splitlines()[1:]
     assert len(rows) >= summary["steps"] // MAX_STEPS_PER_ROW >= 10
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["shell-tear", "--quick", "--set", "fracture.strength=300"],
+     "strength = 300 Pa is below 1000 Pa, less than any solid's: if that is MPa, write 300e6"),
+    (["walnut-multipoint", "--quick", "--set", "material.interface.tensile_strength=7"],
+     "tensile_strength = 7 Pa is below 1000 Pa, less than any solid's: if that is MPa, write 7e6"),
+    (["walnut-multipoint", "--quick", "--set", "plates.penalty=5"],
+     "penalty = 5 Pa/m is below 1e+06 Pa/m, less than any solid's: if that is N/mm^3, write 5e9"),
+    (["plate-impact", "--quick", "--set", "material.yield_stress=150"], "if that is MPa, write 150e6"),
+    (["brazilian-disc", "--quick", "--set", "material.interface.tensile_strength=3"], "write 3e6"),
+])
+def test_a_value_in_another_unit_is_refused_with_the_value_meant(tmp_path, capsys, argv, expected):
+    """Keys in Pa, N/m^3 or Pa/m below what any solid has (issue 71 item 6: a strength of 300 meant as
+    MPa nucleated 42 cracks; a penalty of 5 meant as N/mm^3): exit 2, one line with the value meant,
+    as youngs_modulus and density say; nothing written."""
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    assert expected in _one_line(capsys.readouterr().err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_crackle_fpz_refuses_a_modulus_in_gpa(capsys):
+    """`crackle fpz --E 26` printed 0.000 mm: exit 2 with the value meant."""
+    assert main(["fpz", "--E", "26", "--Gf", "50", "--ft", "3e6"]) == 2
+    assert "--E 26 Pa is below 100000 Pa, less than any solid's: if that is GPa, write 26e9" in capsys.readouterr().err

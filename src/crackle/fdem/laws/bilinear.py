@@ -36,7 +36,7 @@ from numba import njit
 from pydantic import model_validator
 from pydantic.dataclasses import dataclass
 
-from ...schema import STRICT_DATACLASS, NonNegative, Positive
+from ...schema import STRICT_DATACLASS, NonNegative, Positive, check_unit_slips
 from ...solver.failures import failure_mode
 from ..interface import opening
 from ..topology import FAILED
@@ -124,6 +124,7 @@ class BilinearLaw:
 
     @model_validator(mode="after")
     def _consistent(self):
+        check_unit_slips(self)
         if (self.stiffness_per == "element") != (self.reference_altitude is not None):
             raise ValueError('stiffness_per = "element" and reference_altitude go together: give the element size (m) '
                              'the stiffnesses belong to, or leave both out for stiffnesses per area')

@@ -40,9 +40,10 @@ from typing import Annotated, ClassVar, Literal
 import numpy as np
 from numba import njit
 from pydantic import Field
+from pydantic import model_validator
 from pydantic.dataclasses import dataclass
 
-from ...schema import STRICT_DATACLASS, NonNegative, Positive
+from ...schema import STRICT_DATACLASS, NonNegative, Positive, check_unit_slips
 from ...solver.failures import failure_mode
 from ..interface import opening, opening_earlier
 from ..topology import FAILED
@@ -123,6 +124,11 @@ class GuoMunjizaLaw:
     """picks this law (the default)"""
 
     kind: ClassVar[int] = 0
+
+    @model_validator(mode="after")
+    def _no_unit_slip(self):
+        check_unit_slips(self)
+        return self
     # What [material.random] may draw per face: the property and its column of the law row.
     RANDOM: ClassVar[dict[str, int]] = {"tensile_strength": LAW_FT, "cohesion": LAW_C, "fracture_energy": LAW_GF1,
                                         "fracture_energy_shear": LAW_GF2}
