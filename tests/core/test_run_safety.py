@@ -443,11 +443,16 @@ def test_an_end_time_meant_as_until_it_breaks_stops_at_the_break(tmp_path, capsy
      "penalty = 5 Pa/m is below 1e+06 Pa/m, less than any solid's: if that is N/mm^3, write 5e9"),
     (["plate-impact", "--quick", "--set", "material.yield_stress=150"], "if that is MPa, write 150e6"),
     (["brazilian-disc", "--quick", "--set", "material.interface.tensile_strength=3"], "write 3e6"),
+    # a length in mm: 1000x stiffer interfaces, the peak 4.4x
+    (["walnut-crush", "--quick", "--set", "material.interface.stiffness_per=element", "--set",
+      "material.interface.reference_altitude=0.69"],
+     "reference_altitude = 0.69 m against the mesh's median tet altitude 0.00208 m: a length in mm? (write 0.69e-3)"),
 ])
 def test_a_value_in_another_unit_is_refused_with_the_value_meant(tmp_path, capsys, argv, expected):
     """Keys in Pa, N/m^3 or Pa/m below what any solid has (issue 71 item 6: a strength of 300 meant as
-    MPa nucleated 42 cracks; a penalty of 5 meant as N/mm^3): exit 2, one line with the value meant,
-    as youngs_modulus and density say; nothing written."""
+    MPa nucleated 42 cracks; a penalty of 5 meant as N/mm^3), and a reference altitude a hundred
+    times off the mesh's: exit 2, one line with the value meant, as youngs_modulus and density say;
+    nothing written."""
     assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
     assert expected in _one_line(capsys.readouterr().err)
     assert not (tmp_path / "o").exists()

@@ -180,7 +180,15 @@ class BilinearLaw:
         """(kn, ks) for every interface: per area, whatever the bulk and the mesh, or scaled by
         reference_altitude / altitude (stiffness_per = "element")."""
         altitude = np.asarray(altitude, dtype=float)
-        scale = np.ones_like(altitude) if self.stiffness_per == "area" else self.reference_altitude / altitude
+        if self.stiffness_per == "area":
+            scale = np.ones_like(altitude)
+        else:
+            # The altitude the stiffnesses belong to is the mesh's scale: a hundred times off, a length in mm.
+            median = float(np.median(altitude)) if altitude.size else self.reference_altitude
+            if not 0.01 <= self.reference_altitude / median <= 100.0:
+                raise ValueError(f"reference_altitude = {self.reference_altitude:g} m against the mesh's median tet "
+                                 f"altitude {median:.3g} m: a length in mm? (write {self.reference_altitude:g}e-3)")
+            scale = self.reference_altitude / altitude
         return self.normal_stiffness * scale, self.shear_stiffness * scale
 
 
