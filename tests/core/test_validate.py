@@ -8,6 +8,7 @@ quick case in their place: the quick 10 m/s sphere impact (paper 001 section 5, 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -140,12 +141,13 @@ def test_write_document_fills_markers_and_stamps(shared_out, one_case, monkeypat
     monkeypatch.setitem(RUNS, REBOUND_RUN.name, REBOUND_RUN)
     document = tmp_path / "doc.md"
     document.write_text("# doc\n\n<!--validate:begin--><!--validate:end-->\n\n| rebound | "
-                        "<!--q:sphere-rebound:largest_fragment_velocity.2:.2f| m/s-->old<!--/q--> "
-                        "(<!--q-stamp--><!--/q-->) |\n")
+                        "<!--q:sphere-rebound:largest_fragment_velocity.2:.2f| m/s-->old<!--/q--> in "
+                        "<!--q:sphere-rebound:steps:,-->old<!--/q--> steps (<!--q-stamp--><!--/q-->) |\n")
     assert main(["validate", "001", "--out", str(shared_out), "--jobs", "1", "--document", str(document)]) == 0
     text = document.read_text()
-    speed = float(MARKER.search(text)["text"].removesuffix(" m/s"))
-    assert 9.0 <= speed <= 10.5
+    speed, steps = (m["text"] for m in MARKER.finditer(text))
+    assert 9.0 <= float(speed.removesuffix(" m/s")) <= 10.5
+    assert re.fullmatch(r"\d{1,3}(,\d{3})*", steps)  # a count as written: "1,234", not "1234.0"
     commit = json.loads((shared_out / "report.json").read_text())["commit"]
     assert STAMP.search(text)["text"].startswith(f"run at commit {commit.split('-')[0]}")
     assert "| 001-sphere-rebound | quick |" in text and document_data(text)["runs"]["sphere-rebound"]

@@ -306,6 +306,8 @@ def write_document(path: str | Path, results: list[CaseResult], out_dir: str | P
             return m[0]
         value = read_number(m["number"], summaries[m["run"]], out / RUNS[m["run"]].folder())
         spec, _, suffix = m["format"].partition("|")
+        if value is not None and value.is_integer() and not any(c in spec for c in "efg%"):
+            value = int(value)  # a count (summary.json's numbers are read as floats): "10", "1,179"
         new = "none" if value is None else format(value, spec) + suffix
         if new != m["text"]:
             changes.append(f"{m['run']}:{m['number']}: {m['text']} -> {new}")
