@@ -6,21 +6,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.brazilian import brazilian_strength
 from ..analysis.flaw import initiation_along_flaw
+from ..solver.failures import MODE_NAMES
 from ..solver.simulation import Probe
 
 
 class BrazilianProbe(Probe):
-    """A disc's Brazilian strength: the elastic relation's tensile stress across the loaded
-    diameter at the peak force."""
+    """A disc's Brazilian strength and splitting angle (analysis.strength.BrazilianTest, as FDEM's)
+    from the tools' peak forces and where and how the bonds failed (at their reference midpoints)."""
 
-    def __init__(self, diameter: float, thickness: float):
-        self.diameter, self.thickness = diameter, thickness
+    def __init__(self, test):
+        self.test = test
 
     def summary(self, sim) -> dict:
-        peak = float(np.max(sim.load_cell.peaks()[0], initial=0.0))
-        return {"brazilian_strength": brazilian_strength(peak, self.diameter, self.thickness)}
+        failed = np.flatnonzero(sim.failed_bonds())
+        s = sim.inter
+        xyz = 0.5 * (sim.x0[s.a[failed]] + sim.x0[s.b[failed]])
+        events = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+                  "mode": np.array([MODE_NAMES[k] for k in s.fail_mode[failed]])}
+        return self.test.summary(sim.load_cell.peaks()[0], events)
 
 
 class FlawProbe(Probe):

@@ -28,6 +28,7 @@ from ..solver.simulation import PeakForceProbe
 from ..solver.platen import Platen, PlatenProbe, facing_tool
 from .membrane import Face, Membrane, box_faces, selected_faces
 from .prestress import preload, surface_loads
+from ..analysis.strength import BrazilianTest
 from .probes import BrazilianProbe, FlawProbe, MembraneProbe
 from .simulation import DemSimulation
 
@@ -386,7 +387,10 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulat
         confinement = sim.membrane.confinement(platen.direction) if sim.membrane is not None else None
         sim.probes.append(PlatenProbe(platen, loaded_area, confinement))
     if scenario.specimen.shape == "disc" and loaded_area:
-        sim.probes.append(BrazilianProbe(scenario.specimen.diameter, scenario.specimen.thickness))
+        spec, first = scenario.specimen, tools[moving[0]]  # the loading axis: the first moving platen's
+        axis = np.asarray(spec.axis, float) / np.linalg.norm(spec.axis)
+        sim.probes.append(BrazilianProbe(BrazilianTest(spec.diameter, spec.thickness, spec.center, tuple(axis),
+                                                      tuple(first.direction))))
     if grip is not None:
         sim.probes.append(PeakForceProbe(TensionTest(grip, loaded_area, scenario.weakest_tensile_strength())))
     return sim
