@@ -14,6 +14,7 @@ from .solver import (
     RunControl,
     RunResult,
     StopConditions,
+    check_one_step_travel,
     choose_time_step,
     steps_to,
     load_cell_steps,
@@ -45,6 +46,7 @@ def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     control = run_control(scenario.run)
     try:
         dt = choose_time_step(sim, control)
+        check_one_step_travel(sim, dt)
         load_cell_steps(control, dt, sim.wave_transit)
     except ValueError as err:
         raise ScenarioError(str(err)) from None

@@ -8,6 +8,7 @@ turns them into exit code 2.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from functools import cached_property
 from importlib import resources
@@ -1099,13 +1100,19 @@ def examples_dir():
     return resources.files("crackle") / "examples"
 
 
+# The end of a description's first sentence: a full stop before a space or the end, not one of
+# an abbreviation ("Fig. 1a", "e.g. a plate").
+_SENTENCE_END = re.compile(r"(?<!\bFig)(?<!\bFigs)(?<!\be\.g)(?<!\bi\.e)(?<!\beq)(?<!\bEq)\.(?=\s|$)")
+
+
 def list_examples() -> dict[str, str]:
-    """Shipped example names and their one-line descriptions."""
+    """Shipped example names and the first sentence of their descriptions (whole, on one line)."""
     out = {}
     for entry in sorted(examples_dir().iterdir(), key=lambda p: p.name):
         if entry.name.endswith(".toml"):
-            data = tomllib.loads(entry.read_text())
-            out[entry.name[:-5]] = data.get("description", "").strip().splitlines()[0] if data.get("description") else ""
+            text = " ".join(tomllib.loads(entry.read_text()).get("description", "").split())
+            end = _SENTENCE_END.search(text)
+            out[entry.name[:-5]] = text[: end.end()] if end else text
     return out
 
 

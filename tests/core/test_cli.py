@@ -129,6 +129,11 @@ def test_examples_listed_and_valid(capsys):
     for name in names:
         load_scenario(name)
         load_scenario(name, quick=True)
+    # Each description's whole first sentence on its line (five were cut mid-sentence at the TOML's
+    # line break, issue 71 item 10), not cut at an abbreviation ("Fig. 1a").
+    for name, text in names.items():
+        assert text.endswith(".") and f"{name:24s} {text}\n" in out, (name, text)
+    assert "(paper 001, Fig. 1b): it should break into many fragments" in names["sphere-impact-fast"]
 
 
 def test_fpz_json_matches_paper_001():

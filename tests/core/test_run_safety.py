@@ -462,3 +462,18 @@ def test_crackle_fpz_refuses_a_modulus_in_gpa(capsys):
     """`crackle fpz --E 26` printed 0.000 mm: exit 2 with the value meant."""
     assert main(["fpz", "--E", "26", "--Gf", "50", "--ft", "3e6"]) == 2
     assert "--E 26 Pa is below 100000 Pa, less than any solid's: if that is GPa, write 26e9" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["plate-impact", "--quick", "--set", "tools.0.speed=3e5"], "tool sphere moves at 3e+05 m/s"),
+    (["plate-impact-deformable", "--quick", "--set", "bodies.0.initial_velocity=[0,0,-3e5]"],
+     "the specimen or a body moves at 3e+05 m/s"),
+])
+def test_a_body_that_would_pass_through_an_element_in_one_step_is_refused(tmp_path, capsys, argv, expected):
+    """A tool or body crossing more than half an element a step (issue 71 item 8: a sphere at 3e5
+    m/s tunnelled through the plate in one step, exit 0, nothing broken): exit 2 before any output,
+    the distance a step and the speed contact can still catch."""
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    said = _one_line(capsys.readouterr().err)
+    assert expected in said and "more than 0.5 of an element (0.005 m), so contact cannot catch it" in said
+    assert not (tmp_path / "o").exists()

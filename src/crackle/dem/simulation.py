@@ -32,6 +32,7 @@ class DemSimulation(SimulationBase):
         self.proven_dt_how = ("a Gershgorin bound over each particle's bonds, contacts and tools, translation and "
                               "spin: docs/user-guide-dem.md")
         radius = particles.radius
+        self.element_length = float(2.0 * np.mean(radius))
         self.wave_transit = float(2.0 * np.mean(radius) / math.sqrt(law.bond_modulus / np.mean(particles.mass / (
             4.0 / 3.0 * math.pi * radius**3))))
         self.gravity = np.asarray(gravity, float)

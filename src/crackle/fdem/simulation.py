@@ -79,6 +79,10 @@ class FdemSimulation(SimulationBase):
     def wave_transit(self) -> float:
         return self.model.wave_transit
 
+    @property
+    def element_length(self) -> float:
+        return self.model.element_size
+
     def advance(self, n_steps: int, dt: float) -> None:
         """n_steps compiled steps, split where the contact candidate lists are refreshed. The
         refreshes follow their own schedule in steps, not the driver's chunks, so the state after

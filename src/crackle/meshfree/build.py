@@ -139,6 +139,7 @@ def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[fl
                              dt, h / c_p, gravity, damping, plate, breaking, pressed,
                              history_tables([p.history for p in pressures]), contact, first,
                              own.names + [b.name for b in bodies])
+    sim.element_length = float(h)
     sim.warnings.extend(seating)
     if contact is not None:
         overlapping = contact.overlaps_between_bodies(X)

@@ -5,10 +5,10 @@ records (failures.py), the stable step by Lanczos (stability.py) and restart fil
 
 from .checkpoint import Checkpoint, CheckpointError, load_checkpoint
 from .driver import (DiskFullError, RunControl, RunResult, StopConditions, StoppedAtOnce, UnstableRunError,
-                     choose_time_step, load_cell_steps, run, steps_to)
+                     check_one_step_travel, choose_time_step, load_cell_steps, run, steps_to)
 from .simulation import Simulation
 from ..analysis.energy import energy_error
 
 __all__ = ["Checkpoint", "CheckpointError", "DiskFullError", "StoppedAtOnce", "RunControl", "RunResult", "Simulation",
-           "StopConditions", "UnstableRunError", "choose_time_step", "energy_error", "load_cell_steps",
+           "StopConditions", "UnstableRunError", "check_one_step_travel", "choose_time_step", "energy_error", "load_cell_steps",
            "load_checkpoint", "run", "steps_to"]

@@ -28,6 +28,7 @@ class Simulation(Protocol):
     # on the stable step at set-up (every smaller step is stable), a user's run.dt is accepted up
     # to it (solver.choose_time_step).
     wave_transit: float  # s: a P-wave's time across one element (particle, spacing), the period
+    element_length: float | None  # m: the element (particle diameter, spacing) wave_transit crosses
     # scale of contact chatter; the default load-cell window is a few of it
     time: float  # simulated time reached (s)
     steps: int  # steps taken
@@ -114,6 +115,9 @@ class SimulationBase:
     """
 
     method: str = ""
+    # m: the element size (a particle's diameter, the spacing) wave_transit is the time across, which
+    # the driver compares a body's travel in one step with; None: not checked
+    element_length: float | None = None
     # J: kinetic (initial velocities) and stored ([initial_stress]: FDEM's tets and faces, the DEM's
     # bonds) energy at t = 0, counted as work put in
     _initial_energy: float = 0.0
@@ -153,6 +157,19 @@ class SimulationBase:
 
     def tool_names(self) -> list[str]:
         return list(self._tool_names)
+
+    def fastest_motion(self) -> tuple[float, str]:
+        """The fastest speed a tool is driven or launched at, or a point moves at now (m/s), and
+        what it is (a tool by name, else "the specimen or a body")."""
+        tools = self.tools
+        fastest, what = 0.0, ""
+        for j, name in enumerate(self._tool_names):
+            speed = float(np.max(np.abs(tools.speeds[j, : tools.n[j]]), initial=0.0))
+            if speed > fastest:
+                fastest, what = speed, f"tool {name}"
+        v = self.body.v
+        points = float(np.sqrt(np.max(np.einsum("ij,ij->i", v, v), initial=0.0)))
+        return (points, "the specimen or a body") if points > fastest else (fastest, what)
 
     def _advance_on_grid(self, n_steps: int, dt: float, every: int | None, compiled_steps, before=None, after=None):
         """n_steps of `compiled_steps(n, dt)` in pieces that end on the multiples of `every` (None:
