@@ -25,9 +25,9 @@ outward gradient of the signed distance) and `description()` (a JSON-able dict):
 from __future__ import annotations
 
 import json
-import zipfile
 import math
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -15,7 +15,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..analysis.strength import TensionTest, pulling_grip
+from ..analysis.strength import BrazilianTest, TensionTest, pulling_grip
 from ..loading.build import build_loading, selection as build_selection, touch_tools
 from ..scenario import (FDEM_ONLY_KEYS, MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
                         check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
@@ -28,7 +28,6 @@ from ..solver.simulation import PeakForceProbe
 from ..solver.platen import Platen, PlatenProbe, facing_tool
 from .membrane import Face, Membrane, box_faces, selected_faces
 from .prestress import preload, surface_loads
-from ..analysis.strength import BrazilianTest
 from .probes import BrazilianProbe, FlawProbe, MembraneProbe
 from .simulation import DemSimulation
 

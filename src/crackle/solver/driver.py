@@ -63,8 +63,8 @@ class StopConditions:
     any tool when None), or when, after at least one failure, the largest tool force has stayed
     below `force_drop` times its peak for `force_drop_hold` seconds (default 5 % of end_time, so
     that contact chatter before the break does not end the run, and at most half the time the
-    peak came at, so that an end time meant as "until it breaks" (10 s) still stops there: the
-    shipped tests' peaks come at 0.6-0.75 of their end times' 10 %)."""
+    peak came at, so that an end time meant as "until it breaks" (10 s) still stops there; on the
+    shipped tests half the peak's time is 3-8x their 5 %, so they stop where they did)."""
 
     tool_displacement: float | None = None
     tool: str | None = None
