@@ -1299,6 +1299,21 @@ def _section_model(model, path):
     return model
 
 
+# The field that names which schema of a tagged choice a section is (material.interface.law).
+_TAG_KEY = "law"
+
+
+def _tagged_choice(schema, loc, tag):
+    """For an unknown key loc[-1] in a section chosen by name (`tag`, e.g. "guo-munjiza"): the
+    chosen schema, and the name of another choice that has the key (None if none does)."""
+    parent = _section_model(schema, loc[:-2])
+    field = schema_fields(parent).get(str(loc[-2])) if parent is not None else None
+    choices = section_schemas(field.annotation) if field is not None else []
+    named = {getattr(schema_fields(c).get(_TAG_KEY), "default", None): c for c in choices}
+    other = next((name for name, c in named.items() if name != tag and str(loc[-1]) in schema_fields(c)), None)
+    return named.get(tag), other
+
+
 def _describe(err: ValidationError, source, schema=None) -> str:
     errors = err.errors()
     # A misspelt key also leaves the right one missing: name the unknown key first.
@@ -1306,6 +1321,7 @@ def _describe(err: ValidationError, source, schema=None) -> str:
     first = errors[0]
     loc = first["loc"]
     # The tag of a choice by name that pydantic puts in the path (material.interface.bilinear.kn).
+    tag = next((p for k, p in enumerate(loc) if 0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES), None)
     loc = [p for k, p in enumerate(loc) if not (0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES)]
     where = ".".join(str(p) for p in loc) or "(top level)"
     kind = first["type"]
@@ -1314,9 +1330,16 @@ def _describe(err: ValidationError, source, schema=None) -> str:
 
         what = "section" if len(loc) == 1 else "key"
         section = _section_model(schema, loc[:-1]) if schema else None
-        names = set(section.model_fields) if section is not None else (_field_names(schema) if schema else set())
+        other = None
+        if section is None and tag is not None and schema is not None:
+            section, other = _tagged_choice(schema, loc, tag)
+        names = set(schema_fields(section)) if section is not None else (_field_names(schema) if schema else set())
         close = difflib.get_close_matches(str(loc[-1]), sorted(names - {str(loc[-1])}), n=1)
-        hint = f"unknown {what} {loc[-1]}; " + (f"did you mean {close[0]}?" if close else "remove it or check its spelling")
+        if other is not None:
+            hint = (f"{loc[-1]} is a key of the {other} {loc[-2]}, not of the {tag} one this {loc[-2]} is; "
+                    f"set {'.'.join(map(str, loc[:-1]))}.{_TAG_KEY} = \"{other}\" to use it, or remove it")
+        else:
+            hint = f"unknown {what} {loc[-1]}; " + (f"did you mean {close[0]}?" if close else "remove it or check its spelling")
     elif kind == "missing":
         hint = "required: add it"
     else:

@@ -302,6 +302,13 @@ def _junk(tmp_path, name, data: bytes):
     # a DEM support that selects nothing: the support by its place, not "flaw:" (issue 71 item 9)
     (lambda p: ["dem-tension", "--quick", "--set", "supports.1.where.box_min=[5,5,5]", "--set",
                 "supports.1.where.box_max=[6,6,6]"], "error: supports.1: the roller support selects no node"),
+    # a key of the other interface law: that law named, not a spelling mistake (issue 71 item 9)
+    (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.initiation=maximum"],
+     'initiation is a key of the bilinear interface, not of the guo-munjiza one this interface is; set '
+     'material.interface.law = "bilinear"'),
+    # a misspelt law key: the nearest key of that law, not of the whole scenario
+    (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.tensile_strenght=3e6"],
+     "did you mean tensile_strength?"),
 ])
 def test_messages_name_the_right_thing(tmp_path, capsys, argv, expected):
     assert main(["run", *argv(tmp_path), "--out", str(tmp_path / "o")]) == 2
