@@ -256,8 +256,8 @@ def test_crackle_keys_lists_only_what_the_method_reads(capsys):
 
 def test_a_ctrl_c_that_stops_at_once_says_what_is_kept(tmp_path, capsys, monkeypatch):
     """A Ctrl-C while the plots are written (the driver's handler is gone then; a second Ctrl-C
-    during a chunk is the same exception): exit 130 with one line saying the history is kept, not
-    "no results written"; the history is there."""
+    during a chunk is the same exception): exit 130 with one line saying the summary and history
+    are kept, not "no results written"; they are there."""
     import crackle.solver.driver as solver
 
     def interrupted(*args, **kwargs):
@@ -269,6 +269,9 @@ def test_a_ctrl_c_that_stops_at_once_says_what_is_kept(tmp_path, capsys, monkeyp
     err = _one_line(capsys.readouterr().err)
     assert "stopped at once by Ctrl-C" in err and "kept in" in err and "no results" not in err
     assert len((out / "history.csv").read_text().splitlines()) > 2
+    # The summary came before the plots: the message names it, not "without a summary" (issue 71 item 9).
+    assert "(summary.json, history.csv, events.csv) is kept" in err and "without a summary" not in err
+    assert (out / "summary.json").is_file()
 
 
 def _dem_without_method(tmp_path):

@@ -203,14 +203,19 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     the run at once (a second one, or one while the summary and plots are written) raises
     StoppedAtOnce saying what is kept."""
     out = Path(out_dir)
+    started = wallclock.time()
     try:
         return _run(sim, control, out, scenario_name, scenario, resume)
     except KeyboardInterrupt:
         resumable = (out / CHECKPOINT_FILE).is_file()
+        # A second Ctrl-C while the plots are drawn comes after this run's summary was written.
+        summary = out / "summary.json"
+        summarised = summary.is_file() and summary.stat().st_mtime >= started
         raise StoppedAtOnce(
-            f"stopped at once by Ctrl-C at t = {sim.time:.4e} s: what was written by then (history.csv, events.csv) is "
-            f"kept in {out}, without a summary" + (f"; --resume {out} continues from the last checkpoint"
-                                                  if resumable else "")
+            f"stopped at once by Ctrl-C at t = {sim.time:.4e} s: what was written by then ("
+            + ("summary.json, " if summarised else "") + f"history.csv, events.csv) is kept in {out}"
+            + ("" if summarised else ", without a summary")
+            + (f"; --resume {out} continues from the last checkpoint" if resumable else "")
         ) from None
 
 
