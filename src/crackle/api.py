@@ -85,6 +85,10 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
         raise ScenarioError(f"--out: {err}") from None
 
 
+# Keys a refused resume lists where the scenario differs (a different example changes hundreds).
+RESUME_CHANGES_LISTED = 5
+
+
 def _run_locked(scenario: ScenarioBase, base, out: Path, resume, progress, report, plots) -> RunResult:
     """run_scenario's work once the output folder is this run's."""
     record = scenario.model_dump(mode="json")
@@ -95,8 +99,11 @@ def _run_locked(scenario: ScenarioBase, base, out: Path, resume, progress, repor
             raise ScenarioError(str(err)) from None
         changes = scenario_changes(checkpoint.scenario, record)
         if changes:
+            # The first few: a different example or --quick changes hundreds of keys.
+            listed = "; ".join(changes[:RESUME_CHANGES_LISTED]) + (
+                f"; and {len(changes) - RESUME_CHANGES_LISTED} more" if len(changes) > RESUME_CHANGES_LISTED else "")
             raise ScenarioError(
-                f"--resume {resume}: the scenario differs from the run being resumed: {'; '.join(changes)}. Give the "
+                f"--resume {resume}: the scenario differs from the run being resumed: {listed}. Give the "
                 f"same file, --quick and --set as that run (only {', '.join(RESUMABLE_KEYS)} may change)"
             )
         _check_resumable(out, checkpoint, record)
@@ -127,10 +134,17 @@ def _check_resumable(out: Path, checkpoint, record: dict) -> None:
         summary = json.loads((out / "summary.json").read_text())
     except (OSError, ValueError):
         return  # a run killed before its summary: resumable
-    if summary.get("status") == "stopped" and checkpoint.scenario.get("run", {}).get("stop") == record["run"]["stop"]:
+    stop = record["run"]["stop"] or {}
+    if summary.get("status") == "stopped" and checkpoint.scenario.get("run", {}).get("stop") == stop:
+        message = summary.get("message", "")
+        # Past the condition that stopped it: a tool's travel twice as far, or a deeper force drop.
+        if "moved" in message and stop.get("tool_displacement"):
+            way = f"run.stop.tool_displacement={2 * stop['tool_displacement']:.3g}"
+        else:
+            way = f"run.stop.force_drop={0.5 * stop['force_drop']:.3g}"
         raise ScenarioError(
-            f"--resume {out}: that run ended by its stop condition ({summary.get('message', '')}) and would stop "
-            "again at once; change run.stop to go on past it (e.g. --set run.stop.force_drop=0.1)"
+            f"--resume {out}: that run ended by its stop condition ({message}) and would stop again at once; "
+            f"change run.stop to go on past it (e.g. --set {way})"
         )
 
 

@@ -165,8 +165,14 @@ def test_resumes_that_would_lose_or_rewrite_results_are_refused(tmp_path, capsys
     resume = ["run", *BENDING, "--set", "run.end_time=4e-5", "--set", "run.stop.tool_displacement=1e-8",
               "--resume", str(out)]
     assert main(resume) == 2
-    assert "stop condition" in _one_line(capsys.readouterr().err)
+    # The advice goes past the condition that stopped it, not back to the value set (issue 71 item 9).
+    err = _one_line(capsys.readouterr().err)
+    assert "stop condition" in err and "--set run.stop.tool_displacement=2e-08" in err and "force_drop" not in err
     assert (out / "summary.json").read_text() == before
+    # A resume of another scenario lists the first few differences, not every key.
+    assert main(["run", "brazilian-disc", "--quick", "--set", "run.end_time=4e-5", "--resume", str(out)]) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert "the scenario differs" in err and "more. Give the same file" in err and len(err) < 1500
     (out / "history.csv").unlink()
     assert main(resume[:-4] + ["--resume", str(out)]) == 2
     assert "history.csv is missing" in _one_line(capsys.readouterr().err)
