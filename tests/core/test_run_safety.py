@@ -288,6 +288,23 @@ def _dem_without_method(tmp_path):
     return str(path)
 
 
+def _body_from_missing_file(tmp_path):
+    """plate-impact-deformable as a scenario file in its own folder, its ball read from a mesh file
+    that is not there."""
+    import re
+
+    from crackle.scenario import examples_dir
+
+    text = (examples_dir() / "plate-impact-deformable.toml").read_text()
+    text = re.sub(r'shape = "sphere"\nradius = .*\ncenter = .*\nelement_size = .*\n', 'shape = "mesh"\nfile = "ball.msh"\n',
+                  text)
+    text = re.sub(r'"bodies\.0\.(center|element_size)" = .*\n', "", text)
+    path = tmp_path / "scenarios" / "impact.toml"
+    path.parent.mkdir()
+    path.write_text(text)
+    return str(path)
+
+
 def _junk(tmp_path, name, data: bytes):
     path = tmp_path / name
     path.write_bytes(data)
@@ -315,6 +332,11 @@ def _junk(tmp_path, name, data: bytes):
     (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.initiation=maximum"],
      'initiation is a key of the bilinear interface, not of the guo-munjiza one this interface is; set '
      'material.interface.law = "bilinear"'),
+    # a ball body meshed coarser than itself: the element size, not "move the bodies apart"
+    (lambda p: ["plate-impact-deformable", "--quick", "--set", "bodies.0.element_size=0.03"],
+     "bodies.0: element_size = 0.03 m against the ball's radius 0.02 m"),
+    # a body's missing mesh file: where it was looked for (the scenario's folder), not the working folder
+    (lambda p: [_body_from_missing_file(p)], "scenarios/ball.msh does not exist"),
     # a misspelt law key: the nearest key of that law, not of the whole scenario
     (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.tensile_strenght=3e6"],
      "did you mean tensile_strength?"),

@@ -740,8 +740,10 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     """
     path = Path(path)
     if not path.is_file():
+        # The path is already resolved (scenario.resolve_path): name where that led, not the working folder.
         raise MeshError(
-            f"mesh file {path} does not exist; check the path (relative paths are taken from {Path.cwd()})"
+            f"mesh file {path.absolute()} does not exist; check the path (a relative path is taken from the "
+            "scenario file's folder, or from the working folder for a shipped example)"
         )
     m = read_with_meshio(path, hint="export it as .msh, .vtu, .vtk or Abaqus .inp")
 

@@ -71,6 +71,10 @@ class MeshfreeSpecimen(Specimen):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        if self.shape == "sphere" and self.element_size > BALL_ELEMENT_MAX_SHARE * self.radius:
+            raise ValueError(f"element_size = {self.element_size:g} m against the ball's radius {self.radius:g} m: "
+                             "fewer than 4 elements across the ball, whose few particles would not make a ball; set "
+                             f"element_size at most {BALL_ELEMENT_MAX_SHARE * self.radius:.3g} m (radius / 2)")
         if self.shape == "tube" and all(c == 0 for c in self.axis):
             raise ValueError("axis must be a non-zero vector")
         tube_only = sorted({"inner_radius", "thickness", "length", "axis"} & self.model_fields_set)
@@ -285,6 +289,10 @@ class BodyMaterial(MeshfreeMaterial):
         return self
 
 
+# A ball body's gmsh element at most this share of its radius (4 elements across).
+BALL_ELEMENT_MAX_SHARE = 0.5
+
+
 class BodySpec(Strict):
     """[[bodies]]: a second body of particles beside the specimen (a deformable projectile): a solid
     of its own material, a particle at each node of a tet mesh (a ball gmsh meshes, or a mesh file),
@@ -318,6 +326,10 @@ class BodySpec(Strict):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
+        if self.shape == "sphere" and self.element_size > BALL_ELEMENT_MAX_SHARE * self.radius:
+            raise ValueError(f"element_size = {self.element_size:g} m against the ball's radius {self.radius:g} m: "
+                             "fewer than 4 elements across the ball, whose few particles would not make a ball; set "
+                             f"element_size at most {BALL_ELEMENT_MAX_SHARE * self.radius:.3g} m (radius / 2)")
         other = {"sphere": {"file", "scale"}, "mesh": {"radius", "center", "element_size"}}[self.shape]
         given = sorted(other & self.model_fields_set)
         if given:
