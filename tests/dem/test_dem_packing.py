@@ -447,3 +447,15 @@ def test_seated_platens_start_unloaded_on_a_packing_that_overlaps_them(tmp_path)
     peak = result.summary["peak_stress"]
     print(f"first break at {first * 1e-6:.1f} MPa, peak {peak * 1e-6:.1f} MPa ({first / peak:.2f})")
     assert first > 0.15 * peak and peak > 30e6
+
+
+def test_a_particle_density_whose_spheres_outgrow_the_box_is_refused():
+    """Issue 71 item 8: packing.particle_density = 5 (1.47 meant) would grow spheres whose volumes
+    add to 2.85x the box (mean radius 1 mm, Rmax / Rmin = 1.86): refused before any packing, with
+    the largest density that fits (1.75: the spheres' volumes the box's), and 1.7 packs."""
+    box = Box(np.zeros(3), np.array([0.027, 0.012, 0.054]))
+    with pytest.raises(ValueError, match=r"particle_density = 5: the spheres' volumes would add to 2.85x the "
+                                         r"domain's.*at most 1.75"):
+        pack_spheres(box, particle_density=5.0, mean_radius=1e-3, seed=1, max_sweeps=1)
+    made = pack_spheres(box, particle_density=1.7, mean_radius=1e-3, seed=1)
+    assert len(made.radii) == round(1.7 * box.volume / 2e-3 ** 3)
