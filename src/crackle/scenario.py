@@ -712,6 +712,13 @@ class SupportSpec(Strict):
             raise ValueError(f"a {self.kind} support with a speed needs direction = [x, y, z] (of its motion)")
         if self.direction is not None and all(c == 0 for c in self.direction):
             raise ValueError("direction must be a non-zero vector")
+        if self.kind == "roller" and self.moves and self.direction is not None:
+            along = sum(a * b for a, b in zip(self.direction, self.normal))
+            if abs(along) < 1e-6 * math.hypot(*self.direction) * math.hypot(*self.normal):
+                raise ValueError(f"a roller moves its nodes along its normal only (the blocked direction), and "
+                                 f"direction = {list(self.direction)} is normal to normal = {list(self.normal)}: it "
+                                 "would move nothing; give direction along normal, or kind = \"fixed\" to drive "
+                                 "the nodes along direction")
         return self
 
 

@@ -328,6 +328,9 @@ def _junk(tmp_path, name, data: bytes):
     # a DEM support that selects nothing: the support by its place, not "flaw:" (issue 71 item 9)
     (lambda p: ["dem-tension", "--quick", "--set", "supports.1.where.box_min=[5,5,5]", "--set",
                 "supports.1.where.box_max=[6,6,6]"], "error: supports.1: the roller support selects no node"),
+    # a moving roller driven across its blocked axis: it would move nothing (issue 71 item 8)
+    (lambda p: ["dem-tension", "--quick", "--set", "supports.1.direction=[1,0,0]"],
+     "supports.1: a roller moves its nodes along its normal only"),
     # a key of the other interface law: that law named, not a spelling mistake (issue 71 item 9)
     (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.initiation=maximum"],
      'initiation is a key of the bilinear interface, not of the guo-munjiza one this interface is; set '
