@@ -395,16 +395,55 @@ class Scenario(ScenarioBase):
         return self
 
 
-def _planned_particles(spec, particles) -> float | None:
-    """The particle count particles.spacing asks for on a box, beam or tube, before any is made
-    (a mesh or surface file's is bounded by the file itself)."""
+# Support links per particle that budget.BYTES_PER["particles"] holds (paper 000's plates).
+LINKS_BUDGETED = 60
+# gmsh's nodes in a ball per cubed element size (measured 0.97-1.46 for 4-40 elements across).
+BALL_NODES_PER_CUBED_ELEMENT = 1.5
+
+
+def _planned_particles(spec, particles) -> tuple[float, str, str] | None:
+    """What particles.spacing (and particles.refine) ask for on a box, beam or tube before any
+    particle is made, in particles of the budget's size, and the key that sets it: the count,
+    times the share of support links beyond LINKS_BUDGETED each (a wall far thicker than the
+    spacing: its through-wall step sets a support radius that takes in thousands of neighbours,
+    fewer with more particles.layers), and what the count alone does not say. None for a mesh or
+    surface file (the file bounds it)."""
     a, layers = particles.spacing, particles.layers
-    if a is None or spec.shape in ("mesh", "shell") or particles.refine is not None:
+    if a is None or spec.shape in ("mesh", "shell"):
         return None
     if spec.shape == "tube":
-        return 2.0 * math.pi * (spec.inner_radius + 0.5 * spec.thickness) * spec.length / a**2 * layers
-    in_plane = sorted(spec.size)[1:]  # the thinnest side is the thickness, across the layers
-    return (in_plane[0] / a + 1.0) * (in_plane[1] / a + 1.0) * layers
+        thickness = spec.thickness
+        area = 2.0 * math.pi * (spec.inner_radius + 0.5 * thickness) * spec.length
+        count = area / a**2 * layers
+    else:
+        thickness, *in_plane = sorted(spec.size)
+        count = (in_plane[0] / a + 1.0) * (in_plane[1] / a + 1.0) * layers
+        fine = particles.refine
+        if fine is not None:  # the fine disc, and the ring where the spacing grows (mean 1 / s^2: 1 / (fine a))
+            ring = fine.transition or max(fine.radius, 5.0 * a)
+            count += layers * math.pi * (fine.radius**2 / fine.spacing**2
+                                         + ((fine.radius + ring) ** 2 - fine.radius**2) / (fine.spacing * a))
+            return count, "particles.refine.spacing", ""
+    across = thickness / max(layers - 1, 1)
+    radius = particles.dilation * max(a, across)
+    links = math.pi * radius**2 / a**2 * min(layers, 2.0 * radius / across + 1.0)
+    if links > LINKS_BUDGETED:
+        return (count * links / LINKS_BUDGETED, "particles.layers",
+                f" ({count:,.0f} particles, each support taking in about {links:,.0f} neighbours where paper 000's "
+                f"take {LINKS_BUDGETED}: the support radius is dilation x the through-wall step {across:.3g} m; more "
+                "layers shorten it)")
+    return count, "particles.spacing", ""
+
+
+def _check_body_sizes(bodies, max_memory) -> None:
+    """The memory guard on the balls [[bodies]] asks gmsh for (element_size against radius)."""
+    for i, body in enumerate(bodies):
+        if body.shape == "sphere":
+            planned = BALL_NODES_PER_CUBED_ELEMENT * 4.0 / 3.0 * math.pi * (body.radius / body.element_size) ** 3
+            try:
+                check_model_size(planned, "particles", f"bodies.{i}.element_size", max_memory)
+            except ModelTooLarge as err:
+                raise ScenarioError(str(err)) from None
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
@@ -413,9 +452,9 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
     planned = _planned_particles(spec, particles)
     if planned is not None:
         try:
-            check_model_size(planned, "particles", "particles.spacing", scenario.run.max_memory)
+            check_model_size(planned[0], "particles", planned[1], scenario.run.max_memory)
         except ModelTooLarge as err:
-            raise ScenarioError(str(err)) from None
+            raise ScenarioError(str(err) + planned[2]) from None
     mesh = None
     try:
         if spec.shape == "mesh":
@@ -445,6 +484,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
             check_file_units(plate.X, tools, "scale" in spec.model_fields_set, "specimen.file")
         except ValueError as err:
             raise ScenarioError(str(err)) from None
+    _check_body_sizes(scenario.bodies, scenario.run.max_memory)
     bodies = [_body(body, f"bodies.{i}", base) for i, body in enumerate(scenario.bodies)]
     materials = scenario.specimen_materials()
     if scenario.material is not None:
