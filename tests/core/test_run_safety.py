@@ -16,6 +16,7 @@ import subprocess
 import sys
 import time
 
+import meshio
 import pytest
 
 from crackle.cli import main
@@ -308,20 +309,26 @@ def _dem_without_method(tmp_path):
     return str(path)
 
 
-def _body_from_missing_file(tmp_path):
+def _body_from_missing_file(tmp_path, write_ball_in_mm: bool = False):
     """plate-impact-deformable as a scenario file in its own folder, its ball read from a mesh file
-    that is not there."""
+    that is not there (or, with write_ball_in_mm, there in mm: the example's ball times 1000)."""
     import re
 
     from crackle.scenario import examples_dir
 
     text = (examples_dir() / "plate-impact-deformable.toml").read_text()
-    text = re.sub(r'shape = "sphere"\nradius = .*\ncenter = .*\nelement_size = .*\n', 'shape = "mesh"\nfile = "ball.msh"\n',
+    name = "ball.vtu" if write_ball_in_mm else "ball.msh"
+    text = re.sub(r'shape = "sphere"\nradius = .*\ncenter = .*\nelement_size = .*\n', f'shape = "mesh"\nfile = "{name}"\n',
                   text)
     text = re.sub(r'"bodies\.0\.(center|element_size)" = .*\n', "", text)
     path = tmp_path / "scenarios" / "impact.toml"
     path.parent.mkdir()
     path.write_text(text)
+    if write_ball_in_mm:
+        from crackle.geometry.meshes import gmsh_sphere
+
+        ball = gmsh_sphere(20.0, 5.0, (0.0, 0.0, 43.1))
+        meshio.write_points_cells(path.parent / name, ball.points, [("tetra", ball.tets)])
     return str(path)
 
 
@@ -360,6 +367,10 @@ def _junk(tmp_path, name, data: bytes):
      "bodies.0: element_size = 0.03 m against the ball's radius 0.02 m"),
     # a body's missing mesh file: where it was looked for (the scenario's folder), not the working folder
     (lambda p: [_body_from_missing_file(p)], "scenarios/ball.msh does not exist"),
+    # a projectile's mesh file in mm (issue 71 item 6): its scale named, not a 40 m ball run
+    (lambda p: [_body_from_missing_file(p, write_ball_in_mm=True)],
+     "bodies.0.file: the body spans 40 m, implausibly large against the specimen, 1 m across: a file in mm? set "
+     "bodies.0.scale = 1e-3"),
     # a misspelt law key: the nearest key of that law, not of the whole scenario
     (lambda p: ["three-point-bending", "--quick", "--set", "material.interface.tensile_strenght=3e6"],
      "did you mean tensile_strength?"),

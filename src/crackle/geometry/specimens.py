@@ -40,21 +40,29 @@ def specimen_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh,
 # is taken for a file in other units (mm) unless the scenario states specimen.scale.
 FILE_EXTENT_LIMIT = 50.0
 FILE_TOOL_RATIO = 1000.0
+# A body read from a file (a projectile) this many times the specimen's size: a file in mm. A
+# projectile is rarely larger than its target; one in mm spans 1000x its size in metres.
+BODY_SPECIMEN_RATIO = 20.0
 
 
-def check_file_units(points: np.ndarray, tools, scale_stated: bool, key: str) -> None:
+def check_file_units(points: np.ndarray, tools, scale_stated: bool, key: str, what: str = "the specimen",
+                     beside: tuple[str, float] | None = None, ratio: float = FILE_TOOL_RATIO) -> None:
     """ValueError when the points of a specimen read from a file span more than FILE_EXTENT_LIMIT
     metres or FILE_TOOL_RATIO times the largest finite tool (a mesh in mm read as metres), unless
-    the scenario stated the scale (then the size is meant); the message names `key`, the file's key."""
+    the scenario stated the scale (then the size is meant); the message names `key`, the file's key.
+    `what` names the points' body; `beside` (a name, its size in m) stands in for the tools, and
+    `ratio` for FILE_TOOL_RATIO (a projectile's mesh beside the specimen: BODY_SPECIMEN_RATIO)."""
     if scale_stated or not len(points):
         return
     extent = float(np.max(np.ptp(points, axis=0)))
-    sizes = [_tool_size(tool) for tool in tools]
-    largest = max((size for size in sizes if size is not None), default=None)
-    if extent > FILE_EXTENT_LIMIT or (largest is not None and extent > FILE_TOOL_RATIO * largest):
-        against = f"{FILE_EXTENT_LIMIT:g} m" if largest is None else f"its largest tool, {largest:.3g} m across"
+    if beside is None:
+        sizes = [_tool_size(tool) for tool in tools]
+        largest = max((size for size in sizes if size is not None), default=None)
+        beside = None if largest is None else ("its largest tool", largest)
+    if extent > FILE_EXTENT_LIMIT or (beside is not None and extent > ratio * beside[1]):
+        against = f"{FILE_EXTENT_LIMIT:g} m" if beside is None else f"{beside[0]}, {beside[1]:.3g} m across"
         raise ValueError(
-            f"{key}: the specimen spans {extent:.4g} m, implausibly large against {against}: a file in mm? "
+            f"{key}: {what} spans {extent:.4g} m, implausibly large against {against}: a file in mm? "
             f"set {key.rsplit('.', 1)[0]}.scale = 1e-3 (or 1 if it is in metres)"
         )
 

@@ -29,7 +29,7 @@ from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
 from ..geometry.meshes import MeshError, gmsh_sphere, read_mesh
-from ..geometry.specimens import check_file_units
+from ..geometry.specimens import BODY_SPECIMEN_RATIO, check_file_units
 from ..materials.random_properties import RandomProperty, check_names
 from .fracture import RANDOM_PARTICLE_PROPERTIES, draw_thresholds
 from .particles import (graded_plate_particles, node_groups, plate_particles, shell_particles, tet_node_particles,
@@ -485,7 +485,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSi
         except ValueError as err:
             raise ScenarioError(str(err)) from None
     _check_body_sizes(scenario.bodies, scenario.run.max_memory)
-    bodies = [_body(body, f"bodies.{i}", base) for i, body in enumerate(scenario.bodies)]
+    specimen_size = float(np.max(np.ptp(plate.X, axis=0)))
+    bodies = [_body(body, f"bodies.{i}", base, specimen_size) for i, body in enumerate(scenario.bodies)]
     materials = scenario.specimen_materials()
     if scenario.material is not None:
         index, several = None, None
@@ -563,8 +564,9 @@ def _thresholds(X, materials: dict, index, seed: int) -> _Thresholds:
     return _Thresholds(np.array([m.fracture_factor for m in several])[index] * strength, strain, drawn, statistics)
 
 
-def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:
-    """The particles of a [[bodies]] entry (a particle at each node of its tet mesh)."""
+def _body(spec: BodySpec, key: str, base: Path | None, specimen_size: float) -> MeshfreeBody:
+    """The particles of a [[bodies]] entry (a particle at each node of its tet mesh); a mesh file
+    BODY_SPECIMEN_RATIO times the specimen's size (m) is taken for one in mm unless its scale is given."""
     try:
         if spec.shape == "sphere":
             mesh = gmsh_sphere(spec.radius, spec.element_size, spec.center)
@@ -575,5 +577,10 @@ def _body(spec: BodySpec, key: str, base: Path | None) -> MeshfreeBody:
         particles = tet_node_particles(points, mesh.tets)
     except (MeshError, ValueError) as err:
         raise ScenarioError(f"{key}.{'file' if spec.shape == 'mesh' else 'element_size'}: {err}") from None
+    try:
+        check_file_units(points, [], spec.shape == "sphere" or "scale" in spec.model_fields_set, f"{key}.file",
+                         "the body", ("the specimen", specimen_size), BODY_SPECIMEN_RATIO)
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
     mat = spec.material
     return MeshfreeBody(particles, mat.density, mat.law(), spec.initial_velocity, spec.dilation, spec.name)
