@@ -75,6 +75,8 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
     else:
         out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
     check_output_folder(out)
+    if resume is None:
+        check_outputs_are_crackles(out)
     try:
         with OutputLock(out) as lock:
             if lock.taken_over is not None and report is not None:
@@ -146,6 +148,24 @@ def _check_resumable(out: Path, checkpoint, record: dict) -> None:
             f"--resume {out}: that run ended by its stop condition ({message}) and would stop again at once; "
             f"change run.stop to go on past it (e.g. --set {way})"
         )
+
+
+def check_outputs_are_crackles(out: Path) -> None:
+    """Refuse a fresh run into a folder whose files bear the names of crackle's outputs but that no
+    crackle run wrote (a run writes status.json with its first row, and its history.csv's header
+    starts with time and holds energy.kinetic): a run would overwrite a user's own history.csv or
+    summary.json there."""
+    theirs = [name for name in ("history.csv", "summary.json", "events.csv", "fields.pvd") if (out / name).is_file()]
+    if not theirs or (out / "status.json").is_file():
+        return
+    try:
+        with open(out / "history.csv", encoding="utf-8", errors="replace") as f:
+            header = f.readline(100_000)
+    except OSError:
+        header = ""
+    if not (header.startswith("time,") and ",energy.kinetic," in header):
+        raise ScenarioError(f"--out {out}: it holds {', '.join(theirs)} that no crackle run wrote (no status.json "
+                            "beside it), which this run would overwrite; choose another --out or move them")
 
 
 def check_output_folder(out: Path) -> None:

@@ -221,6 +221,22 @@ def test_rerun_clears_only_crackles_outputs(tmp_path):
     assert not (out / "plots" / "stress_strain.png").exists()
 
 
+def test_a_folder_with_a_users_own_history_is_not_overwritten(tmp_path, capsys):
+    """Issue 71 item 10: --out pointed at a folder holding a history.csv that no crackle run wrote
+    (a lab's own test record): exit 2 naming the file, which is left as it was; a folder of an
+    earlier crackle run (status.json beside its files) is rerun into as before."""
+    out = tmp_path / "lab"
+    out.mkdir()
+    (out / "history.csv").write_text("t_s,force_kN\n0,0\n")
+    args = ["run", "single-fracture", "--quick", "--set", "run.end_time=2e-6", "--out", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "it holds history.csv that no crackle run wrote" in err and "choose another --out" in err
+    assert (out / "history.csv").read_text() == "t_s,force_kN\n0,0\n"
+    (out / "history.csv").unlink()
+    assert main(args) == 0 and main(args) == 0  # the second into the first's folder
+
+
 def test_ctrl_c_stops_consistently_with_exit_130(tmp_path):
     """SIGINT during a run: exit 130, status "interrupted", and summary, history and events end
     at the same state (one event row per failure counted in the summary)."""
