@@ -75,8 +75,6 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
     else:
         out = Path(out_dir) if out_dir is not None else Path("crackle-out") / scenario.name
     check_output_folder(out)
-    if resume is None:
-        check_outputs_are_crackles(out)
     try:
         with OutputLock(out) as lock:
             if lock.taken_over is not None and report is not None:
@@ -116,6 +114,7 @@ def _run_locked(scenario: ScenarioBase, base, out: Path, resume, progress, repor
                 f"set a later end, e.g. --set run.end_time={2 * sim.time:.3g}"
             )
     else:
+        check_outputs_are_crackles(out)
         sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress

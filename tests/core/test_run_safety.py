@@ -93,6 +93,7 @@ def test_a_second_run_into_a_held_folder_exits_2_naming_the_holder(tmp_path, cap
     out = tmp_path / "out"
     out.mkdir()
     (out / "summary.json").write_text('{"first": "run"}')
+    (out / "status.json").write_text('{"state": "running"}')  # an earlier crackle run's folder
     holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     try:
         (out / LOCK_FILE).write_text(json.dumps({"pid": holder.pid, "host": os.uname().nodename,
