@@ -144,6 +144,23 @@ def test_a_full_disk_stops_like_an_interrupt_and_resumes(tmp_path, capsys, monke
     assert summary["status"] == "completed" and summary["end_time"] >= 2e-5
 
 
+def test_a_full_disk_at_the_first_field_frame_is_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
+    """Issue 71 item 3: ENOSPC while writing the t = 0 field frame (before any checkpoint): exit 1
+    with one line saying to free space and rerun; status.json says "disk full", the lock is gone."""
+    from crackle.io import fields
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", "frame.vtu")
+
+    monkeypatch.setattr(fields.FieldWriter, "write_blocks", full)
+    out = tmp_path / "out"
+    assert main(["run", *BENDING, "--set", "run.end_time=2e-5", "--out", str(out)]) == 1
+    err = _one_line(capsys.readouterr().err)
+    assert "the disk is full (frame.vtu) before the first step; free some space and rerun" in err
+    assert json.loads((out / "status.json").read_text())["state"] == "disk full"
+    assert not (out / LOCK_FILE).exists()
+
+
 def test_an_end_time_shorter_than_a_step_is_refused(tmp_path, capsys):
     assert main(["run", *BENDING, "--set", "run.end_time=1e-9", "--out", str(tmp_path / "o")]) == 2
     err = _one_line(capsys.readouterr().err)

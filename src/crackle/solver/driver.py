@@ -242,7 +242,14 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         for warning in sim.warnings:
             say(f"  warning: {warning}")
         progress.stage("compiling kernels")  # the first sample and step compile them (or load them from the cache)
-        outputs = _Outputs.open(stack, sim, out, state, rows, resumed_from)
+        try:
+            outputs = _Outputs.open(stack, sim, out, state, rows, resumed_from)
+        except OSError as err:  # the first row or field frame: nothing to resume from yet
+            if err.errno not in DISK_FULL:
+                raise
+            progress.finish("disk full", sim.time, sim.steps, sim.broken)
+            raise DiskFullError(f"stopped: the disk is full ({err.filename or out}) before the first step; free "
+                                f"some space and rerun (what was written is in {out})") from None
         if rows.next_stop(sim.steps, outputs.fields) > sim.steps + 1:
             # One step alone compiles the kernels before the timed probe; it never skips a row (a
             # row's state does not depend on how its steps were split).
