@@ -56,6 +56,7 @@ def test_target_above_the_cap_is_refused_naming_the_largest_allowed(capsys, tmp_
     assert _sim(f"run.target_dt={offered!r}").model.mass_scaling.added_mass <= 0.01
 
 
+@pytest.mark.slow
 def test_scaled_run_keeps_the_energy_balance(tmp_path):
     out = tmp_path / "run"
     args = ["run", "brazilian-disc", "--quick", "--out", str(out), "--set", "run.target_dt=1.2e-8",

@@ -42,6 +42,7 @@ def _same_files(a: Path, b: Path, rows_after: float = -1.0, keys=SAME) -> None:
         assert sa.get(key) == sb.get(key), key
 
 
+@pytest.mark.slow
 def test_interrupted_run_resumed_is_bit_identical(tmp_path):
     """Ctrl-C a fracturing impact with surface contact, resume it to the same end: every row of
     history.csv, events.csv and the results equal those of the run never interrupted; the

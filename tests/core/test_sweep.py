@@ -114,6 +114,7 @@ def test_seed_statistics_are_the_mean_and_deviation_over_seeds(tmp_path):
     assert len(lines) == 2 and "over 3 seeds at x=1: peak_force 12 +- 2" in lines[0]
 
 
+@pytest.mark.slow
 def test_sweep_on_two_workers_equals_the_runs_one_by_one(tmp_path):
     """A 2 x 2 sweep on a local cluster of 2 workers: 4 run folders whose histories are
     byte-identical to the same runs made one by one with `crackle run`, and a table whose rows
@@ -142,6 +143,7 @@ def test_sweep_on_two_workers_equals_the_runs_one_by_one(tmp_path):
         assert (out / "plots" / f"sweep_{key}.png").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_a_value_one_run_refuses_is_its_row_and_the_others_run(tmp_path, capsys):
     out = tmp_path / "sweep"
     code = main(["sweep", *SHORT, "--vary", "material.interface.tensile_strength=3e6,-1", "--workers", "1", "--out", str(out)])
@@ -207,6 +209,7 @@ def test_quadratic_minimum_of_noisy_squared_distances():
     assert quadratic_minimum(x[:, None], x / 6e6, np.array([[1e6, 6e6]])) is None
 
 
+@pytest.mark.slow
 def test_calibration_recovers_the_tensile_strength_of_its_own_curve(tmp_path):
     """The disc's top-platen curve made with t = 3 MPa is the target; from t = 2 MPa within
     [1, 6] MPa, 5 candidates a generation for 4 generations on 2 workers (26 runs with the
@@ -285,6 +288,7 @@ def test_an_interrupted_run_of_a_sweep_continues_from_its_checkpoint(tmp_path):
     assert resumed == (straight / "history.csv").read_text()
 
 
+@pytest.mark.slow
 def test_a_killed_sweep_finishes_only_its_missing_runs(tmp_path, capsys):
     """`crackle sweep` killed (SIGKILL to its process group: client, scheduler and workers) once
     its first run has finished; the same command again runs exactly the runs without a finished
@@ -324,6 +328,7 @@ def _lattice_elastic(tmp_path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_two_value_targets_of_two_scenarios(tmp_path):
     """A candidate's distance over two value targets, each of another scenario's run: the crushed
     lattice's peak_force and the same lattice's elastic force (a second scenario file), both made
@@ -351,6 +356,7 @@ def test_two_value_targets_of_two_scenarios(tmp_path):
     assert off["values"] == {targets[0].text: runs[0]["peak_force"], targets[1].text: runs[1]["peak_force"]}
 
 
+@pytest.mark.slow
 def test_calibration_to_two_values_recovers_the_modulus(tmp_path):
     """`crackle calibrate` to two value targets of two scenarios (the lattice's crushing peak and
     its elastic force, made with E = 26 GPa) from E = 20 GPa within [18, 34] GPa: E within 3 % of
@@ -401,6 +407,7 @@ def test_a_calibration_to_a_missing_tool_exits_2_before_any_run(tmp_path, capsys
     ("peak_force=KN", "misses the targets by"),  # the lattice's peak force given in kN
     ("no_such_value=1.0", "every one of the"),  # no run can give it: every candidate invalid
 ])
+@pytest.mark.slow
 def test_a_calibration_that_failed_exits_1_and_says_why(tmp_path, capsys, target, message):
     """A target in kN where the run gives N (misfit ~1000, read as FAILED_DISTANCE = 10; beyond
     USEFUL_MISFIT = 0.5), or one no
@@ -422,6 +429,7 @@ def test_a_calibration_that_failed_exits_1_and_says_why(tmp_path, capsys, target
         assert record["relative_misfit"] >= 10.0  # 999, capped at FAILED_DISTANCE
 
 
+@pytest.mark.slow
 def test_a_misspelt_plot_scalar_exits_2_after_the_table_is_written(tmp_path, capsys):
     """--plot peak_forse: the runs and the table are kept, the exit is 2 naming the name and the
     nearest scalar; the same command with the right name plots it without running again."""
@@ -435,6 +443,7 @@ def test_a_misspelt_plot_scalar_exits_2_after_the_table_is_written(tmp_path, cap
     assert "0 to run" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
     """SIGINT to the sweep's process group (as a terminal's Ctrl-C) while its runs go on: exit
     130, one line of ours saying what is kept and how to finish, no KeyboardInterrupt tracebacks

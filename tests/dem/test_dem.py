@@ -287,6 +287,7 @@ def elastic_ucs(tmp_path_factory):
     return history, json.loads((out / "summary.json").read_text()), sim, out
 
 
+@pytest.mark.slow
 def test_elastic_modulus_is_reproducible_across_packings(tmp_path, elastic_ucs):
     """Three random packings (seeds 1-3) of the quick UCS sample, 3,215 particles (mean radius
     1 mm, paper 003's density), bonds made unbreakable (t and c x 100) so that the response
@@ -311,6 +312,7 @@ def test_elastic_modulus_is_reproducible_across_packings(tmp_path, elastic_ucs):
     assert np.max(np.abs(np.array(moduli) / mean - 1.0)) < 0.02, moduli
 
 
+@pytest.mark.slow
 def test_platen_strain_is_the_platens_approach_when_both_move(tmp_path, elastic_ucs):
     """Issue 43: both platens moving towards each other at v = 0.1 m/s (ramped over 0.1 ms), bonds
     unbreakable: platen.strain is the sum of both platens' travels over the sample's extent H at
@@ -359,6 +361,7 @@ def test_a_user_step_is_accepted_up_to_the_proven_stable_step(tmp_path):
         build_simulation(scenario, base)
 
 
+@pytest.mark.slow
 def test_dem_ucs_quick_breaks_the_sample(tmp_path):
     """`crackle run dem-ucs --quick` (3,215 particles at paper 003's packing density, 1.47 per
     cubed mean diameter): bonds break (most of them in tension), the run stops after the peak,
@@ -435,6 +438,7 @@ def test_dem_brazilian_quick_splits_along_the_loading_axis(tmp_path):
 PAST_THE_PEAK = ("run.stop.force_drop=0.8", "run.stop.force_drop_hold=1e-5")
 
 
+@pytest.mark.slow
 def test_open_flaw_strength_rises_with_its_inclination(tmp_path):
     """Paper 003 section 4.1: with an open flaw the uniaxial strength rises with the flaw's
     inclination theta, UCS(90)/UCS(0) ~ 2 (experiments 1.3-1.7). Quick sample at the paper's
@@ -493,6 +497,7 @@ def test_smooth_joint_takes_the_flaw_normal_friction_and_dilatancy():
     assert f @ along == pytest.approx(-cap, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_closed_flaw_weakest_beyond_its_friction_angle(tmp_path):
     """Paper 003 section 5.1 (Fig. 14): with a closed flaw of smooth joints (phi_j = 18 deg) the
     strength at theta = 0 is kept, and it falls once theta exceeds phi_j. Quick sample at the

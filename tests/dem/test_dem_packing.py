@@ -360,6 +360,7 @@ def test_bad_sphere_list_exits_2_naming_the_line(tmp_path, capsys, content, expe
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_paper_density_packing_overlaps_and_starts_unloaded(monkeypatch):
     """packing.particle_density = 1.47 (paper 003: spheres per cubed mean diameter) in the quick
     UCS prism with mean radius 0.75 mm: n (2 mean R)^3 / V within 2 % of 1.47 (7,620 spheres,
@@ -412,6 +413,7 @@ def _compacted_between_walls(tmp_path, poke: float) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_seated_platens_start_unloaded_on_a_packing_that_overlaps_them(tmp_path):
     """Issue 43: platens on the box faces of a packing whose spheres poke through them (0.1 mm,
     a tenth of the mean radius). Unseated, they push those spheres at once (the platen stress

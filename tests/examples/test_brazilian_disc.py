@@ -75,6 +75,7 @@ def test_splitting_fracture_along_loading_axis(quick_run):
     assert result.summary["brazilian_strength"] == pytest.approx(2 * result.summary["peak_force"] / (math.pi * D * T))
 
 
+@pytest.mark.slow
 def test_rotated_platens_load_the_disc_as_unrotated_ones(quick_run, tmp_path):
     """loading.angle = 30 turns both platens about the disc axis: through the elastic stage
     (0.4 ms, no failure yet) the platen force has the magnitude of the theta = 0 run's within 5 %
@@ -97,6 +98,7 @@ def test_rotated_platens_load_the_disc_as_unrotated_ones(quick_run, tmp_path):
     assert abs(math.degrees(math.atan2(fx[-1], -fy[-1])) - 30.0) < 3.0
 
 
+@pytest.mark.slow
 def test_extrinsic_insertion_peaks_as_intrinsic(quick_run, tmp_path):
     """Strength that does not depend on the insertion mode: the quick disc with extrinsic faces
     (each face checked against either of its tets' traction) reads a brazilian_strength within

@@ -113,6 +113,7 @@ def test_moving_support_keys_are_checked(tmp_path, support, message):
         load_scenario(str(scenario))
 
 
+@pytest.mark.slow
 def test_structured_bar_breaks_at_the_tensile_strength(tmp_path):
     """With faces normal to the pull (structured cells), the quick bar's nominal strength is ft:
     tensile_strength_ratio within 3 % of 1 (measured 1.008, extrinsic faces, 768 tets)."""
@@ -125,6 +126,7 @@ def test_structured_bar_breaks_at_the_tensile_strength(tmp_path):
 
 
 @pytest.mark.parametrize("insertion, measured", [("intrinsic", 1.041), ("extrinsic", 1.090)])
+@pytest.mark.slow
 def test_quick_bar_breaks_at_ft_in_both_insertion_modes(tmp_path, insertion, measured):
     """The shipped quick bar (420 unstructured tets, mixed_mode = "effective"): a face inclined
     to the crack plane opens when the magnitude of its traction reaches ft (Camacho-Ortiz), so
@@ -144,6 +146,7 @@ def test_quick_bar_breaks_at_ft_in_both_insertion_modes(tmp_path, insertion, mea
     assert abs(s["energy_error"]) < 0.01
 
 
+@pytest.mark.slow
 def test_paper_law_carries_the_face_orientation_bias(tmp_path):
     """The bias the effective mixed mode removes. With paper 001's Mohr-Coulomb law a face opens
     only when its own normal traction reaches ft, sigma cos^2(theta) on a face at theta to the

@@ -41,6 +41,7 @@ def test_plates_start_tangent_and_move_to_the_centre(polar, azimuth):
         assert inner_face == pytest.approx(np.max(points @ u), abs=1e-12)
 
 
+@pytest.mark.slow
 def test_quick_multipoint_crushing(tmp_path):
     """`crackle run walnut-multipoint --quick` (the paper's 4-point layout, azimuths 0, 150, 180,
     330 deg on the equator): the shell cracks into at least 2 cracks by the paper's counting rule

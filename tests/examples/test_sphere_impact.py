@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from crackle.api import run_scenario
 
 
@@ -24,6 +26,7 @@ def test_slow_impact_stays_nearly_whole_and_rebounds(tmp_path):
     assert abs(s["energy_error"]) < 0.03
 
 
+@pytest.mark.slow
 def test_fast_impact_fragments_with_energy_balance(tmp_path):
     """100 m/s: many fragments (>= 50; measured 409 of 672 tets), none holding half the mass, and
     |energy_error| < 3 % (the contact issue's acceptance; measured +0.30 %, 2026-12-06; +0.69 % before

@@ -66,6 +66,7 @@ def test_thicker_suture_adds_its_extra_wall():
     assert np.allclose(thin.bounds()[1], thick.bounds()[1])
 
 
+@pytest.mark.slow
 def test_quick_walnut_crush_cracks_through_the_suture(tmp_path):
     """`crackle run walnut-crush --quick`: the plates crush the shell to a peak (measured 241.8 N,
     3,378 tets, 1.25 m/s; 2026-12-06), then cracks run and the plate force drops below 30 % of
