@@ -71,10 +71,6 @@ class MeshfreeSpecimen(Specimen):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"shape '{self.shape}' needs {', '.join(missing)}")
-        if self.shape == "sphere" and self.element_size > BALL_ELEMENT_MAX_SHARE * self.radius:
-            raise ValueError(f"element_size = {self.element_size:g} m against the ball's radius {self.radius:g} m: "
-                             "fewer than 4 elements across the ball, whose few particles would not make a ball; set "
-                             f"element_size at most {BALL_ELEMENT_MAX_SHARE * self.radius:.3g} m (radius / 2)")
         if self.shape == "tube" and all(c == 0 for c in self.axis):
             raise ValueError("axis must be a non-zero vector")
         tube_only = sorted({"inner_radius", "thickness", "length", "axis"} & self.model_fields_set)

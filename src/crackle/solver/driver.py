@@ -248,8 +248,9 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
             if err.errno not in DISK_FULL:
                 raise
             progress.finish("disk full", sim.time, sim.steps, sim.broken)
+            again = "rerun" if resume is None else f"continue with --resume {out}"
             raise DiskFullError(f"stopped: the disk is full ({err.filename or out}) before the first step; free "
-                                f"some space and rerun (what was written is in {out})") from None
+                                f"some space and {again} (what was written is in {out})") from None
         if rows.next_stop(sim.steps, outputs.fields) > sim.steps + 1:
             # One step alone compiles the kernels before the timed probe; it never skips a row (a
             # row's state does not depend on how its steps were split).
