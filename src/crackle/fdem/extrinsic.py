@@ -49,10 +49,8 @@ import numpy as np
 from numba import njit
 
 from ..solver.integrator import block_kernel, move, update_velocity
-from .laws import KIND_BILINEAR, LAW_FT, LAW_KIND, intact_energy
+from .laws import inserted_preload, insertion_reached, insertion_utilisation, intact_energy
 from .laws.row import LAW_SAMPLING, SAMPLE_MEAN
-from .laws.bilinear import LAW_INITIATION, INITIATION_MAXIMUM, LAW_TS, initiation_index
-from .laws.guo_munjiza import LAW_BETA, shear_cap, shear_strength
 
 # tied[i]: a face joining its tets rigidly, one released in this step (its clusters still to be
 # regrouped), or one carrying its law (intrinsic, inserted, failed, pre-cracked).
@@ -219,41 +217,6 @@ def tet_traction(t, tet_stress, nx, ny, nz, weight, other):
 
 
 @njit(cache=True, inline="always")
-def _reaches(tn, ts2, law):
-    """Whether a traction (normal tn, tension positive; squared shear ts2) meets the law's
-    insertion criterion: Guo-Munjiza, Mohr-Coulomb with tension cut-off (the effective mixed
-    mode: the ellipse in tension); bilinear, its initiation criterion (quadratic or maximum nominal
-    stress). No square root or division: every tied face makes this check every step."""
-    ft = law[LAW_FT]
-    if law[LAW_KIND] != KIND_BILINEAR:
-        fs = shear_strength(tn, law)
-        if ts2 >= fs * fs:
-            return True
-        beta = law[LAW_BETA]
-        if beta > 0.0 and tn > 0.0:
-            return tn * tn + ts2 / (beta * beta) >= ft * ft
-        return tn >= ft
-    ts0 = law[LAW_TS]
-    if law[LAW_INITIATION] == INITIATION_MAXIMUM:
-        return tn >= ft or ts2 >= ts0 * ts0
-    tn_plus = tn if tn > 0.0 else 0.0
-    return tn_plus * tn_plus * (ts0 * ts0) + ts2 * (ft * ft) >= (ft * ts0) ** 2
-
-
-@njit(cache=True, inline="always")
-def _utilisation(tn, ts, law):
-    """How far a traction is along the insertion criterion (1 on it): which of two tractions that
-    both meet it is the more critical."""
-    ft = law[LAW_FT]
-    if law[LAW_KIND] != KIND_BILINEAR:
-        beta = law[LAW_BETA]
-        if beta > 0.0 and tn > 0.0:
-            return max(math.sqrt(tn * tn + (ts / beta) ** 2) / ft, ts / shear_strength(tn, law))
-        return max(tn / ft, ts / shear_strength(tn, law))
-    return initiation_index(max(tn, 0.0), ts, law)
-
-
-@njit(cache=True, inline="always")
 def face_traction(ta, tb, tet_stress, nx, ny, nz, law):
     """Normal traction (tension positive) and shear traction vector on the face between tets ta
     (side A) and tb, on the normal n (from side A to side B), that its insertion is checked with,
@@ -261,14 +224,15 @@ def face_traction(ta, tb, tet_stress, nx, ny, nz, law):
     SAMPLE_EITHER) or their mean stress's (SAMPLE_MEAN)."""
     if law[LAW_SAMPLING] == SAMPLE_MEAN:
         tn, sx, sy, sz = tet_traction(ta, tet_stress, nx, ny, nz, 0.5, tb)
-        return tn, sx, sy, sz, _reaches(tn, sx * sx + sy * sy + sz * sz, law)
+        return tn, sx, sy, sz, insertion_reached(tn, sx * sx + sy * sy + sz * sz, law)
     tn, sx, sy, sz = tet_traction(ta, tet_stress, nx, ny, nz, 1.0, ta)
     tn_b, sx_b, sy_b, sz_b = tet_traction(tb, tet_stress, nx, ny, nz, 1.0, tb)
     ts2 = sx * sx + sy * sy + sz * sz
     ts2_b = sx_b * sx_b + sy_b * sy_b + sz_b * sz_b
-    reached = _reaches(tn, ts2, law)
-    reached_b = _reaches(tn_b, ts2_b, law)
-    if reached_b and (not reached or _utilisation(tn_b, math.sqrt(ts2_b), law) > _utilisation(tn, math.sqrt(ts2), law)):
+    reached = insertion_reached(tn, ts2, law)
+    reached_b = insertion_reached(tn_b, ts2_b, law)
+    if reached_b and (not reached or insertion_utilisation(tn_b, math.sqrt(ts2_b), law)
+                      > insertion_utilisation(tn, math.sqrt(ts2), law)):
         return tn_b, sx_b, sy_b, sz_b, True
     return tn, sx, sy, sz, reached
 
@@ -288,25 +252,7 @@ def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_dam
     if not reached:
         return False
     ts = math.sqrt(sx * sx + sy * sy + sz * sz)
-    ft = law[LAW_FT]
-    if law[LAW_KIND] != KIND_BILINEAR:  # Guo-Munjiza
-        tn_c = min(tn, ft)
-        # On the pre-peak curve ft (2 u - u^2), u = dn / dnp.
-        shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
-        if prestressed and tn_c < 0.0:
-            shift = tn_c / pn
-        # The cap the law applies at zero gap: without a normal preload in compression, its
-        # normal stress there is zero. A preload above it would be returned onto it in the first
-        # step as if it had slid, booking less than the spring loses.
-        cap = shear_cap(tn_c if prestressed else max(tn_c, 0.0), 1.0, law)
-    elif law[LAW_INITIATION] == INITIATION_MAXIMUM:  # bilinear
-        cap = law[LAW_TS]
-        shift = min(tn, ft) / pn if tn > 0.0 or prestressed else 0.0
-    else:  # bilinear, quadratic: the traction brought back onto the criterion along its own direction
-        over = initiation_index(max(tn, 0.0), ts, law)
-        back = 1.0 / over if over > 1.0 else 1.0
-        cap = back * ts
-        shift = back * tn / pn if tn > 0.0 else (tn / pn if prestressed else 0.0)
+    shift, cap = inserted_preload(tn, ts, law, pn, prestressed)
     scale = 1.0 if ts <= cap else cap / ts
     for p in range(3):
         # The shear spring ps (s - s_p) at zero slip carries the clamped shear traction.

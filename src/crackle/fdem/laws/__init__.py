@@ -2,9 +2,10 @@
 
 Each law is one file: its parameters (a validated dataclass that is also its scenario schema),
 its row of the law table (`table_row`), its interface stiffness (`stiffness`) and its compiled
-`intact_step` (forces, damage, dissipation of an intact interface) and `intact_energy` (what it
-stores), side by side. Adding a law: its file, plus one entry in LAWS and one branch in each
-dispatcher below. Failed and pre-cracked faces are the same for every law (paired contact with
+`intact_step` (forces, damage, dissipation of an intact interface), `intact_energy` (what it
+stores) and, for extrinsic insertion, `insertion_reached`, `insertion_utilisation` and
+`inserted_preload` (when a tied face opens, and the state it starts from), side by side. Adding a
+law: its file, plus one entry in LAWS and one branch in each dispatcher below. Failed and pre-cracked faces are the same for every law (paired contact with
 Coulomb friction, fdem.kernels).
 """
 
@@ -47,4 +48,31 @@ def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny,
     return guo_munjiza.intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny, nz, dn_shift)
 
 
-__all__ = ["KIND_BILINEAR", "LAWS", "LAW_COLUMNS", "LAW_EXTRINSIC", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "intact_energy", "intact_step"]
+@njit(cache=True, inline="always")
+def insertion_reached(tn, ts2, law):
+    """Extrinsic insertion: whether a tied face's traction (tn, tension positive; squared shear
+    ts2) reaches the strength of the law of row `law` (its insertion_reached)."""
+    if law[LAW_KIND] == KIND_BILINEAR:
+        return bilinear.insertion_reached(tn, ts2, law)
+    return guo_munjiza.insertion_reached(tn, ts2, law)
+
+
+@njit(cache=True, inline="always")
+def insertion_utilisation(tn, ts, law):
+    """Extrinsic insertion: how far a traction is along the law's insertion criterion (1 on it)."""
+    if law[LAW_KIND] == KIND_BILINEAR:
+        return bilinear.insertion_utilisation(tn, ts, law)
+    return guo_munjiza.insertion_utilisation(tn, ts, law)
+
+
+@njit(cache=True, inline="always")
+def inserted_preload(tn, ts, law, pn, prestressed):
+    """Extrinsic insertion: (opening shift, shear cap) of the law state that carries the traction
+    at zero gap (the law's inserted_preload)."""
+    if law[LAW_KIND] == KIND_BILINEAR:
+        return bilinear.inserted_preload(tn, ts, law, pn, prestressed)
+    return guo_munjiza.inserted_preload(tn, ts, law, pn, prestressed)
+
+
+__all__ = ["KIND_BILINEAR", "LAWS", "LAW_COLUMNS", "LAW_EXTRINSIC", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "inserted_preload", "insertion_reached",
+           "insertion_utilisation", "intact_energy", "intact_step"]

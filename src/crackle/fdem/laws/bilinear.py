@@ -371,3 +371,38 @@ def intact_energy(i, x, na, nb, area, damage, slip_offset, law, kn, ks, nx, ny, 
         if dn < 0.0:
             comp += 0.5 * kn * dn * dn * a3
     return comp + (1.0 - damage[i]) * _potential(x, na, nb, i, area, kn, ks, nx, ny, nz, slip_offset, dn_shift)
+
+
+# -- extrinsic insertion (fdem.extrinsic calls these through the law registry) ------------------
+@njit(cache=True, inline="always")
+def insertion_reached(tn, ts2, law):
+    """Whether a tied face's traction (normal tn, tension positive; squared shear ts2) meets the
+    initiation criterion (quadratic or maximum nominal stress). No square root or division: every
+    tied face makes this check every step."""
+    ft = law[LAW_FT]
+    ts0 = law[LAW_TS]
+    if law[LAW_INITIATION] == INITIATION_MAXIMUM:
+        return tn >= ft or ts2 >= ts0 * ts0
+    tn_plus = tn if tn > 0.0 else 0.0
+    return tn_plus * tn_plus * (ts0 * ts0) + ts2 * (ft * ft) >= (ft * ts0) ** 2
+
+
+@njit(cache=True, inline="always")
+def insertion_utilisation(tn, ts, law):
+    """How far a traction is along the initiation criterion (1 on it)."""
+    return initiation_index(max(tn, 0.0), ts, law)
+
+
+@njit(cache=True, inline="always")
+def inserted_preload(tn, ts, law, pn, prestressed):
+    """The law state that carries a face's traction at zero gap when it is inserted: the opening
+    shift (kn dn = tn, capped at ft) and the cap on its shear traction. The maximum criterion
+    clamps each component on its own strength; the quadratic one brings the traction back onto
+    the criterion along its own direction. A compression is no shift (the penalty's from zero
+    gap), except in a prestressed model."""
+    ft = law[LAW_FT]
+    if law[LAW_INITIATION] == INITIATION_MAXIMUM:
+        return (min(tn, ft) / pn if tn > 0.0 or prestressed else 0.0), law[LAW_TS]
+    over = initiation_index(max(tn, 0.0), ts, law)
+    back = 1.0 / over if over > 1.0 else 1.0
+    return (back * tn / pn if tn > 0.0 else (tn / pn if prestressed else 0.0)), back * ts

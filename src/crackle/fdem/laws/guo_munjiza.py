@@ -510,3 +510,47 @@ def intact_energy(i, x, na, nb, area, damage, slip_plastic, law, pn, ps, nx, ny,
         tx, ty, tz = _cohesive_shear_trial(slip_plastic, i, p, sx, sy, sz, nx, ny, nz, ps)
         springs += 0.5 * (tx * tx + ty * ty + tz * tz) / ps * a3
     return springs + z * _normal_potential(x, na, nb, i, area, law, pn, nx, ny, nz, dn_shift)
+
+
+# -- extrinsic insertion (fdem.extrinsic calls these through the law registry) ------------------
+@njit(cache=True, inline="always")
+def insertion_reached(tn, ts2, law):
+    """Whether a tied face's traction (normal tn, tension positive; squared shear ts2) opens it:
+    Mohr-Coulomb with tension cut-off; with the effective mixed mode, the ellipse in tension. No
+    square root or division: every tied face makes this check every step."""
+    ft = law[LAW_FT]
+    fs = shear_strength(tn, law)
+    if ts2 >= fs * fs:
+        return True
+    beta = law[LAW_BETA]
+    if beta > 0.0 and tn > 0.0:
+        return tn * tn + ts2 / (beta * beta) >= ft * ft
+    return tn >= ft
+
+
+@njit(cache=True, inline="always")
+def insertion_utilisation(tn, ts, law):
+    """How far a traction is along insertion_reached's criterion (1 on it)."""
+    ft = law[LAW_FT]
+    beta = law[LAW_BETA]
+    if beta > 0.0 and tn > 0.0:
+        return max(math.sqrt(tn * tn + (ts / beta) ** 2) / ft, ts / shear_strength(tn, law))
+    return max(tn / ft, ts / shear_strength(tn, law))
+
+
+@njit(cache=True, inline="always")
+def inserted_preload(tn, ts, law, pn, prestressed):
+    """The law state that carries a face's traction at zero gap when it is inserted: the opening
+    shift and the cap on its shear traction. In tension the opening sits on the pre-peak curve
+    ft (2 u - u^2), u = dn / dnp; a compression is no shift (the penalty's from zero gap), except
+    in a prestressed model (tn / pn, which its contact keeps once failed)."""
+    ft = law[LAW_FT]
+    tn_c = min(tn, ft)
+    shift = 2.0 * ft / pn * (1.0 - math.sqrt(1.0 - tn_c / ft)) if tn_c > 0.0 else 0.0
+    if prestressed and tn_c < 0.0:
+        shift = tn_c / pn
+    # The cap the law applies at zero gap: without a normal preload in compression, its normal
+    # stress there is zero. A preload above it would be returned onto it in the first step as if
+    # it had slid, booking less than the spring loses.
+    cap = shear_cap(tn_c if prestressed else max(tn_c, 0.0), 1.0, law)
+    return shift, cap
