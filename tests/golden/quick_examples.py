@@ -6,8 +6,9 @@
 
 Each case runs one example's quick form (the "full" table) or a short form of it (fewer steps,
 the "short" table) in a fresh output folder, and hashes history.csv and events.csv. Bit-identity
-holds on one machine with one numpy/numba build: the stored `platform` says which; elsewhere the
-comparison is skipped (regenerate with --update there first, on the code before the change).
+holds on one machine with one numpy/numba build: the store keeps one set of hashes per platform
+(`platform_key`); on a platform without its set the comparison is skipped (store one with
+--update there first, on the code before the change).
 """
 
 from __future__ import annotations
@@ -77,13 +78,12 @@ def main(argv=None) -> int:
     p.add_argument("--short", action="store_true", help="only the short forms")
     p.add_argument("--update", action="store_true", help="store the hashes instead of comparing")
     args = p.parse_args(argv)
-    stored = json.loads(STORE.read_text()) if STORE.exists() else {"platform": "", "full": {}, "short": {}}
     here = platform_key()
-    if stored["platform"] != here:
-        if not args.update:
-            print(f"stored hashes are for '{stored['platform']}', this is '{here}': nothing to compare")
-            return 0
-        stored = {"platform": here, "full": {}, "short": {}}  # another machine's hashes say nothing here
+    store = read_store()
+    if here not in store and not args.update:
+        print(f"no hashes stored for '{here}' (only for {', '.join(repr(k) for k in store) or 'none'}): nothing to compare")
+        return 0
+    stored = store.setdefault(here, {"full": {}, "short": {}})
     failed = 0
     for table, name, overrides in cases(args.short):
         start = time.perf_counter()
@@ -97,9 +97,19 @@ def main(argv=None) -> int:
         failed += not ok
         print(f"{table:5s} {name:22s} {wall:6.1f} s  {'same' if ok else 'DIFFERENT'}")
     if args.update:
-        stored["platform"] = here
-        STORE.write_text(json.dumps(stored, indent=1) + "\n")
+        STORE.write_text(json.dumps({"platforms": store}, indent=1) + "\n")
     return 1 if failed else 0
+
+
+def read_store() -> dict:
+    """{platform: {"full": {example: hashes}, "short": {...}}}; an older store of one platform
+    ({"platform": ..., "full": ..., "short": ...}) is read as such."""
+    if not STORE.exists():
+        return {}
+    data = json.loads(STORE.read_text())
+    if "platforms" in data:
+        return data["platforms"]
+    return {data["platform"]: {"full": data["full"], "short": data["short"]}}
 
 
 if __name__ == "__main__":
