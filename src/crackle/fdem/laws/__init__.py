@@ -16,12 +16,15 @@ from numba import njit
 from . import bilinear, guo_munjiza
 from .bilinear import BilinearLaw
 from .guo_munjiza import GuoMunjizaLaw
+from .linear import LinearLaw
 from .row import LAW_COLUMNS, LAW_EXTRINSIC, LAW_FT, LAW_KIND, LAW_MU
 
-# name -> parameter class; the class's `kind` is its code in the law table.
-LAWS = {"guo-munjiza": GuoMunjizaLaw, "bilinear": BilinearLaw}
-assert len({law.kind for law in LAWS.values()}) == len(LAWS)
+# name -> parameter class; the class's `kind` is its code in the law table: the compiled law that
+# steps it (a law written as another's arithmetic, as the linear law is the bilinear one, shares
+# its code; the dispatchers below have one branch per code).
+LAWS = {"guo-munjiza": GuoMunjizaLaw, "bilinear": BilinearLaw, "linear": LinearLaw}
 KIND_BILINEAR = BilinearLaw.kind
+assert {law.kind for law in LAWS.values()} <= {GuoMunjizaLaw.kind, KIND_BILINEAR}
 
 
 @njit(cache=True, inline="always")
@@ -74,5 +77,6 @@ def inserted_preload(tn, ts, law, pn, prestressed):
     return guo_munjiza.inserted_preload(tn, ts, law, pn, prestressed)
 
 
-__all__ = ["KIND_BILINEAR", "LAWS", "LAW_COLUMNS", "LAW_EXTRINSIC", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw", "inserted_preload", "insertion_reached",
+__all__ = ["KIND_BILINEAR", "LAWS", "LAW_COLUMNS", "LAW_EXTRINSIC", "LAW_FT", "LAW_KIND", "LAW_MU", "BilinearLaw", "GuoMunjizaLaw",
+           "LinearLaw", "inserted_preload", "insertion_reached",
            "insertion_utilisation", "intact_energy", "intact_step"]
