@@ -397,16 +397,17 @@ LINKS_BUDGETED = 60
 BALL_NODES_PER_CUBED_ELEMENT = 1.5
 
 
-def _planned_particles(spec, particles) -> tuple[float, str, str] | None:
+def _planned_particles(spec, particles) -> list[tuple[float, str, str]]:
     """What particles.spacing (and particles.refine) ask for on a box, beam or tube before any
-    particle is made, in particles of the budget's size, and the key that sets it: the count,
-    times the share of support links beyond LINKS_BUDGETED each (a wall far thicker than the
-    spacing: its through-wall step sets a support radius that takes in thousands of neighbours,
-    fewer with more particles.layers), and what the count alone does not say. None for a mesh or
-    surface file (the file bounds it)."""
+    particle is made, in particles of the budget's size, each with the key that sets it and what
+    the count alone does not say, in the order to check them: the count (particles.spacing or
+    particles.refine.spacing), then the count times the share of support links beyond
+    LINKS_BUDGETED each (a wall far thicker than the spacing: its through-wall step sets a support
+    radius that takes in thousands of neighbours, fewer with more particles.layers). Nothing
+    to check for a mesh or surface file (the file bounds it)."""
     a, layers = particles.spacing, particles.layers
     if a is None or spec.shape in ("mesh", "shell"):
-        return None
+        return []
     if spec.shape == "tube":
         thickness = spec.thickness
         area = 2.0 * math.pi * (spec.inner_radius + 0.5 * thickness) * spec.length
@@ -419,16 +420,17 @@ def _planned_particles(spec, particles) -> tuple[float, str, str] | None:
             ring = fine.transition or max(fine.radius, 5.0 * a)
             count += layers * math.pi * (fine.radius**2 / fine.spacing**2
                                          + ((fine.radius + ring) ** 2 - fine.radius**2) / (fine.spacing * a))
-            return count, "particles.refine.spacing", ""
+            return [(count, "particles.refine.spacing", "")]
+    checks = [(count, "particles.spacing", "")]
     across = thickness / max(layers - 1, 1)
     radius = particles.dilation * max(a, across)
     links = math.pi * radius**2 / a**2 * min(layers, 2.0 * radius / across + 1.0)
     if links > LINKS_BUDGETED:
-        return (count * links / LINKS_BUDGETED, "particles.layers",
-                f" ({count:,.0f} particles, each support taking in about {links:,.0f} neighbours where paper 000's "
-                f"take {LINKS_BUDGETED}: the support radius is dilation x the through-wall step {across:.3g} m; more "
-                "layers shorten it)")
-    return count, "particles.spacing", ""
+        checks.append((count * links / LINKS_BUDGETED, "particles.layers",
+                       f" ({count:,.0f} particles, each support taking in about {links:,.0f} neighbours where paper "
+                       f"000's take {LINKS_BUDGETED}: the support radius is dilation x the through-wall step "
+                       f"{across:.3g} m; more layers shorten it)"))
+    return checks
 
 
 def _check_body_sizes(bodies, max_memory) -> None:
@@ -445,12 +447,11 @@ def _check_body_sizes(bodies, max_memory) -> None:
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
     tools, supports, pressures = build_loading(scenario, base)
     spec, particles = scenario.specimen, scenario.particles
-    planned = _planned_particles(spec, particles)
-    if planned is not None:
+    for planned, key, note in _planned_particles(spec, particles):
         try:
-            check_model_size(planned[0], "particles", planned[1], scenario.run.max_memory)
+            check_model_size(planned, "particles", key, scenario.run.max_memory)
         except ModelTooLarge as err:
-            raise ScenarioError(str(err) + planned[2]) from None
+            raise ScenarioError(str(err) + note) from None
     mesh = None
     try:
         if spec.shape == "mesh":
