@@ -5,8 +5,10 @@ its row of the law table (`table_row`), its interface stiffness (`stiffness`) an
 `intact_step` (forces, damage, dissipation of an intact interface), `intact_energy` (what it
 stores) and, for extrinsic insertion, `insertion_reached`, `insertion_utilisation` and
 `inserted_preload` (when a tied face opens, and the state it starts from), side by side. Adding a
-law: its file, plus one entry in LAWS and one branch in each dispatcher below. Failed and pre-cracked faces are the same for every law (paired contact with
-Coulomb friction, fdem.kernels).
+law: its file, plus one entry in LAWS and one branch in each dispatcher below; a law written as
+another's arithmetic under other parameters (linear.py) needs its file and the LAWS entry only.
+Failed and pre-cracked faces are the same for every law (paired contact with Coulomb friction,
+fdem.kernels).
 """
 
 from __future__ import annotations
