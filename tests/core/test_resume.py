@@ -70,6 +70,39 @@ def test_interrupted_run_resumed_is_bit_identical(tmp_path):
     assert all(path.exists() for _, path in frames)
 
 
+def test_ctrl_c_within_a_long_row_stops_there_and_resumes_bit_identical(tmp_path, monkeypatch):
+    """A row is stepped in pieces of about PIECE_SECONDS of wall time (here made one step each):
+    a Ctrl-C within a row stops the run at the next piece, not at the row (the lattice's rows come
+    every 130 steps; the Ctrl-C at step 50). The interrupted run's history, events and summary end
+    at that step; resumed, its history, events and results are the uninterrupted run's, row for
+    row (the row off the grid is dropped)."""
+    from crackle.io.progress import Progress
+    from crackle.solver import driver
+
+    args = ["run", LATTICE, "--set", "run.history_samples=2", "--set", "run.field_frames=0"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    assert main([*args, "--out", str(whole)]) == 0
+    monkeypatch.setattr(driver, "PROBE_SECONDS", 0.0)
+    monkeypatch.setattr(driver, "PIECE_SECONDS", 1e-12)  # pieces of one step
+    update = Progress.update
+
+    def ctrl_c_at_step_50(self, time_, steps, broken):
+        if steps == 50:
+            driver._InterruptRequest.active.ask("by the user")
+        update(self, time_, steps, broken)
+
+    monkeypatch.setattr(Progress, "update", ctrl_c_at_step_50)
+    assert main([*args, "--out", str(cut)]) == 130
+    summary = _summary(cut)
+    assert summary["status"] == "interrupted" and summary["steps"] == 50, summary
+    history = read_history_csv(cut / "history.csv")
+    assert history["time"][-1] == summary["end_time"] and len(history["time"]) == 2  # step 0 and step 50
+    monkeypatch.undo()
+    assert main([*args, "--resume", str(cut)]) == 0
+    _same_files(whole, cut)
+    assert _summary(cut)["resumed_from"] == summary["end_time"]
+
+
 def test_finished_run_continued_to_a_later_end(tmp_path):
     """The lattice run to half its end time, then resumed to the end: the rows after the half
     (on the grid of the full run) equal the uninterrupted run's; the earlier rows are the first

@@ -472,6 +472,15 @@ def test_ctrl_c_during_a_sweep_stops_it_in_one_line(tmp_path):
     assert "KeyboardInterrupt" not in err
     assert all("site-packages/distributed" in tb for tb in err.split("Traceback")[1:]), err
     assert f"sweep interrupted: the finished runs are kept in {out}" in err
+    # The runs in progress stopped as Ctrl-C stops a run: summary, plots, checkpoint, lock released,
+    # status.json final; the runs not started have no folder.
+    members = [folder for folder in out.iterdir() if folder.is_dir()]
+    assert 1 <= len(members) < 4, members
+    for folder in members:
+        assert json.loads((folder / "summary.json").read_text())["status"] in ("interrupted", "completed", "stopped")
+        assert json.loads((folder / "status.json").read_text())["state"] != "running"
+        assert (folder / "checkpoint.pkl").is_file() and not (folder / ".crackle.lock").exists()
+        assert all((folder / "plots" / f"{name}.png").is_file() for name in ("load_displacement", "energies", "crack_pattern"))
 
 
 def test_a_run_on_the_callers_thread_gives_its_thread_count_back(tmp_path):

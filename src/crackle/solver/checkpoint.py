@@ -21,7 +21,7 @@ from .. import __version__
 
 CHECKPOINT_FILE = "checkpoint.pkl"
 # Bumped when what a checkpoint holds changes; an older one is refused with a message.
-CHECKPOINT_FORMAT = 5
+CHECKPOINT_FORMAT = 6
 
 
 @functools.cache
@@ -54,6 +54,7 @@ class Checkpoint:
     low_since: float | None  # the driver's force-drop clock
     events: int  # rows of events.csv written (the failures reported so far)
     scenario: dict  # the validated scenario (model_dump), for the resume check
+    off_grid: bool = False  # taken within a row (a Ctrl-C there): its history row is dropped on resume
     crackle_version: str = __version__
     format: int = CHECKPOINT_FORMAT
     code: str = field(default_factory=code_fingerprint)  # the sources that wrote it

@@ -228,7 +228,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         sim.load_cell.set_window(load_cell_steps(control, dt, sim.wave_transit))
         state = _DriverState(dt)
     else:  # the window of the load cell comes with the simulation
-        state = _DriverState(resume.dt, resume.energy_scale, resume.low_since, resume.events)
+        state = _DriverState(resume.dt, resume.energy_scale, resume.low_since, resume.events, off_grid=resume.off_grid)
     rows = _RowGrid.of(control, state.dt)
     resumed_from = sim.time if resume is not None else None
     started = wallclock.perf_counter()
@@ -295,11 +295,12 @@ class _DriverState:
     low_since: float | None = None  # since when the tool force stayed low after a failure (the force-drop clock)
     events: int = 0  # rows of events.csv written
     written_until: int = 0  # the steps of the last history row written (or kept, resuming)
+    off_grid: bool = False  # the last row is off the grid (a Ctrl-C within a row stopped there)
     status: str = "completed"
     message: str = ""
 
     def checkpoint(self, sim, scenario: dict | None) -> Checkpoint:
-        return Checkpoint(sim, self.dt, self.scale, self.low_since, self.events, scenario or {})
+        return Checkpoint(sim, self.dt, self.scale, self.low_since, self.events, scenario or {}, self.off_grid)
 
 
 # The most steps between two history rows (and stop checks, progress updates, Ctrl-C): the
@@ -344,11 +345,14 @@ class _Outputs:
         """Open them (a resumed run continues the files of the run it resumes, rows up to its
         time); a new run writes its first row and frame, and its energy scale."""
         first = {"time": sim.time, **sim.sample(state.dt)}
-        history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=resumed_from))
+        # A row off the grid where a Ctrl-C stopped the run is dropped: the resumed history is the
+        # uninterrupted run's, row for row.
+        kept = resumed_from if resumed_from is None or not state.off_grid else math.nextafter(resumed_from, -math.inf)
+        history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=kept))
         events = stack.enter_context(EventWriter(out / "events.csv", keep_rows=None if resumed_from is None else state.events,
                                                        materials=sim.several_materials))
         outputs = cls(history, events, FieldWriter(out, keep_until=resumed_from) if rows.field_every else None)
-        state.written_until = sim.steps
+        state.written_until, state.off_grid = sim.steps, False
         if resumed_from is None:
             history.append(first)
             if outputs.fields is not None:
@@ -384,6 +388,11 @@ def _advance_rows(sim, control: RunControl, out: Path, scenario, state: _DriverS
             estimate = probe.after_piece(sim.steps, rows, started, outputs.fields)
             if estimate:
                 say(estimate)
+            if sim.steps < stop:
+                progress.update(sim.time, sim.steps, sim.broken)
+                if interrupt.requested:  # within a long row: stop here, with a row off the grid
+                    state.off_grid = True
+                    break
         if not sim.state_is_finite():
             raise UnstableRunError(
                 f"the run went unstable before t = {sim.time:.4e} s (non-finite positions or "
@@ -391,6 +400,9 @@ def _advance_rows(sim, control: RunControl, out: Path, scenario, state: _DriverS
             )
         row = outputs.write_row(sim, state, rows)
         progress.update(sim.time, sim.steps, sim.broken)
+        if state.off_grid:  # the stop rules and the energy scale keep to the grid's rows
+            state.status, state.message = "interrupted", f"interrupted {interrupt.why} at t = {sim.time:.4e} s"
+            return
         _check_energy(sim, row, state)
         reason = _stop_rule(sim, control, row, tool_names, state)
         if reason:
@@ -518,12 +530,17 @@ def _summary(sim, control: RunControl, state: _DriverState, scenario_name: str, 
 # the estimated run time above which it is printed.
 PROBE_SECONDS = 0.5
 ESTIMATE_ABOVE = 60.0
+# Wall time (s) of the pieces a row is stepped in: Ctrl-C, a closed terminal and the progress
+# line are answered within about this, however long a row takes (a row of 1,000 steps of a big
+# model takes minutes).
+PIECE_SECONDS = 1.0
 
 
 class _CostProbe:
-    """The cost estimate, timed over the first steps after compiling, taken in pieces of 1, 2, 4 ...
-    steps until PROBE_SECONDS have passed: a big model says what it costs within seconds, not
-    after its first row (a row's state does not depend on how its steps were split)."""
+    """The pieces a row is stepped in, and the cost estimate: timed over the first steps after
+    compiling, taken in pieces of 1, 2, 4 ... steps until PROBE_SECONDS have passed, so that a big
+    model says what it costs within seconds, not after its first row; then pieces of about
+    PIECE_SECONDS (a row's state does not depend on how its steps were split)."""
 
     def __init__(self, steps: int):
         self.since = (wallclock.perf_counter(), steps)  # wall time and steps when the timing began
@@ -532,7 +549,7 @@ class _CostProbe:
 
     def piece(self, left: int) -> int:
         """Steps to take next, of the `left` to the next row."""
-        return left if self.done else min(left, self.size)
+        return min(left, self.size)
 
     def after_piece(self, steps: int, rows: _RowGrid, started: float, fields) -> str:
         """'  estimated wall time ...' once, when PROBE_SECONDS have passed and the whole run
@@ -545,6 +562,7 @@ class _CostProbe:
             return ""
         self.done = True
         per_step = (now - self.since[0]) / max(1, steps - self.since[1])
+        self.size = max(1, int(PIECE_SECONDS / per_step))
         total = now - started + per_step * (rows.total - steps)
         if total < ESTIMATE_ABOVE:
             return ""
@@ -631,11 +649,11 @@ class _InterruptRequest:
             signal.signal(sig, handler)
 
 
-def request_stop(why: str) -> None:
+def request_stop(why: str | None) -> None:
     """Ask the run in progress in this process to stop after its chunk, as Ctrl-C does, and every
-    run that starts later after its first."""
+    run that starts later after its first; None withdraws the request for the runs to come."""
     _InterruptRequest.pending = why
-    if _InterruptRequest.active is not None:
+    if why is not None and _InterruptRequest.active is not None:
         _InterruptRequest.active.ask(why)
 
 

@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import threading
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,7 +37,23 @@ class SweepResult:
     notes: list[str] = field(default_factory=list)  # to print: the means and deviations over seeds (--seeds), envelopes
 
 
-def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, plots: bool = True) -> dict:
+# The sweeps interrupted while this process ran their runs (by sweep id): their runs not started
+# yet are not started; the one in progress stops at its next piece, as a run stops on Ctrl-C.
+_INTERRUPTED_SWEEPS: set[str] = set()
+NOT_STARTED = "not started: the sweep was interrupted"
+
+
+def interrupt_sweep_runs(sweep_id: str) -> None:
+    """On a worker: stop the sweep's run in progress (and any of its runs starting now) as Ctrl-C
+    stops a run, with its summary, plots and checkpoint; start none of its others."""
+    from ..solver.driver import request_stop
+
+    _INTERRUPTED_SWEEPS.add(sweep_id)
+    request_stop("as its sweep was interrupted")
+
+
+def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: int, plots: bool = True,
+            sweep_id: str = "") -> dict:
     """One run, on a worker: `crackle run` with these overrides, `threads` numba threads (and
     its plots unless `plots` is False). Returns {"status", "message"}; never raises, so one run's
     failure stays its own."""
@@ -44,7 +61,13 @@ def run_one(scenario: str, folder: str, overrides: dict, quick: bool, threads: i
 
     from ..api import run_scenario
     from ..solver import UnstableRunError
+    from ..solver.driver import request_stop
 
+    if sweep_id in _INTERRUPTED_SWEEPS:
+        return {"status": "interrupted", "message": NOT_STARTED}
+    if _INTERRUPTED_SWEEPS:  # an earlier sweep's stop, on a worker that outlived it: not this sweep's
+        _INTERRUPTED_SWEEPS.clear()
+        request_stop(None)
     caller_threads = numba.get_num_threads()  # given back after the run (a run on the caller's thread)
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
@@ -197,21 +220,48 @@ def _quiet_cluster(LocalCluster, workers: int):
 
 
 def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -> dict[int, dict]:
-    from distributed import as_completed
-
     outcome = {}
     with dask_client(scheduler, workers, threads_per_run, len(todo), report) as (client, threads):
-        futures = {
-            client.submit(run_one, plan.scenario, str((out / r.folder).resolve()), {**plan.fixed, **r.varied},
-                          plan.quick, threads, pure=False): r
-            for r in todo
-        }
+        tasks = {r.index: (plan.scenario, out / r.folder, {**plan.fixed, **r.varied}, plan.quick) for r in todo}
+        folders = {r.index: r.folder for r in todo}
         with _RunsProgress(len(todo)) as progress:
-            for future in as_completed(futures):
-                run = futures[future]
-                outcome[run.index] = outcome_of(future)
-                progress.advance(f"{run.folder}: {outcome[run.index]['status']}")
+            def done(index, result):
+                outcome[index] = result
+                progress.advance(f"{folders[index]}: {result['status']}")
+
+            run_tasks(client, tasks, threads, done)
     return outcome
+
+
+def run_tasks(client, tasks: dict, threads: int, done) -> None:
+    """Run `tasks` ({key: (scenario, folder, overrides, quick)}) with run_one on the client's
+    workers, calling done(key, {"status", "message"}) as each ends. A Ctrl-C stops the runs in
+    progress as Ctrl-C stops a run (each within about a second, with its summary, plots and
+    checkpoint, its folder's lock released), starts none of the others, then raises
+    KeyboardInterrupt; a second one stops at once."""
+    from distributed import as_completed
+
+    sweep_id = uuid.uuid4().hex
+    futures = {client.submit(run_one, scenario, str(Path(folder).resolve()), overrides, quick, threads,
+                             sweep_id=sweep_id, pure=False): key
+               for key, (scenario, folder, overrides, quick) in tasks.items()}
+    waiting = dict(futures)
+
+    def gather():
+        for future in as_completed(list(waiting)):
+            result = outcome_of(future)
+            del waiting[future]
+            if result["message"] != NOT_STARTED:
+                done(futures[future], result)
+
+    try:
+        gather()
+    except KeyboardInterrupt:
+        print("\ncrackle: stopping the runs in progress with their summaries and checkpoints (Ctrl-C again to "
+              "stop at once)", file=sys.stderr, flush=True)
+        client.run(interrupt_sweep_runs, sweep_id)
+        gather()
+        raise
 
 
 class _RunsProgress:

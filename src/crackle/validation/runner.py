@@ -127,21 +127,17 @@ def _run_here(out: Path, runs: dict[str, Run], threads_per_run, report) -> dict[
 
 
 def _run_on_dask(out: Path, runs: dict[str, Run], scheduler, jobs, threads_per_run, report) -> dict[str, dict]:
-    from distributed import as_completed
-
-    from ..sweep.runner import dask_client, outcome_of, run_one
+    from ..sweep.runner import dask_client, run_tasks
 
     outcome = {}
     with dask_client(scheduler, jobs, threads_per_run, len(runs), report) as (client, threads):
-        futures = {}
-        for name, run in runs.items():
-            folder = _claim(out, name, run)
-            futures[client.submit(run_one, run.scenario, str(folder.resolve()), dict(run.overrides), run.quick,
-                                  threads, pure=False)] = name
-        for future in as_completed(futures):
-            name = futures[future]
-            outcome[name] = outcome_of(future)
-            report(f"  {name}: {outcome[name]['status']}")
+        tasks = {name: (run.scenario, _claim(out, name, run), dict(run.overrides), run.quick) for name, run in runs.items()}
+
+        def done(name, result):
+            outcome[name] = result
+            report(f"  {name}: {result['status']}")
+
+        run_tasks(client, tasks, threads, done)
     return outcome
 
 
