@@ -40,7 +40,7 @@ def key_reference(method: str) -> str:
     schema = scenario.model_json_schema(mode="validation")
     defs = schema.get("$defs", {})
     lines = [f"## method = \"{method}\"", "", HEADER]
-    skip = set(scenario.unread_keys) | (set() if scenario.reads_initial_stress else {"initial_stress"})
+    skip = set(scenario.unread_keys())
     lines += _rows(schema, defs, "", skip=skip)
     return "\n".join(lines) + "\n"
 

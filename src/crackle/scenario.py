@@ -986,13 +986,20 @@ class CracksSpec(Strict):
     """the main crack is the first to reach the extreme along it"""
 
 
-# What a method without FDEM's extras says about them (its Scenario.unread_keys).
-FDEM_ONLY_KEYS = {
+# The shared keys only some methods read, each with what to do where it is not read. A method's
+# Scenario declares those it reads (`reads`); set in a scenario of a method that does not, they are
+# refused with this advice (a key silently ignored is a result the user did not ask for), and
+# `crackle keys METHOD` leaves them out. A new method reads none of them until it says so.
+OPTIONAL_KEYS = {
     "run.target_dt": "mass scaling is FDEM's (remove it; set run.safety or run.dt for the step)",
     "run.max_added_mass": "mass scaling is FDEM's (remove it)",
     "run.contact": "contact between free surfaces is FDEM's and meshfree's (remove it)",
+    "run.damping": "its damping is its material's (DEM: material.local_damping, paper 003 eq. 5)",
     "analysis.fracture_plane": "the fracture-plane tip is FDEM's (remove it)",
     "analysis.cracks": "crack counting is FDEM's (remove it)",
+    "initial_stress": "it is not yet available there (FDEM and DEM only for now); remove [initial_stress] or use "
+                      "method = \"fdem\"",
+    "pressures": "it has no faces to load; remove [[pressures]]",
 }
 
 
@@ -1034,18 +1041,19 @@ class ScenarioBase(Strict):
     quick: dict[str, Any] = {}
     """dotted-key overrides applied by --quick"""
 
-    # Shared keys a method does not read, each with what to do instead: set in a scenario of that
-    # method they are refused (a key silently ignored is a result the user did not ask for), and
-    # `crackle keys METHOD` leaves them out. Each method's Scenario sets its own.
-    unread_keys: ClassVar[dict[str, str]] = {}
-    # Whether the method starts from [initial_stress] (FDEM, DEM); the others refuse it.
-    reads_initial_stress: ClassVar[bool] = False
+    # The OPTIONAL_KEYS this method reads; each method's Scenario names its own.
+    reads: ClassVar[frozenset[str]] = frozenset()
+
+    @classmethod
+    def unread_keys(cls) -> dict[str, str]:
+        """The OPTIONAL_KEYS the method does not read, each with what to do instead."""
+        return {key: advice for key, advice in OPTIONAL_KEYS.items() if key not in cls.reads}
 
     @model_validator(mode="after")
     def _no_unread_keys(self):
-        for key, advice in self.unread_keys.items():
-            section, name = key.rsplit(".", 1)
-            if name in getattr(self, section).model_fields_set:
+        for key, advice in self.unread_keys().items():
+            section, _, name = key.rpartition(".")
+            if name in (getattr(self, section) if section else self).model_fields_set:
                 raise ValueError(f"{key}: method = \"{self.method}\" does not read it; {advice}")
         return self
 
@@ -1056,13 +1064,6 @@ class ScenarioBase(Strict):
         if named and not (self.method == "fdem" and getattr(self.specimen, "shape", None) == "mesh"):
             raise ValueError(f"{named[0]}: named surfaces are those of an FDEM specimen's mesh file (method = \"fdem\", "
                              "specimen.shape = \"mesh\"); select by plane, box or cylinder instead")
-        return self
-
-    @model_validator(mode="after")
-    def _initial_stress_read(self):
-        if self.initial_stress is not None and not self.reads_initial_stress:
-            raise ValueError(f"initial_stress: not yet available for method = \"{self.method}\" (FDEM and DEM "
-                             "only for now); remove [initial_stress] or use method = \"fdem\"")
         return self
 
     def initial_stress_warnings(self) -> list[str]:

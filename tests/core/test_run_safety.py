@@ -291,6 +291,36 @@ def test_keys_a_method_or_shape_does_not_read_are_refused(tmp_path, capsys, argv
     assert not (tmp_path / "o").exists()
 
 
+def test_a_method_reads_only_the_optional_keys_it_declares():
+    """A method's scenario that declares no OPTIONAL_KEYS (a new method that forgot to) refuses
+    every one of them, naming the key; one it declares is read."""
+    from typing import Literal
+
+    from crackle.scenario import OPTIONAL_KEYS, ScenarioBase
+
+    class NewMethod(ScenarioBase):
+        method: Literal["new"] = "new"
+
+    class ReadsContact(NewMethod):
+        reads = frozenset({"run.contact"})
+
+    samples = {"run.target_dt": 1e-7, "run.max_added_mass": 0.1, "run.contact": True, "run.damping": 10.0,
+               "analysis.fracture_plane": {"point": [0, 0, 0], "normal": [0, 0, 1], "direction": [1, 0, 0]},
+               "analysis.cracks": {}, "initial_stress": {"stress": [-1e6, -1e6, -1e6, 0, 0, 0]},
+               "pressures": []}
+    assert set(samples) == set(OPTIONAL_KEYS)
+    for key, value in samples.items():
+        section, _, name = key.rpartition(".")
+        data = {"run": {"end_time": 1e-3}}
+        if section:
+            data[section] = {**data.get(section, {}), name: value}
+        else:
+            data[name] = value
+        with pytest.raises(ValueError, match=f'{key}: method = "new" does not read it'):
+            NewMethod.model_validate(data)
+    assert ReadsContact.model_validate({"run": {"end_time": 1e-3, "contact": True}}).run.contact
+
+
 def test_crackle_keys_lists_only_what_the_method_reads(capsys):
     assert main(["keys", "dem"]) == 0
     dem = capsys.readouterr().out

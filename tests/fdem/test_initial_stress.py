@@ -306,9 +306,9 @@ def test_other_methods_refuse_initial_stress(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["run", "shell-centre-crack", "--out", str(out), "--set",
                  "initial_stress.stress=[-1e6, -1e6, -1e6, 0.0, 0.0, 0.0]"]) == 2
-    assert 'initial_stress: not yet available for method = "shell"' in capsys.readouterr().err
+    assert 'initial_stress: method = "shell" does not read it; it is not yet available there' in capsys.readouterr().err
     assert not (out / "history.csv").exists()
-    with pytest.raises(ScenarioError, match='not yet available for method = "meshfree"'):
+    with pytest.raises(ScenarioError, match='initial_stress: method = "meshfree" does not read it'):
         load_scenario("tube-shot1", ["initial_stress.principal=[-1e6, -1e6, -1e6]"])
 
 

@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import BrazilianTest, TensionTest, pulling_grip
 from ..loading.build import build_loading, selection as build_selection, touch_tools
-from ..scenario import (FDEM_ONLY_KEYS, MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
+from ..scenario import (MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
                         check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
@@ -196,8 +196,7 @@ class DemPairBond(Strict):
 class Scenario(ScenarioBase):
     method: Literal["dem"]
     """picks this method"""
-    unread_keys = {**FDEM_ONLY_KEYS,
-                   "run.damping": "the DEM's damping is material.local_damping (paper 003 eq. 5)"}
+    reads = frozenset({"pressures", "initial_stress"})  # pressures on a box's faces (dem.membrane); bonds preloaded by dem.prestress
     specimen: DemSpecimen
     """the region the particles fill"""
     packing: PackingSpec
@@ -211,7 +210,6 @@ class Scenario(ScenarioBase):
     strength"""
     flaw: FlawSpec | None = None
     """a pre-existing crack (optional)"""
-    reads_initial_stress = True  # bonds preloaded by dem.prestress (a box specimen)
 
     @model_validator(mode="after")
     def _one_or_several_materials(self):

@@ -17,7 +17,7 @@ from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools, with_named_surfaces
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
-from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
+from ..scenario import (OPTIONAL_KEYS, ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
                         assign_materials, check_material_tables, check_one_rest, material_pair)
 from .laws import LAWS
 from .model import build_fdem_model
@@ -68,7 +68,7 @@ class Scenario(ScenarioBase):
 
     method: Literal["fdem"] = "fdem"
     """picks this method (the default)"""
-    reads_initial_stress: ClassVar[bool] = True
+    reads = frozenset(OPTIONAL_KEYS)  # every shared key: mass scaling, contact, the analyses, the initial stress
     specimen: Specimen
     """the solid and its mesh"""
     material: FdemMaterialSpec | None = None

@@ -19,7 +19,7 @@ import numpy as np
 from ..budget import ModelTooLarge, check_model_size
 from ..loading.arrays import default_tool_penalty, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
-from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError
+from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from ..solver.body import body_arrays
 from ..solver.integrator import support_constraints
@@ -46,7 +46,7 @@ class LatticeSpec(Strict):
 class Scenario(ScenarioBase):
     method: Literal["lattice"]
     """picks this method"""
-    unread_keys = FDEM_ONLY_KEYS
+    reads = frozenset({"run.damping"})
     lattice: LatticeSpec
     """the nodes and springs"""
     material: ElasticSpec
@@ -79,9 +79,7 @@ def lattice_arrays(spec: LatticeSpec, material: ElasticSpec):
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSimulation:
     spec = scenario.lattice
-    tools, supports, pressures = build_loading(scenario, base)
-    if pressures:
-        raise ScenarioError("pressures: the lattice has no faces to load; remove [[pressures]]")
+    tools, supports, _ = build_loading(scenario, base)  # no pressures: the lattice does not read them
     try:
         check_model_size(math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes", "lattice.spacing",
                          scenario.run.max_memory)

@@ -23,7 +23,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ..budget import ModelTooLarge, check_model_size
 from ..loading.build import build_loading, build_precracks
-from ..scenario import (ElasticSpec, FDEM_ONLY_KEYS, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError,
+from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError,
                         Specimen, assign_materials, check_material_tables, check_one_rest, resolve_path)
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import MeshfreeBody, SetupError, build_meshfree_simulation
@@ -337,7 +337,7 @@ class Scenario(ScenarioBase):
     method: Literal["meshfree"]
     """picks this method"""
     # run.contact: the specimen's particles that no link joins meet by particle contact (contact.py).
-    unread_keys = {k: v for k, v in FDEM_ONLY_KEYS.items() if k != "run.contact"}
+    reads = frozenset({"run.contact", "run.damping", "pressures"})
     specimen: MeshfreeSpecimen
     """the plate, tube, mesh or shell the particles fill"""
     particles: ParticlesSpec = ParticlesSpec()

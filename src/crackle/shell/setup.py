@@ -25,7 +25,7 @@ from ..geometry.specimens import check_file_units
 from ..loading import History
 from ..loading.arrays import HistoryTable, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
 from ..loading.build import build_loading, selection
-from ..scenario import ElasticSpec, FDEM_ONLY_KEYS, ScenarioBase, ScenarioError, Where, resolve_path
+from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
@@ -161,7 +161,7 @@ class FractureSpec(Strict):
 class Scenario(ScenarioBase):
     method: Literal["shell"]
     """picks this method"""
-    unread_keys = FDEM_ONLY_KEYS
+    reads = frozenset({"run.damping", "pressures"})
     shell: ShellSpec
     """the mid-surface and its thickness"""
     material: ShellMaterialSpec
