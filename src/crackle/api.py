@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tempfile
 from pathlib import Path
 
+from .budget import ModelTooLarge
 from .io.lock import FolderBusy, OutputLock
 from .methods import get_method
 from .scenario import RunSpec, ScenarioBase, ScenarioError, load_scenario
@@ -25,24 +27,19 @@ from .solver.checkpoint import RESUMABLE_KEYS, scenario_changes
 
 
 def run_control(run: RunSpec) -> RunControl:
-    """The driver's settings from a scenario's [run]."""
-    return RunControl(
-        end_time=run.end_time,
-        dt=run.dt,
-        safety=run.safety,
-        history_samples=run.history_samples,
-        field_frames=run.field_frames,
-        load_cell_window=run.load_cell_window,
-        checkpoint=run.checkpoint,
-        checkpoint_every=run.checkpoint_every,
-        stop=StopConditions(run.stop.tool_displacement, run.stop.tool, run.stop.force_drop, run.stop.force_drop_hold),
-    )
+    """The driver's settings from a scenario's [run]: the keys that have a RunControl field of
+    their name (the others, damping, gravity, seed ..., are the method's), and [run.stop]."""
+    driver_keys = {f.name for f in dataclasses.fields(RunControl)} & set(RunSpec.model_fields) - {"stop"}
+    return RunControl(**{key: getattr(run, key) for key in driver_keys}, stop=StopConditions(**dict(run.stop)))
 
 
 def build_simulation(scenario: ScenarioBase, base: Path | None = None):
     """The simulation of a validated scenario (built by its method) and the run control; a step
     larger than the stable one is refused here, before any output."""
-    sim = get_method(scenario.method).build_simulation(scenario, base)
+    try:
+        sim = get_method(scenario.method).build_simulation(scenario, base)
+    except ModelTooLarge as err:
+        raise ScenarioError(str(err)) from None
     control = run_control(scenario.run)
     try:
         dt = choose_time_step(sim, control)

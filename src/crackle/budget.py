@@ -33,10 +33,11 @@ def available_memory() -> int | None:
         return None
 
 
-def check_model_size(count: float, what: str, key: str, max_memory: float | None) -> None:
-    """Raise ModelTooLarge (naming `key`, the scenario value that sets the count) when `count`
-    items of kind `what` (a BYTES_PER key) would need more than `max_memory` bytes (run.max_memory;
-    None: the machine's available memory)."""
+def check_model_size(count: float, what: str, key: str, max_memory: float | None, note: str = "") -> None:
+    """Raise ModelTooLarge (naming `key`, the scenario value that sets the count, and ending with
+    `note`) when `count` items of kind `what` (a BYTES_PER key) would need more than `max_memory`
+    bytes (run.max_memory; None: the machine's available memory). A method's set-up calls it
+    before allocating; the scenario loader (api.build_simulation) turns it into a ScenarioError."""
     limit, source = max_memory, "run.max_memory"
     if limit is None:
         limit, source = available_memory(), "memory this machine has available"
@@ -47,7 +48,7 @@ def check_model_size(count: float, what: str, key: str, max_memory: float | None
         raise ModelTooLarge(
             f"{key}: the model would have about {count:.3g} {what}, about {_gigabytes(need)} at set-up, more than the "
             f"{_gigabytes(limit)} of {source}; check {key} (lengths are in metres) or, if the size is meant, "
-            "set run.max_memory (bytes) on a machine that has it"
+            "set run.max_memory (bytes) on a machine that has it" + note
         )
 
 

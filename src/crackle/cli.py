@@ -52,25 +52,36 @@ def _counts_at_least_one(args, names) -> bool:
     return True
 
 
-def _cmd_sweep(args) -> int:
+def _runs_of_many(command: str, out, call):
+    """(call(), 0) for a command that runs many runs in their folders (sweep, validate); (None,
+    exit code) when it refused its input (2, the message printed) or was interrupted (130, saying
+    what is kept: the finished runs, and the interrupted ones' checkpoints)."""
     from .scenario import ScenarioError
+
+    try:
+        return call(), 0
+    except ScenarioError as err:
+        print(f"crackle: error: {err}", file=sys.stderr)
+        return None, 2
+    except KeyboardInterrupt:
+        print(f"\ncrackle: {command} interrupted: the finished runs are kept in {out}; the same command finishes the "
+              "others", file=sys.stderr)
+        return None, 130
+
+
+def _cmd_sweep(args) -> int:
     from .sweep import make_plan, run_sweep
     from .sweep.runner import COMPLETED
 
     if not _counts_at_least_one(args, ("workers", "threads_per_run", "seeds")):
         return 2
     out = args.out or f"crackle-out/sweep-{Path(args.sweep).stem}"
-    try:
-        plan = make_plan(args.sweep, args.vary, args.set, args.zip, args.quick, args.seeds)
-        result = run_sweep(plan, out, args.scheduler, args.workers, args.threads_per_run, args.plot,
-                           report=lambda text: print(text, flush=True))
-    except ScenarioError as err:
-        print(f"crackle: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"\ncrackle: sweep interrupted: the finished runs are kept in {out}; the same command finishes the "
-              "others", file=sys.stderr)
-        return 130
+    result, code = _runs_of_many(
+        "sweep", out, lambda: run_sweep(make_plan(args.sweep, args.vary, args.set, args.zip, args.quick, args.seeds),
+                                        out, args.scheduler, args.workers, args.threads_per_run, args.plot,
+                                        report=lambda text: print(text, flush=True)))
+    if result is None:
+        return code
     statuses = [row["status"] for row in result.rows]
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in dict.fromkeys(statuses))
     print(f"sweep: {len(statuses)} runs ({counts}); {result.ran} run now")
@@ -81,7 +92,6 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_validate(args) -> int:
-    from .scenario import ScenarioError
     from .validation import exit_code, select, validate
     from .validation.runner import document_runs, write_document
 
@@ -97,16 +107,11 @@ def _cmd_validate(args) -> int:
         print(f"crackle: error: {err}", file=sys.stderr)
         return 2
     out = Path(args.out or f"crackle-out/validate-{args.tier}")
-    try:
-        results = validate(cases, out, args.scheduler, args.jobs, args.threads_per_run,
-                           report=lambda text: print(text, flush=True), also=also)
-    except ScenarioError as err:
-        print(f"crackle: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"\ncrackle: validate interrupted: the finished runs are kept in {out}; the same command finishes the "
-              "others", file=sys.stderr)
-        return 130
+    results, code = _runs_of_many("validate", out, lambda: validate(
+        cases, out, args.scheduler, args.jobs, args.threads_per_run, report=lambda text: print(text, flush=True),
+        also=also))
+    if results is None:
+        return code
     if args.document:
         try:
             changes = write_document(args.document, results, out)
@@ -203,6 +208,15 @@ def _cmd_fpz(args) -> int:
     return 0
 
 
+def _dask_options(p, workers: str, workers_help: str) -> None:
+    """The options of a command whose runs go to Dask (sweep, calibrate, validate)."""
+    p.add_argument(workers, type=int, help=workers_help)
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://HOST:PORT); default: a "
+                   "local cluster on this machine")
+    p.add_argument("--threads-per-run", type=int, help="numba threads per run (default: the cores shared among the "
+                   "workers)")
+
+
 def main(argv=None) -> int:
     from . import __version__
 
@@ -232,11 +246,7 @@ def main(argv=None) -> int:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an override every run gets")
     p.add_argument("--quick", action="store_true", help="every run in its example's quick form")
     p.add_argument("--out", help="the sweep's folder (default crackle-out/sweep-NAME)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://HOST:PORT); "
-                   "default: a local cluster on this machine")
-    p.add_argument("--workers", type=int, help="local workers (default: one per core, at most one per run)")
-    p.add_argument("--threads-per-run", type=int, help="numba threads per run (default: the cores shared "
-                   "among the workers)")
+    _dask_options(p, "--workers", "local workers (default: one per core, at most one per run)")
     p.add_argument("--plot", action="append", default=[], metavar="SCALAR",
                    help="a summary scalar to plot against each varied key, beside peak_force, broken, energy_error")
     p.set_defaults(func=_cmd_sweep)
@@ -266,9 +276,7 @@ def main(argv=None) -> int:
                    "fraction of their mean (default 0.01)")
     p.add_argument("--seed", type=int, default=0, help="the search's random seed (default 0)")
     p.add_argument("--out", help="output folder (default crackle-out/calibrate-NAME)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, help="local workers (default: one per core)")
-    p.add_argument("--threads-per-run", type=int, help="numba threads per run")
+    _dask_options(p, "--workers", "local workers (default: one per core)")
     p.set_defaults(func=_cmd_calibrate)
     p = sub.add_parser("validate", help="run the papers' benchmark cases and check them against their bands",
                        description="Run the benchmark cases of the chosen papers at the chosen tier (each case: a "
@@ -281,10 +289,8 @@ def main(argv=None) -> int:
                    "full forms) or paper (the papers' own meshes and samples)")
     p.add_argument("--cases", nargs="+", metavar="NAME", help="only these cases (any tier)")
     p.add_argument("--out", help="the report's folder (default crackle-out/validate-TIER)")
-    p.add_argument("--jobs", type=int, help="local workers (default: one per core, at most one per run; 1: the "
-                   "runs one after the other in this process, no cluster)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
-    p.add_argument("--threads-per-run", type=int, help="numba threads per run")
+    _dask_options(p, "--jobs", "local workers (default: one per core, at most one per run; 1: the runs one after "
+                  "the other in this process, no cluster)")
     p.add_argument("--document", metavar="MARKDOWN", help="also run the runs this document's <!--q:RUN:...--> "
                    "markers name (of these papers, at this tier; none with --cases), and write their numbers there, "
                    "each line stamped with its runs' commits, and the cases' values and commits into its "

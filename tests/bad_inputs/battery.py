@@ -41,6 +41,7 @@ import re
 import shlex
 import shutil
 import signal as sigmod
+import socket
 import subprocess
 import sys
 import time
@@ -250,7 +251,8 @@ def run_input(inp, args, examples):
                 pass
         shutil.rmtree(d)
     d.mkdir(parents=True)
-    ctx = {"dir": d, "out": d / "out", "src": args.src, "examples": examples}
+    ctx = {"dir": d, "out": d / "out", "src": args.src, "examples": examples, "pid": os.getpid(),
+           "host": socket.gethostname()}
     base_env = dict(os.environ)
     base_env["PYTHONPATH"] = args.src + os.pathsep + base_env.get("PYTHONPATH", "")
     base_env.pop("CRACKLE_LOG_INTERVAL", None)
@@ -338,7 +340,8 @@ def run_input(inp, args, examples):
         st = outdir / "status.json"
         if st.exists():
             try:
-                s = json.loads(st.read_text()).get("status")
+                rec = json.loads(st.read_text())
+                s = rec.get("state", rec.get("status"))
             except ValueError:
                 s = "unreadable"
             if s in (None, "running", "unreadable"):

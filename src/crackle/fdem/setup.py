@@ -12,7 +12,7 @@ from pydantic import Discriminator, Tag, model_validator
 from ..analysis import CrackSettings, FracturePlane
 from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pulling_grip
 from ..geometry import MeshError
-from ..budget import ModelTooLarge, check_model_size
+from ..budget import check_model_size
 from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
 from ..loading.build import build_loading, build_precracks, touch_tools, with_named_surfaces
 from ..materials import Material
@@ -196,10 +196,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     tools, supports, pressures = build_loading(scenario, base)
     planned = planned_tets(scenario.specimen)
     if planned is not None:
-        try:
-            check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory)
-        except ModelTooLarge as err:
-            raise ScenarioError(str(err)) from None
+        check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory)
     try:
         mesh, region = specimen_mesh(scenario.specimen, base, _zone_planes(scenario))
     except MeshError as err:

@@ -1,48 +1,7 @@
 """Tetrahedral meshes: structured and gmsh generation, import, checks, selections, face topology."""
 
-from .meshes import (
-    LOCAL_FACE_VERTICES,
-    FaceTopology,
-    MeshError,
-    TetMesh,
-    check_tets,
-    disc,
-    gmsh_box,
-    gmsh_cylinder,
-    gmsh_sphere,
-    gmsh_from_surface,
-    internal_faces,
-    nodes_in_box,
-    nodes_on_plane,
-    read_mesh,
-    read_surface,
-    structured_box,
-    tet_volumes,
-)
-from .walnut import FACE, SUTURE, ellipsoid_shell_volume, equivalent_diameter, shell_from_surface, walnut_shell
+from . import meshes, walnut
+from .meshes import *  # noqa: F403 - the package's names are those of its modules' __all__
+from .walnut import *  # noqa: F403
 
-__all__ = [
-    "LOCAL_FACE_VERTICES",
-    "FaceTopology",
-    "MeshError",
-    "TetMesh",
-    "check_tets",
-    "disc",
-    "gmsh_box",
-    "gmsh_cylinder",
-    "gmsh_sphere",
-    "gmsh_from_surface",
-    "internal_faces",
-    "nodes_in_box",
-    "nodes_on_plane",
-    "read_mesh",
-    "read_surface",
-    "structured_box",
-    "tet_volumes",
-    "FACE",
-    "shell_from_surface",
-    "SUTURE",
-    "ellipsoid_shell_volume",
-    "equivalent_diameter",
-    "walnut_shell",
-]
+__all__ = [*meshes.__all__, *walnut.__all__]

@@ -638,15 +638,12 @@ def read_surface(path: str | os.PathLike, scale: float = 1.0, offset=(0.0, 0.0, 
         # meshio probes an ASCII STL as binary first, with an integer overflow warning.
         warnings.simplefilter("ignore", RuntimeWarning)
         m = read_with_meshio(path, hint=hint)
-    blocks = [np.asarray(c.data) for c in m.cells if c.type == "triangle"]
-    if not blocks:
-        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
-        raise MeshError(f"surface file {path} has no triangles (cell types found: {found}); {hint}")
+    triangles = cells_of_type(m, "triangle", f"surface file {path}", "triangles", hint)
     points = np.asarray(m.points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"surface file {path} has {points.shape[-1]}D points; a 3D surface is needed")
     vertices = points * float(scale) + np.asarray(offset, dtype=float)
-    return surface_arrays(vertices, np.concatenate(blocks), f"surface file {path}")
+    return surface_arrays(vertices, triangles, f"surface file {path}")
 
 
 def surface_arrays(vertices, triangles, source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -695,22 +692,27 @@ def _surface_to_stl(src: Path, dst: Path) -> None:
     import meshio
 
     m = read_with_meshio(src, hint="export the closed surface as STL")
-    tris = [c.data for c in m.cells if c.type == "triangle"]
-    if not tris:
-        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
-        raise MeshError(
-            f"surface file {src} has no triangles (cell types found: {found}); "
-            "export the closed surface as triangles (e.g. STL)"
-        )
+    triangles = cells_of_type(m, "triangle", f"surface file {src}", "triangles",
+                              "export the closed surface as triangles (e.g. STL)")
     pts = np.asarray(m.points, dtype=np.float64)
     if pts.shape[1] == 2:
         raise MeshError(f"surface file {src} is 2D; a closed 3D surface is needed")
-    meshio.write(dst, meshio.Mesh(pts, [("triangle", np.concatenate(tris))]), file_format="stl")
+    meshio.write(dst, meshio.Mesh(pts, [("triangle", triangles)]), file_format="stl")
 
 
 # --------------------------------------------------------------------------- #
 # Import and validation
 # --------------------------------------------------------------------------- #
+def cells_of_type(m, cell_type: str, source: str, what: str, fix: str) -> np.ndarray:
+    """The cells of meshio type `cell_type` in meshio mesh `m`, its blocks joined; a MeshError
+    naming `source`, the cell types it has and `fix` when it has none."""
+    blocks = [np.asarray(c.data) for c in m.cells if c.type == cell_type]
+    if not blocks:
+        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
+        raise MeshError(f"{source} has no {what} (cell types found: {found}); {fix}")
+    return np.concatenate(blocks)
+
+
 def read_with_meshio(path: Path, hint: str):
     """meshio.read with its failures turned into one MeshError.
 
@@ -747,17 +749,11 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
         )
     m = read_with_meshio(path, hint="export it as .msh, .vtu, .vtk or Abaqus .inp")
 
-    blocks = [c.data for c in m.cells if c.type == "tetra"]
-    if not blocks:
-        found = ", ".join(sorted({c.type for c in m.cells})) or "none"
-        raise MeshError(
-            f"mesh file {path} has no 4-node tetrahedra (cell types found: {found}); "
-            "mesh the volume with linear tets (gmsh: 3D mesh, element order 1; Abaqus: C3D4)"
-        )
+    tets = cells_of_type(m, "tetra", f"mesh file {path}", "4-node tetrahedra",
+                         "mesh the volume with linear tets (gmsh: 3D mesh, element order 1; Abaqus: C3D4)").astype(np.int64)
     points = np.asarray(m.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise MeshError(f"mesh file {path} has {points.shape[-1]}D points; a 3D mesh is needed")
-    tets = np.concatenate(blocks).astype(np.int64)
     if tets.size and (tets.min() < 0 or tets.max() >= points.shape[0]):
         raise MeshError(f"mesh file {path} has tets that refer to missing points; re-export the mesh")
     # Named surfaces of the tets' nodes, renumbered as _compact does (a group of other nodes is no face).

@@ -46,7 +46,23 @@ def _check_names(names: Sequence[str]) -> list[str]:
     return names
 
 
-class HistoryWriter:
+class _CsvFile:
+    """A CSV file written row by row (self._file), closed at the end of its with-block."""
+
+    _file = None
+
+    def close(self) -> None:
+        if self._file is not None and not self._file.closed:
+            self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class HistoryWriter(_CsvFile):
     """Writes ``history.csv``: ``time`` first, then one column per series.
 
     ``append`` takes a dict (missing columns are written as nan, unknown
@@ -89,18 +105,9 @@ class HistoryWriter:
             values = [format_number(v) for v in row]
         self._write_line(values)
 
-    def close(self) -> None:
-        if not self._file.closed:
-            self._file.close()
-
-    def __enter__(self) -> HistoryWriter:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
 
-class EventWriter:
+class EventWriter(_CsvFile):
     """Writes ``events.csv``: one row per failure, ``time,x,y,z,mode,id`` (and ``material`` in a
     model of several materials)."""
 
@@ -151,15 +158,6 @@ class EventWriter:
         self._file.write("\n".join(lines) + "\n")
         self._file.flush()
 
-    def close(self) -> None:
-        if not self._file.closed:
-            self._file.close()
-
-    def __enter__(self) -> EventWriter:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
 
 def _complete_lines(path: Path) -> tuple[list[str], list[str]]:

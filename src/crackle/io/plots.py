@@ -61,6 +61,15 @@ def _save(fig, path) -> Path:
     return path
 
 
+def _labelled_and_saved(fig, ax, path, x: tuple[str, str], y: tuple[str, str], title: str) -> Path:
+    """The axes labelled (x and y: quantity and unit), titled and gridded; the figure saved."""
+    ax.set_xlabel(axis_label(*x))
+    ax.set_ylabel(axis_label(*y))
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
 def tool_names(history) -> list[str]:
     """Tools that have at least one force and one displacement column."""
     found: dict[str, set[str]] = {}
@@ -114,11 +123,7 @@ def plot_load_displacement(history, path) -> Path:
         ax.legend(title="load")
     else:
         ax.text(0.5, 0.5, "no tool data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel(axis_label("displacement", "mm"))
-    ax.set_ylabel(axis_label("force", "kN"))
-    ax.set_title("Load-displacement")
-    ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return _labelled_and_saved(fig, ax, path, ("displacement", "mm"), ("force", "kN"), "Load-displacement")
 
 
 def plot_stress_strain(history, path, stress: str = "platen.stress", strain: str = "platen.strain") -> Path:
@@ -131,11 +136,7 @@ def plot_stress_strain(history, path, stress: str = "platen.stress", strain: str
         ax.plot(np.asarray(cols[strain], float) * 100.0, np.asarray(cols[stress], float) * 1e-6)
     else:
         ax.text(0.5, 0.5, "no platen data", transform=ax.transAxes, ha="center")
-    ax.set_xlabel(axis_label("platen strain", "%"))
-    ax.set_ylabel(axis_label("platen stress", "MPa"))
-    ax.set_title("Stress-strain")
-    ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return _labelled_and_saved(fig, ax, path, ("platen strain", "%"), ("platen stress", "MPa"), "Stress-strain")
 
 
 def plot_energies(history, path) -> Path:
@@ -354,12 +355,8 @@ def plot_j_history(history, path, reference: float | None = None) -> Path | None
             ax.plot(t, cols[f"g.tip{tip}"], ":", color=line.get_color(), label=f"G, tip {tip}")
     if reference is not None:
         ax.axhline(reference, color="0.3", linestyle="--", label="closed form")
-    ax.set_xlabel(axis_label("time", unit))
-    ax.set_ylabel(axis_label("J, G", "J/m^2"))
-    ax.set_title("Energy release at the crack tips")
     ax.legend(fontsize=7)
-    ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return _labelled_and_saved(fig, ax, path, ("time", unit), ("J, G", "J/m^2"), "Energy release at the crack tips")
 
 
 # Every figure a run writes into its plots/ folder, by file name (without .png), and where it comes

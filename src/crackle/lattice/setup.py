@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..budget import ModelTooLarge, check_model_size
+from ..budget import check_model_size
 from ..loading.arrays import default_tool_penalty, seat_on_tools, tool_arrays
 from ..loading.build import build_loading
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
@@ -80,11 +80,8 @@ def lattice_arrays(spec: LatticeSpec, material: ElasticSpec):
 def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSimulation:
     spec = scenario.lattice
     tools, supports, _ = build_loading(scenario, base)  # no pressures: the lattice does not read them
-    try:
-        check_model_size(math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes", "lattice.spacing",
-                         scenario.run.max_memory)
-    except ModelTooLarge as err:
-        raise ScenarioError(str(err)) from None
+    check_model_size(math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes", "lattice.spacing",
+                     scenario.run.max_memory)
     x, mass, pairs, rest = lattice_arrays(spec, scenario.material)
     n, n_spring = len(x), len(pairs)
     k = np.full(n_spring, 0.4 * scenario.material.youngs_modulus * spec.spacing)

@@ -21,7 +21,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..budget import ModelTooLarge, check_model_size
+from ..budget import check_model_size
 from ..loading.build import build_loading, build_precracks
 from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError,
                         Specimen, assign_materials, check_material_tables, check_one_rest, resolve_path)
@@ -438,20 +438,14 @@ def _check_body_sizes(bodies, max_memory) -> None:
     for i, body in enumerate(bodies):
         if body.shape == "sphere":
             planned = BALL_NODES_PER_CUBED_ELEMENT * 4.0 / 3.0 * math.pi * (body.radius / body.element_size) ** 3
-            try:
-                check_model_size(planned, "particles", f"bodies.{i}.element_size", max_memory)
-            except ModelTooLarge as err:
-                raise ScenarioError(str(err)) from None
+            check_model_size(planned, "particles", f"bodies.{i}.element_size", max_memory)
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
     tools, supports, pressures = build_loading(scenario, base)
     spec, particles = scenario.specimen, scenario.particles
     for planned, key, note in _planned_particles(spec, particles):
-        try:
-            check_model_size(planned, "particles", key, scenario.run.max_memory)
-        except ModelTooLarge as err:
-            raise ScenarioError(str(err) + note) from None
+        check_model_size(planned, "particles", key, scenario.run.max_memory, note)
     mesh = None
     try:
         if spec.shape == "mesh":

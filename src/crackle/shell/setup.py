@@ -19,7 +19,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..budget import ModelTooLarge, check_model_size
+from ..budget import check_model_size
 from ..geometry.meshes import MeshError, read_with_meshio
 from ..geometry.specimens import check_file_units
 from ..loading import History
@@ -210,10 +210,7 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     spec, mat = scenario.shell, scenario.material
     planned = _planned_triangles(spec)
     if planned is not None:
-        try:
-            check_model_size(planned, "triangles", "shell.element_size", scenario.run.max_memory)
-        except ModelTooLarge as err:
-            raise ScenarioError(str(err)) from None
+        check_model_size(planned, "triangles", "shell.element_size", scenario.run.max_memory)
     try:
         mesh = _surface(spec, base)
     except (SurfaceError, MeshError) as err:
