@@ -149,9 +149,12 @@ def _check_resumable(out: Path, checkpoint, record: dict) -> None:
 def check_outputs_are_crackles(out: Path) -> None:
     """Refuse a fresh run into a folder whose files bear the names of crackle's outputs but that no
     crackle run wrote (a run writes status.json with its first row, and its history.csv's header
-    starts with time and holds energy.kinetic): a run would overwrite a user's own history.csv or
-    summary.json there."""
-    theirs = [name for name in ("history.csv", "summary.json", "events.csv", "fields.pvd") if (out / name).is_file()]
+    starts with time and holds energy.kinetic): a run would remove or overwrite a user's own
+    history.csv, summary.json, plots/*.png or fields/*.vtu there."""
+    from .solver.driver import OUTPUT_FILES, OUTPUT_GLOBS
+
+    theirs = [name for name in OUTPUT_FILES if (out / name).is_file()]
+    theirs += [str(path.relative_to(out)) for pattern in OUTPUT_GLOBS for path in sorted(out.glob(pattern))]
     if not theirs or (out / "status.json").is_file():
         return
     try:
@@ -160,8 +163,9 @@ def check_outputs_are_crackles(out: Path) -> None:
     except OSError:
         header = ""
     if not (header.startswith("time,") and ",energy.kinetic," in header):
-        raise ScenarioError(f"--out {out}: it holds {', '.join(theirs)} that no crackle run wrote (no status.json "
-                            "beside it), which this run would overwrite; choose another --out or move them")
+        listed = ", ".join(theirs[:5]) + (f" and {len(theirs) - 5} more" if len(theirs) > 5 else "")
+        raise ScenarioError(f"--out {out}: it holds {listed} that no crackle run wrote (no status.json beside "
+                            "them), which this run would overwrite; choose another --out or move them")
 
 
 def check_output_folder(out: Path) -> None:

@@ -313,7 +313,7 @@ def main(argv=None) -> int:
     from .solver.driver import request_stop
 
     # A closed pipe or terminal stops a run as Ctrl-C does (summary, checkpoint, lock released), no traceback.
-    with guarded_standard_streams(lambda stream: request_stop(f"as its {stream} closed")):
+    with guarded_standard_streams(lambda what: request_stop(f"as its {what}")):
         return args.func(args)
 
 

@@ -545,6 +545,21 @@ class Zone(Strict):
         return np.abs(height) <= 0.5 * self.thickness
 
 
+def _check_stack_spacing(zone, positions, key: str) -> None:
+    """ValueError when a stack of layers (`spacing`) is spaced wider than the sites span along its
+    normal: a stack of one layer at most (a spacing in mm read as metres)."""
+    import numpy as np
+
+    if getattr(zone, "spacing", None) is None or len(positions) == 0:
+        return
+    n = np.asarray(zone.normal, float) / np.linalg.norm(zone.normal)
+    extent = float(np.ptp(positions @ n))
+    if zone.spacing > extent:
+        raise ValueError(f"{key}.spacing = {zone.spacing:g} m is more than the specimen's {extent:.3g} m along the "
+                         f"layers' normal: a stack of one layer at most; lengths are in metres (mm meant? write "
+                         f"{zone.spacing:g}e-3), or drop spacing for one layer")
+
+
 def check_material_names(names) -> None:
     """ValueError for a [materials] name that events.csv's material column cannot carry."""
     for name in names:
@@ -624,10 +639,11 @@ def assign_materials(materials: dict, positions, groups: dict | None = None, sit
                 f"named by no material: {', '.join(sorted(found - asked)) or 'none'}; "
                 f"in no group of the file: {', '.join(sorted(asked - found)) or 'none'} "
                 f"(the file's groups: {', '.join(sorted(found)) or 'none'})")
-    for index, m in enumerate(materials.values()):
+    for index, (name, m) in enumerate(materials.items()):
         if getattr(m, "group", None) is not None:
             material[groups[m.group]] = index
-        for zone in m.zones:
+        for i, zone in enumerate(m.zones):
+            _check_stack_spacing(zone, positions, f"materials.{name}.zones.{i}")
             material[zone.contains(positions)] = index
     unassigned = int(np.sum(material < 0))
     if unassigned:
@@ -918,6 +934,13 @@ class Stop(Strict):
     force_drop_hold: NonNegative | None = None
     """s; default 5 % of end_time, at most half the time of the peak force"""
 
+    @model_validator(mode="after")
+    def _hold_needs_a_drop(self):
+        if self.force_drop_hold is not None and self.force_drop is None:
+            raise ValueError("force_drop_hold: it times the force drop, which force_drop sets; set force_drop (e.g. "
+                             "0.3) or remove force_drop_hold")
+        return self
+
 
 class RunSpec(Strict):
     """[run]: time integration and what the run writes."""
@@ -959,6 +982,15 @@ class RunSpec(Strict):
     """s of wall time between checkpoints while the run goes (a killed run resumes from the last)"""
     stop: Stop = Stop()
     """stop conditions"""
+
+    @model_validator(mode="after")
+    def _hold_within_the_run(self):
+        hold = self.stop.force_drop_hold
+        if hold is not None and hold >= self.end_time:
+            raise ValueError(f"stop.force_drop_hold = {hold:g} s is not shorter than end_time = {self.end_time:g} s: the "
+                             f"run could never stop by the force drop; set it below end_time (e.g. "
+                             f"{0.05 * self.end_time:.3g} s), or remove it for the default (5 % of end_time)")
+        return self
 
 
 class FracturePlaneSpec(Strict):

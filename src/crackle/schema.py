@@ -33,7 +33,8 @@ class Strict(BaseModel):
 # The least positive value of a key in these units that a solid's input has: below it the value is
 # taken for one in the unit named (a strength of 300 meant as MPa nucleated 42 cracks; a penalty of
 # 5 meant as N/mm^3). (unit: floor, the unit meant, its factor as written after a number)
-UNIT_FLOORS = {"Pa": (1e3, "MPa", "e6"), "N/m^3": (1e6, "N/mm^3", "e9"), "Pa/m": (1e6, "N/mm^3", "e9")}
+UNIT_FLOORS = {"Pa": (1e3, "MPa", "e6"), "N/m^3": (1e6, "N/mm^3", "e9"), "Pa/m": (1e6, "N/mm^3", "e9"),
+               "J/(kg K)": (50.0, "kJ/(kg K)", "e3")}  # a specific heat (lead's, the lowest of metals, is 128)
 
 
 def field_unit(description: str | None) -> str:
@@ -42,7 +43,12 @@ def field_unit(description: str | None) -> str:
     text = (description or "").strip()
     if "the property's unit" in text:
         return ""
-    return text.split(" ")[0].rstrip(",;:") if text else ""
+    if not text:
+        return ""
+    unit = text.split(" ")[0]
+    if "(" in unit and ")" not in unit and ")" in text:  # a unit with a space in brackets: J/(kg K)
+        unit = text[: text.index(")") + 1]
+    return unit.rstrip(",;:")
 
 
 def check_unit_slips(instance) -> None:

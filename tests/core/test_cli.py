@@ -222,9 +222,10 @@ def test_rerun_clears_only_crackles_outputs(tmp_path):
 
 
 def test_a_folder_with_a_users_own_history_is_not_overwritten(tmp_path, capsys):
-    """Issue 71 item 10: --out pointed at a folder holding a history.csv that no crackle run wrote
-    (a lab's own test record): exit 2 naming the file, which is left as it was; a folder of an
-    earlier crackle run (status.json beside its files) is rerun into as before."""
+    """Issue 71 item 10: --out pointed at a folder holding a history.csv, or a plots/*.png, that no
+    crackle run wrote (a lab's own test record and figure): exit 2 naming the file, which is left
+    as it was; a folder of an earlier crackle run (status.json beside its files) is rerun into as
+    before."""
     out = tmp_path / "lab"
     out.mkdir()
     (out / "history.csv").write_text("t_s,force_kN\n0,0\n")
@@ -234,6 +235,13 @@ def test_a_folder_with_a_users_own_history_is_not_overwritten(tmp_path, capsys):
     assert "it holds history.csv that no crackle run wrote" in err and "choose another --out" in err
     assert (out / "history.csv").read_text() == "t_s,force_kN\n0,0\n"
     (out / "history.csv").unlink()
+    # A figure of the user's own under a name a run draws (it was overwritten, exit 0).
+    (out / "plots").mkdir()
+    (out / "plots" / "load_displacement.png").write_bytes(b"their figure")
+    assert main(args) == 2
+    assert "it holds plots/load_displacement.png that no crackle run wrote" in capsys.readouterr().err
+    assert (out / "plots" / "load_displacement.png").read_bytes() == b"their figure"
+    (out / "plots" / "load_displacement.png").unlink()
     assert main(args) == 0 and main(args) == 0  # the second into the first's folder
 
 

@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import meshio
 import pytest
@@ -484,12 +485,68 @@ def test_a_closed_output_pipe_stops_the_run_like_ctrl_c(tmp_path):
     _stopped_as_by_ctrl_c(out, code, err, "as its stdout closed")
 
 
+LATTICE = str(Path(__file__).parents[1] / "data" / "lattice-platen.toml")
+
+
+def _lattice_run(out, stdout, limit_file_size=None):
+    """The lattice run in a child process with its stdout as given (None: closed from the start);
+    a file size limit (bytes, ulimit -f) if given. (exit code, stderr)."""
+    def child():
+        if stdout is None:
+            os.close(1)
+        if limit_file_size is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit_file_size, limit_file_size))
+
+    proc = subprocess.run([sys.executable, "-m", "crackle.cli", "run", LATTICE, "--out", str(out)],
+                          stdout=stdout if stdout is not None else subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True, preexec_fn=child, timeout=600)
+    return proc.returncode, proc.stderr
+
+
+def test_stdout_closed_from_the_start_runs_and_a_full_one_stops_like_ctrl_c(tmp_path):
+    """`crackle run ... >&-` (Python's stdout None: an AttributeError traceback) runs to its end,
+    exit 0; stdout on a full disk (`> /dev/full`: an OSError traceback) stops the run as a closed
+    pipe does, saying why."""
+    code, err = _lattice_run(tmp_path / "closed", None)
+    assert code == 0 and "Traceback" not in err, err
+    assert json.loads((tmp_path / "closed" / "summary.json").read_text())["status"] == "completed"
+    if Path("/dev/full").exists():
+        with open("/dev/full", "w") as full:
+            code, err = _lattice_run(tmp_path / "full", full)
+        _stopped_as_by_ctrl_c(tmp_path / "full", code, err, "as its stdout failed: No space left on device")
+
+
+def test_a_file_size_limit_stops_the_run_as_a_full_disk_does(tmp_path):
+    """ulimit -f reached by the first field frame (an OSError EFBIG traceback): exit 1, one line
+    naming the limit and what to do, the lock released, nothing written lost."""
+    out = tmp_path / "limited"
+    code, err = _lattice_run(out, subprocess.DEVNULL, limit_file_size=20_000)
+    assert code == 1 and "Traceback" not in err, err
+    assert "reached the largest file this process may write (ulimit -f)" in err and "raise the file size limit" in err
+    assert (out / "history.csv").is_file() and not (out / LOCK_FILE).exists()
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
 def test_a_closed_terminal_sighup_stops_the_run_like_ctrl_c(tmp_path):
     """SIGHUP (the terminal closed) during a run: the same as Ctrl-C, the summary saying why."""
     out = tmp_path / "hung-up"
     code, err = _bending_run_printing(out, lambda proc: proc.send_signal(signal.SIGHUP))
     _stopped_as_by_ctrl_c(out, code, err, "as its terminal closed (SIGHUP)")
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
+def test_a_terminal_closed_after_ctrl_c_keeps_the_summary(tmp_path):
+    """Ctrl-C, then the terminal closed while the run stops (SIGHUP): the hang-up is not a second
+    Ctrl-C (which stops at once, without a summary); the stop under way ends with its summary,
+    checkpoint and final status.json (it lost all three)."""
+    def ctrl_c_then_hang_up(proc):
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.05)
+        proc.send_signal(signal.SIGHUP)
+
+    out = tmp_path / "hung-up-while-stopping"
+    code, err = _bending_run_printing(out, ctrl_c_then_hang_up)
+    _stopped_as_by_ctrl_c(out, code, err, "interrupted by the user")
 
 
 @pytest.mark.parametrize("value", ["abc", "", "-1", "nan"])
@@ -588,12 +645,31 @@ def test_crackle_fpz_refuses_a_modulus_in_gpa(capsys):
     (["plate-impact", "--quick", "--set", "tools.0.speed=3e5"], "tool sphere moves at 3e+05 m/s"),
     (["plate-impact-deformable", "--quick", "--set", "bodies.0.initial_velocity=[0,0,-3e5]"],
      "the specimen or a body moves at 3e+05 m/s"),
+    (["three-point-bending", "--quick", "--set", "tools.top.speed=3e4"], "tool top moves at 3e+04 m/s"),
+    (["sphere-impact-slow", "--quick", "--set", "specimen.initial_velocity=[0,0,-36000]"],
+     "the specimen or a body moves at 3.6e+04 m/s"),
 ])
-def test_a_body_that_would_pass_through_an_element_in_one_step_is_refused(tmp_path, capsys, argv, expected):
-    """A tool or body crossing more than half an element a step (issue 71 item 8: a sphere at 3e5
-    m/s tunnelled through the plate in one step, exit 0, nothing broken): exit 2 before any output,
-    the distance a step and the speed contact can still catch."""
+def test_a_speed_no_impact_has_is_refused(tmp_path, capsys, argv, expected):
+    """A tool, body or specimen faster than SPEED_LIMIT, 10 km/s (issue 71 item 8: a sphere at 3e5
+    m/s tunnelled through the plate in one step, exit 0, nothing broken; a platen at 3e4 m/s and a
+    ball at 36,000 m/s, km/h meant, ran): exit 2 before any output, naming the unit slips."""
     assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
     said = _one_line(capsys.readouterr().err)
-    assert expected in said and "more than 0.5 of an element (0.005 m), so contact cannot catch it" in said
+    assert expected in said and "faster than any impact crackle is made for (10000 m/s)" in said, said
+    assert "km/h meant?" in said
     assert not (tmp_path / "o").exists()
+
+
+def test_a_body_that_would_pass_through_an_element_in_one_step_is_refused():
+    """A point crossing more than half an element a step, below the speed limit (a coarse model
+    at a long step): refused with the distance a step and the speed contact can still catch."""
+    from types import SimpleNamespace
+
+    from crackle.solver import check_one_step_travel
+
+    sim = SimpleNamespace(element_length=0.01, fastest_motion=lambda: (5e3, "tool top"))
+    with pytest.raises(ValueError, match=r"tool top moves at 5000 m/s: 0.005 m in one step of 1e-06 s, more than "
+                                         r"0.5 of an element \(0.01 m\), so contact cannot catch it; lower the speed "
+                                         r"\(below 5e\+03 m/s at this step\)"):
+        check_one_step_travel(sim, 1e-6 * 1.0000001)
+    check_one_step_travel(sim, 0.9e-6)  # 0.45 of an element: caught

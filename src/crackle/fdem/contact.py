@@ -36,7 +36,7 @@ from numba import njit, prange
 from ..loading.friction import coulomb_update
 from ..loading.tools import BARY_TOL
 from .extrinsic import state_row
-from .topology import FACE_CORNERS, INTACT, face_corners, twice_area_vector
+from .topology import FACE_CORNERS, INTACT, cross, edge_vectors, face_corners, twice_area_vector
 
 # Depth, as a fraction of the half tet height, beyond which a new contact starts unloaded.
 WAKE_DEPTH = 0.02
@@ -295,15 +295,8 @@ def node_contact(s, dt, x, v, tets, ifs, c, leader):
         a = state_row(c.tri_nodes[t, 0], leader)
         b = state_row(c.tri_nodes[t, 1], leader)
         q = state_row(c.tri_nodes[t, 2], leader)
-        ux = x[b, 0] - x[a, 0]
-        uy = x[b, 1] - x[a, 1]
-        uz = x[b, 2] - x[a, 2]
-        wx = x[q, 0] - x[a, 0]
-        wy = x[q, 1] - x[a, 1]
-        wz = x[q, 2] - x[a, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
+        ux, uy, uz, wx, wy, wz = edge_vectors(x, a, b, q)
+        nx, ny, nz = cross(ux, uy, uz, wx, wy, wz)
         nn = math.sqrt(nx * nx + ny * ny + nz * nz)
         if nn == 0.0:
             continue

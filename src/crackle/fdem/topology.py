@@ -28,12 +28,19 @@ def face_corners(face):
 
 
 @njit(cache=True, inline="always")
+def edge_vectors(x, a, b, q):
+    """x_b - x_a and x_q - x_a (six components): the edges of triangle (a, b, q) from a."""
+    return x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2], x[q, 0] - x[a, 0], x[q, 1] - x[a, 1], x[q, 2] - x[a, 2]
+
+
+@njit(cache=True, inline="always")
+def cross(ux, uy, uz, wx, wy, wz):
+    """u x w."""
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+@njit(cache=True, inline="always")
 def twice_area_vector(x, a, b, q):
     """(x_b - x_a) x (x_q - x_a): twice the area vector of triangle (a, b, q), along its normal."""
-    ux = x[b, 0] - x[a, 0]
-    uy = x[b, 1] - x[a, 1]
-    uz = x[b, 2] - x[a, 2]
-    wx = x[q, 0] - x[a, 0]
-    wy = x[q, 1] - x[a, 1]
-    wz = x[q, 2] - x[a, 2]
-    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    ux, uy, uz, wx, wy, wz = edge_vectors(x, a, b, q)
+    return cross(ux, uy, uz, wx, wy, wz)

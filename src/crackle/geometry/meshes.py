@@ -565,15 +565,10 @@ def gmsh_graded_rectangle(corner, size, element_size: float, fine_size: float, f
     return np.ascontiguousarray(points[:, :2]), tris
 
 
-def disc(
-    diameter: float,
-    thickness: float,
-    element_size: float,
-    center: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
-) -> TetMesh:
-    """A disc (e.g. Brazilian test specimen): a short cylinder of given diameter and thickness."""
-    return gmsh_cylinder(0.5 * float(diameter), thickness, element_size, center=center, axis=axis)
+def disc(diameter: float, thickness: float, element_size: float, **placement) -> TetMesh:
+    """A disc (e.g. Brazilian test specimen): a short cylinder of given diameter and thickness;
+    `placement`: gmsh_cylinder's center and axis."""
+    return gmsh_cylinder(0.5 * float(diameter), thickness, element_size, **placement)
 
 
 def gmsh_from_surface(path: str | os.PathLike, element_size: float, remesh_surface: bool = True) -> TetMesh:

@@ -23,13 +23,15 @@ def _stdout_is_terminal() -> bool:
 
 class _GuardedStream:
     """stdout or stderr that survives its reader going away (a pipe closed: `crackle run ... |
-    head`; a terminal closed: EIO): the first failed write sends the stream to the null device
-    from then on (its file descriptor too, so that nothing buffered fails at exit) and calls
-    `on_lost`, once."""
+    head`; a terminal closed: EIO; a log file on a full disk or past ulimit -f): the first failed
+    write sends the stream to the null device from then on (its file descriptor too, so that
+    nothing buffered fails at exit) and calls `on_lost` with how it was lost, once."""
 
-    LOST = (errno.EPIPE, errno.EIO)
+    LOST = (errno.EPIPE, errno.EIO, errno.ENOSPC, errno.EFBIG)
 
     def __init__(self, stream, on_lost):
+        if stream is None:  # closed from the start (`crackle run ... >&-`): output nobody asked to see
+            stream = open(os.devnull, "w")
         self._stream, self._on_lost, self._lost = stream, on_lost, False
 
     def _guard(self, call, *args):
@@ -44,7 +46,7 @@ class _GuardedStream:
                     null = os.open(os.devnull, os.O_WRONLY)
                     os.dup2(null, self._stream.fileno())
                     os.close(null)
-                self._on_lost()
+                self._on_lost("closed" if err.errno in (errno.EPIPE, errno.EIO) else f"failed: {err.strerror}")
             return None
 
     def write(self, text):
@@ -60,11 +62,11 @@ class _GuardedStream:
 
 @contextlib.contextmanager
 def guarded_standard_streams(on_lost):
-    """sys.stdout and sys.stderr as _GuardedStreams for the block; `on_lost(stream name)` when one
-    is lost."""
+    """sys.stdout and sys.stderr as _GuardedStreams for the block; `on_lost(what)` when one is lost
+    ("stdout closed", "stderr failed: No space left on device")."""
     saved = sys.stdout, sys.stderr
-    sys.stdout = _GuardedStream(saved[0], lambda: on_lost("stdout"))
-    sys.stderr = _GuardedStream(saved[1], lambda: on_lost("stderr"))
+    sys.stdout = _GuardedStream(saved[0], lambda how: on_lost(f"stdout {how}"))
+    sys.stderr = _GuardedStream(saved[1], lambda how: on_lost(f"stderr {how}"))
     try:
         yield
     finally:

@@ -331,9 +331,7 @@ def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next, row=-
         if tools.glue[j] > 0.0 and gap <= tools.glue[j] and touching < 0 and prev != HIDDEN:
             # Attached to a glued tool from now on, its tie unloaded at the current position.
             touching = j
-            friction[g, 0] = 0.0
-            friction[g, 1] = 0.0
-            friction[g, 2] = 0.0
+            friction[g, :] = 0.0
             break
         if j == prev and offset < 0.0 and gap < 0.0:
             gap -= offset
@@ -341,9 +339,7 @@ def contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next, row=-
                 # Woken inside (below), risen above its wake depth but not out yet: no force,
                 # and the offset holds until the point is out.
                 touching = j
-                friction[g, 0] = 0.0
-                friction[g, 1] = 0.0
-                friction[g, 2] = 0.0
+                friction[g, :] = 0.0
                 continue
         elif prev == HIDDEN and gap < 0.0 and touching < 0:
             touching = j

@@ -203,6 +203,17 @@ def deviator(s0, s1, s2, s3, s4, s5):
 
 
 @njit(cache=True, inline="always")
+def _narrowed(phi, dep, lo, hi, seq):
+    """The return map's bracket [lo, hi] on the plastic increment narrowed by phi(dep) (positive
+    below the root), and whether the iteration has converged (phi or the bracket negligible)."""
+    if phi > 0.0:
+        lo = dep
+    else:
+        hi = dep
+    return lo, hi, abs(phi) <= 1e-13 * seq or hi - lo <= 1e-15 * hi
+
+
+@njit(cache=True, inline="always")
 def stress_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, law):
     """Second Piola-Kirchhoff stress (s0..s5) of particle g at the Green-Lagrange strain e0..e5,
     with the radial return updating plastic[g] (6) and eq_plastic[g] (and for the thermo law
@@ -232,11 +243,8 @@ def stress_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
     for _ in range(60):
         flow, dflow = flow_stress(ep, dep, dt, law)
         phi = seq - 3.0 * mu * dep - flow
-        if phi > 0.0:
-            lo = dep
-        else:
-            hi = dep
-        if abs(phi) <= 1e-13 * seq or hi - lo <= 1e-15 * hi:
+        lo, hi, converged = _narrowed(phi, dep, lo, hi, seq)
+        if converged:
             break
         step = dep + phi / (3.0 * mu + dflow)
         dep = step if lo < step < hi else 0.5 * (lo + hi)
@@ -303,11 +311,8 @@ def thermo_update(g, e0, e1, e2, e3, e4, e5, plastic, eq_plastic, thermal, dt, l
             rate = (dep / (dt * rate0)) ** mexp
             drate = mexp * rate / dep
         phi = q - gv * rate
-        if phi > 0.0:
-            lo = dep
-        else:
-            hi = dep
-        if abs(phi) <= 1e-13 * seq or hi - lo <= 1e-15 * hi:
+        lo, hi, converged = _narrowed(phi, dep, lo, hi, seq)
+        if converged:
             break
         step = dep + phi / (3.0 * mu + dg * rate + gv * drate)
         # Out of the bracket: bisect, geometrically once the root is bracketed away from 0

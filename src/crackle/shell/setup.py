@@ -157,6 +157,14 @@ class FractureSpec(Strict):
     sqrt(pi a))^2 / E for an axial crack in a cylinder under internal pressure (sigma = p R / t), j_bracket the
     values of two estimates of the bulging factor M (Folias, Kiefner) and j_reference their geometric mean"""
 
+    @model_validator(mode="after")
+    def _rings_open(self):
+        for i, (r_in, r_out) in enumerate(self.j_rings):
+            if not r_in < r_out:
+                raise ValueError(f"j_rings.{i}: ({r_in:g}, {r_out:g}) m: a ring needs r_in < r_out; give (inner, outer) "
+                                 "radii about the tip, e.g. (0.005, 0.01)")
+        return self
+
 
 class Scenario(ScenarioBase):
     method: Literal["shell"]

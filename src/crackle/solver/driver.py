@@ -44,8 +44,8 @@ class UnstableRunError(RuntimeError):
 
 
 class StoppedAtOnce(RuntimeError):
-    """A Ctrl-C stopped the run at once (a second one during a chunk, or one while the summary and
-    plots are written): what was written is kept."""
+    """A second Ctrl-C stopped the run at once (while it stepped, or while the summary and plots
+    were written): what was written is kept."""
 
 
 class DiskFullError(RuntimeError):
@@ -54,7 +54,16 @@ class DiskFullError(RuntimeError):
 
 
 # The write errors that mean "no room": stop the run cleanly rather than show a traceback.
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def _no_room(err: OSError, out: Path) -> tuple[str, str]:
+    """What ran out, in words (the disk or quota, or the size a file may have: ulimit -f), and
+    what makes room."""
+    where = err.filename or out
+    if err.errno == errno.EFBIG:
+        return f"{where} reached the largest file this process may write (ulimit -f)", "raise the file size limit"
+    return f"the disk is full ({where})", "free some space"
 
 
 @dataclass
@@ -135,13 +144,22 @@ def steps_to(end_time: float, dt: float) -> int:
 TRAVEL_LIMIT = 0.5
 
 
+# The fastest tool, body or point a scenario may set (m/s): above the fastest impacts a fracture
+# code is used for (space debris hits at 7-10 km/s); faster is a unit slip (km/h, mm/s).
+SPEED_LIMIT = 1e4
+
+
 def check_one_step_travel(sim, dt: float) -> None:
-    """ValueError when the fastest tool, body or point would cross more than TRAVEL_LIMIT of an
-    element (sim.element_length) in one step of dt."""
+    """ValueError when the fastest tool, body or point moves faster than SPEED_LIMIT, or would
+    cross more than TRAVEL_LIMIT of an element (sim.element_length) in one step of dt."""
+    speed, what = sim.fastest_motion()
+    if speed > SPEED_LIMIT:
+        raise ValueError(
+            f"{what} moves at {speed:.4g} m/s, faster than any impact crackle is made for ({SPEED_LIMIT:g} m/s); speeds "
+            f"are in m/s (km/h meant? write {speed / 3.6:.4g}; mm/s? {speed:g}e-3)")
     length = getattr(sim, "element_length", None)
     if not length:
         return
-    speed, what = sim.fastest_motion()
     if speed * dt > TRAVEL_LIMIT * length:
         raise ValueError(
             f"{what} moves at {speed:.4g} m/s: {speed * dt:.3g} m in one step of {dt:.3g} s, more than "
@@ -199,13 +217,16 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
     outputs up to the checkpoint are kept and the new rows follow them.
 
     Rows fall on a grid of steps fixed by end_time and history_samples (and the field frames),
-    from step 0: a resumed run writes the rows an uninterrupted one would. A Ctrl-C that stops
-    the run at once (a second one, or one while the summary and plots are written) raises
+    from step 0: a resumed run writes the rows an uninterrupted one would. A second Ctrl-C
+    stops the run at once (while it steps, or while the summary and plots are written) and raises
     StoppedAtOnce saying what is kept."""
     out = Path(out_dir)
     started = wallclock.time()
     try:
-        return _run(sim, control, out, scenario_name, scenario, resume)
+        # Signals are taken over for the whole run, its summary and plots included: a hang-up
+        # while they are written lets them finish.
+        with _InterruptRequest() as interrupt:
+            return _run(sim, control, out, scenario_name, scenario, resume, interrupt)
     except KeyboardInterrupt:
         resumable = (out / CHECKPOINT_FILE).is_file()
         # A second Ctrl-C while the plots are drawn comes after this run's summary was written.
@@ -220,7 +241,7 @@ def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name
 
 
 def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, scenario: dict | None,
-         resume: Checkpoint | None) -> RunResult:
+         resume: Checkpoint | None, interrupt: _InterruptRequest) -> RunResult:
     out.mkdir(parents=True, exist_ok=True)
     if resume is None:
         clear_outputs(out)
@@ -235,7 +256,6 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
     with contextlib.ExitStack() as stack:
         progress = stack.enter_context(Progress(control.end_time, enabled=control.progress, log=control.report,
                                                 status_path=out / "status.json"))
-        interrupt = stack.enter_context(_InterruptRequest())
         say = functools.partial(progress.note, fallback=control.report)
         say(f"{scenario_name or sim.method}: {sim.describe()}; {rows.total - sim.steps:,} steps of {state.dt:.3g} s to "
             f"t = {control.end_time:.4g} s" + (f" from {sim.time:.4g} s" if resume is not None else ""))
@@ -249,8 +269,9 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                 raise
             progress.finish("disk full", sim.time, sim.steps, sim.broken)
             again = "rerun" if resume is None else f"continue with --resume {out}"
-            raise DiskFullError(f"stopped: the disk is full ({err.filename or out}) before the first step; free "
-                                f"some space and {again} (what was written is in {out})") from None
+            what, fix = _no_room(err, out)
+            raise DiskFullError(f"stopped: {what} before the first step; {fix} and {again} (what was written is "
+                                f"in {out})") from None
         if rows.next_stop(sim.steps, outputs.fields) > sim.steps + 1:
             # One step alone compiles the kernels before the timed probe; it never skips a row (a
             # row's state does not depend on how its steps were split).
@@ -263,7 +284,8 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         except OSError as err:
             if err.errno not in DISK_FULL:
                 raise
-            state.status, state.message = "disk full", f"the disk is full ({err.filename or out}) at t = {sim.time:.4e} s"
+            what, state.fix = _no_room(err, out)
+            state.status, state.message = "disk full", f"{what} at t = {sim.time:.4e} s"
         _close_run(sim, control, out, scenario, state, rows, outputs)
         progress.finish(state.status, sim.time, sim.steps, sim.broken)
     if state.status == "disk full":
@@ -272,8 +294,8 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         resumable = (out / CHECKPOINT_FILE).is_file()
         raise DiskFullError(
             f"stopped: {state.message}. What was written is kept in {out}" + (
-                f"; free some space and continue with --resume {out} (the same scenario, --quick and --set)"
-                if resumable else "; no checkpoint was written, so free some space and rerun")
+                f"; {state.fix} and continue with --resume {out} (the same scenario, --quick and --set)"
+                if resumable else f"; no checkpoint was written, so {state.fix} and rerun")
         )
     hist = read_history_csv(out / "history.csv")
     summary = _summary(sim, control, state, scenario_name, hist, wallclock.perf_counter() - started, resumed_from)
@@ -298,6 +320,7 @@ class _DriverState:
     off_grid: bool = False  # the last row is off the grid (a Ctrl-C within a row stopped there)
     status: str = "completed"
     message: str = ""
+    fix: str = ""  # what makes room, when the disk (or a file's size limit) stopped the run
 
     def checkpoint(self, sim, scenario: dict | None) -> Checkpoint:
         return Checkpoint(sim, self.dt, self.scale, self.low_since, self.events, scenario or {}, self.off_grid)
@@ -475,8 +498,9 @@ def _close_run(sim, control: RunControl, out: Path, scenario, state: _DriverStat
     except OSError as err:
         if err.errno not in DISK_FULL:
             raise
+        what, state.fix = _no_room(err, out)
         state.status = "disk full"
-        state.message = (state.message or f"the disk is full ({out}) at t = {sim.time:.4e} s") + (
+        state.message = (state.message or f"{what} at t = {sim.time:.4e} s") + (
             "; the checkpoint could not be updated (an earlier one, if any, is whole)")
 
 
@@ -610,9 +634,10 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, peak_time, lo
 
 class _InterruptRequest:
     """Ctrl-C (or a polite kill, SIGTERM, e.g. a batch system's time limit, or SIGHUP, its terminal
-    closed) during a run asks it to stop after the chunk in progress, so that the history, the
-    events, the summary and the checkpoint end at the same consistent state; a second one
-    interrupts at once. `request_stop` asks the same when the run's output stream is lost (a pipe
+    closed) during a run asks it to stop after the piece in progress, so that the history, the
+    events, the summary and the checkpoint end at the same consistent state; a second Ctrl-C
+    interrupts at once (a SIGTERM or SIGHUP while it stops does not: a terminal closed after a
+    Ctrl-C must not lose the summary). `request_stop` asks the same when the run's output stream is lost (a pipe
     closed: `crackle run ... | head`)."""
 
     active: _InterruptRequest | None = None  # the run's, while one runs in this process
@@ -627,9 +652,12 @@ class _InterruptRequest:
 
     def _handler(self, signum, frame):
         if self.requested:
-            raise KeyboardInterrupt
+            if signum == signal.SIGINT:  # Ctrl-C again: at once
+                raise KeyboardInterrupt
+            return  # a hang-up or SIGTERM while stopping: the stop under way keeps its summary and checkpoint
         self.ask(self.SIGNALS.get(signum, "by a signal"))
-        print("\ncrackle: stopping after this chunk (Ctrl-C again to stop at once)", file=sys.stderr, flush=True)
+        print(f"\ncrackle: stopping ({self.why}) with the summary and checkpoint within about a second (Ctrl-C again "
+              "to stop at once)", file=sys.stderr, flush=True)
 
     def ask(self, why: str) -> None:
         if not self.requested:
