@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import tempfile
+import threading
 from pathlib import Path
 
 from .budget import ModelTooLarge
@@ -82,6 +84,25 @@ def run_scenario(source, out_dir=None, overrides: list[str] | dict | None = None
         raise ScenarioError(f"--out: {err}") from None
 
 
+# Seconds of set-up (meshing, packing, neighbour search) after which a run says it is still at it,
+# so that a large model is not silent for minutes before its first line.
+SETUP_NOTE_AFTER = 10.0
+
+
+@contextlib.contextmanager
+def _said_if_slow(seconds: float, report, text: str):
+    """`report(text)` once if the block lasts longer than `seconds` (nothing without a report)."""
+    timer = threading.Timer(seconds, report, (text,)) if report is not None else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    try:
+        yield
+    finally:
+        if timer is not None:
+            timer.cancel()
+
+
 # Keys a refused resume lists where the scenario differs (a different example changes hundreds).
 RESUME_CHANGES_LISTED = 5
 
@@ -112,7 +133,9 @@ def _run_locked(scenario: ScenarioBase, base, out: Path, resume, progress, repor
             )
     else:
         check_outputs_are_crackles(out)
-        sim, control = build_simulation(scenario, base)
+        with _said_if_slow(SETUP_NOTE_AFTER, report, f"{scenario.name}: still setting up the model (meshing, packing, "
+                           "neighbours: a large one takes minutes; Ctrl-C stops it)"):
+            sim, control = build_simulation(scenario, base)
         checkpoint = None
     control.progress = progress
     control.plots = plots

@@ -1241,6 +1241,7 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
     from .methods import get_method
 
     data, base = read_scenario_data(source)
+    written_method = data.get("method", "fdem")
     if quick:
         if not data.get("quick"):
             raise ScenarioError(f"--quick: {source} has no [quick] section; run it without --quick or add one")
@@ -1257,7 +1258,11 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
     except ValidationError as err:
         if "method" not in data:
             _refuse_without_method(data, source)
-        raise ScenarioError(_describe(err, source, schema)) from None
+        switched = data.get("method", "fdem") != written_method
+        raise ScenarioError(_describe(err, source, schema) + (
+            f". The scenario is written for method = \"{written_method}\", whose sections the {data.get('method')!r} "
+            "method does not read: a method is chosen by a scenario written for it (crackle examples lists one of "
+            "each), not by --set method" if switched else "")) from None
     for i, tool in enumerate(scenario.tools):
         if tool.shape == "surface":
             path = resolve_path(tool.file, base)
@@ -1275,6 +1280,13 @@ def resolve_path(file: str, base: Path | None) -> Path:
     if not path.is_absolute() and base is not None:
         path = base / path
     return path
+
+
+def no_such_file(key: str, path: Path) -> ScenarioError:
+    """The error for a scenario's file (`key`, resolved to `path`) that is missing or a folder."""
+    what = "is a folder, not a file" if path.is_dir() else "does not exist"
+    return ScenarioError(f"{key}: {path.absolute()} {what}; check the path (a relative path is taken from the scenario "
+                         "file's folder, or from the working folder for a shipped example)")
 
 
 # Fields whose value is one of several schemas chosen by a name (e.g. `law`).

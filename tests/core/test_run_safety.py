@@ -673,3 +673,50 @@ def test_a_body_that_would_pass_through_an_element_in_one_step_is_refused():
                                          r"\(below 5e\+03 m/s at this step\)"):
         check_one_step_travel(sim, 1e-6 * 1.0000001)
     check_one_step_travel(sim, 0.9e-6)  # 0.45 of an element: caught
+
+
+@pytest.mark.parametrize("argv, expected", [
+    # a spacing of layers in mm: one bed in the disc, nothing said
+    (["brazilian-layered", "--quick", "--set", "materials.bed.zones.0.spacing=10"],
+     "materials.bed.zones.0.spacing = 10 m is more than the specimen's 0.0384 m along the layers' normal"),
+    # a specific heat in kJ/(kg K)
+    (["tube-shot1", "--quick", "--set", "material.specific_heat=0.896"],
+     "specific_heat = 0.896 J/(kg K) is below 50 J/(kg K), less than any solid's: if that is kJ/(kg K), write 0.896e3"),
+    # a force-drop hold the run can never reach, and one without a force drop to time
+    (["three-point-bending", "--quick", "--set", "run.stop.force_drop_hold=1"],
+     "stop.force_drop_hold = 1 s is not shorter than end_time = 0.0025 s"),
+    ([LATTICE, "--set", "run.stop.force_drop_hold=1e-6"], "force_drop_hold: it times the force drop"),
+    # J-integral rings turned inside out (a ValueError traceback from the J-integral)
+    (["shell-centre-crack", "--quick", "--set", "fracture.j_rings=[[0.01,0.005]]"],
+     "j_rings.0: (0.01, 0.005) m: a ring needs r_in < r_out"),
+    # a sphere radius in mm names the radius, not the sphere count's other key
+    (["dem-ucs", "--quick", "--set", "packing.mean_radius=1"], "packing.mean_radius = 1 m with packing.particle_density"),
+    # a packing file that is a folder, or not there: the path looked at
+    (["dem-ucs", "--quick", "--set", "packing.file=."], "is a folder, not a file; check the path"),
+    (["dem-ucs", "--quick", "--set", "packing.file=no-such-spheres.txt"],
+     f"packing.file: {Path('no-such-spheres.txt').absolute()} does not exist; check the path"),
+    # another method set on a scenario written for FDEM
+    (["three-point-bending", "--quick", "--set", "method=dem"], 'The scenario is written for method = "fdem"'),
+])
+def test_round_4_battery_refusals_name_the_key_and_the_fix(tmp_path, capsys, argv, expected):
+    """Inputs of the issue-71 battery (tests/bad_inputs) that ran silently, crashed or named the
+    wrong key: exit 2 before any output, one line naming the key and the fix."""
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    said = _one_line(capsys.readouterr().err)
+    assert expected in said, said
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_slow_set_up_says_so():
+    """A set-up longer than SETUP_NOTE_AFTER (a large model meshing or finding neighbours, silent
+    for minutes) says it is still at it, once; a quick one says nothing."""
+    from crackle.api import _said_if_slow
+
+    said = []
+    with _said_if_slow(0.05, said.append, "still setting up"):
+        time.sleep(0.3)
+    assert said == ["still setting up"]
+    with _said_if_slow(0.2, said.append, "again"):
+        pass
+    time.sleep(0.3)
+    assert said == ["still setting up"]

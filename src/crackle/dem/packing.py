@@ -777,7 +777,9 @@ def pack_spheres(domain, *, porosity: float = 0.4, radius_ratio: float = 1.86, m
             raise ValueError(f"packing.mean_radius must be a positive length (m), got {mean_radius!r}")
         n = int(round(particle_density * volume / (2.0 * mean_radius) ** 3))
         if n < 1:
-            raise ValueError(f"packing.particle_density = {particle_density:g}: fewer than one sphere in the domain")
+            raise ValueError(f"packing.mean_radius = {mean_radius:g} m with packing.particle_density = {particle_density:g}: "
+                             f"fewer than one sphere in the domain ({volume:.3g} m^3); lengths are in metres (mm "
+                             f"meant? write {mean_radius:g}e-3)")
         check_model_size(n, "spheres", "packing.mean_radius", max_memory)
         solid = 4.0 / 3.0 * math.pi * float(np.sum((mean_radius * unit_radii(n)) ** 3))
         if solid > volume:

@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from ..analysis.strength import BrazilianTest, TensionTest, pulling_grip
 from ..loading.build import build_loading, selection as build_selection, touch_tools
-from ..scenario import (MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials,
+from ..scenario import (MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials, no_such_file,
                         check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
@@ -295,7 +295,7 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
     if spec.file is not None:
         path = resolve_path(spec.file, base)
         if not path.is_file():
-            raise ScenarioError(f"packing.file: {path} does not exist")
+            raise no_such_file("packing.file", path)
         try:
             if path.suffix.lower() == ".npz":
                 return Packing.load(path)

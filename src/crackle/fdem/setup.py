@@ -196,7 +196,8 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimula
     tools, supports, pressures = build_loading(scenario, base)
     planned = planned_tets(scenario.specimen)
     if planned is not None:
-        check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory)
+        check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory,
+                         "; a specimen in mm reads 1000x too large: its size, diameter and thickness are in metres too")
     try:
         mesh, region = specimen_mesh(scenario.specimen, base, _zone_planes(scenario))
     except MeshError as err:

@@ -438,7 +438,8 @@ def _check_body_sizes(bodies, max_memory) -> None:
     for i, body in enumerate(bodies):
         if body.shape == "sphere":
             planned = BALL_NODES_PER_CUBED_ELEMENT * 4.0 / 3.0 * math.pi * (body.radius / body.element_size) ** 3
-            check_model_size(planned, "particles", f"bodies.{i}.element_size", max_memory)
+            check_model_size(planned, "particles", f"bodies.{i}.element_size", max_memory,
+                             f"; a radius in mm reads 1000x too large: bodies.{i}.radius is in metres too")
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
