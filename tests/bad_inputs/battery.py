@@ -330,10 +330,16 @@ def run_input(inp, args, examples):
         rows = history_rows(outdir)
         if before_rows and (rows is None or rows < before_rows - 1):
             why.append(f"history rows {before_rows} -> {rows}")
-    if expect == "stop" or "summary" in checks:
+    # The folders of the runs: the output folder, or a sweep's or validation's run folders (those that ran).
+    runs = [outdir]
+    if cmd_text.split()[1:2] and cmd_text.split()[1] in ("sweep", "validate") and outdir.is_dir():
+        runs = [f for f in sorted(outdir.iterdir()) if (f / "history.csv").is_file()]
+    # An interrupted run (130) keeps its summary and checkpoint; a full disk (1) has no room for them.
+    if (expect == "stop" and rc == 130) or "summary" in checks:
         for name, key in (("summary.json", "summary"), ("checkpoint.pkl", "checkpoint")):
-            if (key in checks or expect == "stop") and not (outdir / name).exists():
-                why.append(f"no {name}")
+            for run in runs:
+                if (key in checks or expect == "stop") and not (run / name).exists():
+                    why.append(f"no {run.relative_to(d)}/{name}")
     lost = list(why)
     soft = []
     if "status_final" in checks or expect == "stop":

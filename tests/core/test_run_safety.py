@@ -488,7 +488,7 @@ def test_a_closed_output_pipe_stops_the_run_like_ctrl_c(tmp_path):
 LATTICE = str(Path(__file__).parents[1] / "data" / "lattice-platen.toml")
 
 
-def _lattice_run(out, stdout, limit_file_size=None):
+def _lattice_run(out, stdout, limit_file_size=None, settings=()):
     """The lattice run in a child process with its stdout as given (None: closed from the start);
     a file size limit (bytes, ulimit -f) if given. (exit code, stderr)."""
     def child():
@@ -497,7 +497,8 @@ def _lattice_run(out, stdout, limit_file_size=None):
         if limit_file_size is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit_file_size, limit_file_size))
 
-    proc = subprocess.run([sys.executable, "-m", "crackle.cli", "run", LATTICE, "--out", str(out)],
+    sets = [arg for setting in settings for arg in ("--set", setting)]
+    proc = subprocess.run([sys.executable, "-m", "crackle.cli", "run", LATTICE, "--out", str(out), *sets],
                           stdout=stdout if stdout is not None else subprocess.DEVNULL, stderr=subprocess.PIPE,
                           text=True, preexec_fn=child, timeout=600)
     return proc.returncode, proc.stderr
@@ -516,14 +517,18 @@ def test_stdout_closed_from_the_start_runs_and_a_full_one_stops_like_ctrl_c(tmp_
         _stopped_as_by_ctrl_c(tmp_path / "full", code, err, "as its stdout failed: No space left on device")
 
 
-def test_a_file_size_limit_stops_the_run_as_a_full_disk_does(tmp_path):
-    """ulimit -f reached by the first field frame (an OSError EFBIG traceback): exit 1, one line
-    naming the limit and what to do, the lock released, nothing written lost."""
+@pytest.mark.parametrize("what, settings", [("the first field frame", []),
+                                             ("history.csv, mid-run", ["run.field_frames=0", "run.history_samples=260"])])
+def test_a_file_size_limit_stops_the_run_as_a_full_disk_does(tmp_path, what, settings):
+    """ulimit -f reached by the first field frame, or by history.csv during the run (OSError EFBIG
+    tracebacks, the second from closing the file with the rest of its cut line): exit 1, one line
+    naming the limit and what to do, the lock released, the rows written kept."""
     out = tmp_path / "limited"
-    code, err = _lattice_run(out, subprocess.DEVNULL, limit_file_size=20_000)
+    code, err = _lattice_run(out, subprocess.DEVNULL, limit_file_size=20_000, settings=settings)
     assert code == 1 and "Traceback" not in err, err
     assert "reached the largest file this process may write (ulimit -f)" in err and "raise the file size limit" in err
     assert (out / "history.csv").is_file() and not (out / LOCK_FILE).exists()
+    assert json.loads((out / "status.json").read_text())["state"] == "disk full"
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
@@ -547,6 +552,22 @@ def test_a_terminal_closed_after_ctrl_c_keeps_the_summary(tmp_path):
     out = tmp_path / "hung-up-while-stopping"
     code, err = _bending_run_printing(out, ctrl_c_then_hang_up)
     _stopped_as_by_ctrl_c(out, code, err, "interrupted by the user")
+
+
+def test_only_a_second_ctrl_c_stops_at_once_whatever_order_signals_are_handled_in(capsys):
+    """Ctrl-C then a hang-up within one compiled piece reach Python's handlers lowest number first
+    (SIGHUP, then SIGINT): that SIGINT is the first Ctrl-C, not a second (it stopped the run at
+    once, losing the summary); a second Ctrl-C stops at once."""
+    from crackle.solver.driver import _InterruptRequest
+
+    request = _InterruptRequest()
+    request._handler(signal.SIGHUP, None)
+    request._handler(signal.SIGINT, None)
+    request._handler(signal.SIGTERM, None)
+    assert request.requested and request.why == "as its terminal closed (SIGHUP)"
+    with pytest.raises(KeyboardInterrupt):
+        request._handler(signal.SIGINT, None)
+    capsys.readouterr()
 
 
 @pytest.mark.parametrize("value", ["abc", "", "-1", "nan"])

@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from ..io.outputs import tool_magnitude
+
 
 def loading_direction(angle_deg: float) -> np.ndarray:
     """Unit loading axis in the disc plane (x, y) for a loading angle measured from y about z
@@ -59,12 +61,9 @@ def load_strain(history: dict, platens=("top", "bottom"), diameter: float = 0.04
     eq. 15) and e = (|u1| + |u2|) / D (eq. 16), for two platens moving towards each other
     along the loading axis (their displacement magnitudes add up to the change of diameter)."""
 
-    def norm(name, q):
-        return np.sqrt(sum(np.asarray(history[f"tool.{name}.{q}{a}"]) ** 2 for a in "xyz"))
-
     a, b = platens
-    force = 0.5 * (norm(a, "f") + norm(b, "f"))
-    strain = (norm(a, "u") + norm(b, "u")) / diameter
+    force = 0.5 * (tool_magnitude(history, a, "f") + tool_magnitude(history, b, "f"))
+    strain = (tool_magnitude(history, a, "u") + tool_magnitude(history, b, "u")) / diameter
     return strain, force
 
 

@@ -9,6 +9,7 @@ the rows it produced.
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import math
 import os
@@ -23,6 +24,25 @@ EVENT_COLUMNS = ("time", "x", "y", "z", "mode", "id")
 # or the pair ("A-B") it parted.
 MATERIAL_COLUMN = "material"
 FAILURE_MODES = ("tension", "shear", "mixed")
+# A tool's history columns, named here only: tool.NAME.Qx/Qy/Qz for each quantity Q, with its unit:
+# its force on the specimen, its displacement, a free tool's velocity.
+TOOL_QUANTITIES = {"f": "N", "u": "m", "v": "m/s"}
+
+
+def tool_column_names(name: str, quantity: str) -> tuple[str, str, str]:
+    """The x, y, z history columns of tool `name`'s `quantity` (a key of TOOL_QUANTITIES)."""
+    return tuple(f"tool.{name}.{quantity}{axis}" for axis in "xyz")
+
+
+def tool_magnitude(columns: Mapping, name: str, quantity: str):
+    """|quantity| of tool `name` from a history row (a number) or the history's columns (an
+    array); a component the history lacks counts as zero."""
+    return np.sqrt(sum(np.asarray(columns.get(c, 0.0), float) ** 2 for c in tool_column_names(name, quantity)))
+
+
+def tool_vector(columns: Mapping, name: str, quantity: str) -> np.ndarray:
+    """Tool `name`'s `quantity` as a vector (a history row) or (n, 3) array (the history)."""
+    return np.stack([np.asarray(columns[c], float) for c in tool_column_names(name, quantity)], axis=-1)
 
 
 def format_number(value: Any) -> str:
@@ -46,6 +66,10 @@ def _check_names(names: Sequence[str]) -> list[str]:
     return names
 
 
+# Write errors that mean no room (a full disk or quota, a file past ulimit -f).
+NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
 class _CsvFile:
     """A CSV file written row by row (self._file), closed at the end of its with-block."""
 
@@ -53,7 +77,11 @@ class _CsvFile:
 
     def close(self) -> None:
         if self._file is not None and not self._file.closed:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as err:  # the rest of a line a full disk cut: a reader drops a torn last line
+                if err.errno not in NO_ROOM:
+                    raise
 
     def __enter__(self):
         return self

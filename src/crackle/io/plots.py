@@ -16,9 +16,9 @@ import numpy as np
 
 from ..analysis.energy import ENERGY_NOISE, imbalance, imbalance_growth
 from ._units import time_unit
-from .outputs import read_events_csv, read_history_csv
+from .outputs import read_events_csv, read_history_csv, tool_magnitude
 
-_TOOL_COLUMN = re.compile(r"^tool\.(.+)\.(fx|fy|fz|ux|uy|uz)$")
+_TOOL_COLUMN = re.compile(r"^tool\.(.+)\.([fu][xyz])$")  # outputs.tool_column_names' force and travel
 EDGE_LOAD_FORCE, EDGE_LOAD_DISPLACEMENT = "edge_load.force", "edge_load.displacement"  # a shell's edge loads
 _MODE_MARKERS = {"tension": "o", "shear": "^", "mixed": "s"}
 
@@ -83,12 +83,6 @@ def tool_names(history) -> list[str]:
     ]
 
 
-def _magnitude(cols: dict, prefix: str, components: tuple[str, ...]) -> np.ndarray:
-    # Missing components (e.g. a tool loading along one axis only) count as zero.
-    parts = [np.asarray(cols[prefix + c], float) for c in components if prefix + c in cols]
-    return np.sqrt(sum(p**2 for p in parts))
-
-
 def tool_curves(history) -> dict[str, tuple[np.ndarray, np.ndarray, bool]]:
     """Each tool's (displacement magnitude, force magnitude, fixed) over the history. A tool that
     never moves (a support plate) gets the travel of the moving tools (the largest of their
@@ -96,12 +90,12 @@ def tool_curves(history) -> dict[str, tuple[np.ndarray, np.ndarray, bool]]:
     edge_load.displacement) are one more curve, "edge loads"."""
     cols = _columns(history)
     tools = tool_names(cols)
-    disp = {tool: _magnitude(cols, f"tool.{tool}.", ("ux", "uy", "uz")) for tool in tools}
+    disp = {tool: tool_magnitude(cols, tool, "u") for tool in tools}
     moving = [d for d in disp.values() if np.any(d != 0.0)]
     travel = np.max(moving, axis=0) if moving else None
     out = {}
     for tool in tools:
-        force = _magnitude(cols, f"tool.{tool}.", ("fx", "fy", "fz"))
+        force = tool_magnitude(cols, tool, "f")
         fixed = travel is not None and not np.any(disp[tool] != 0.0)
         out[tool] = (travel if fixed else disp[tool], force, fixed)
     if EDGE_LOAD_FORCE in cols and EDGE_LOAD_DISPLACEMENT in cols:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.outputs import tool_column_names
 from .arrays import LOAD_CELL_RING, free_tool_work
 from .tools import interp_history, tool_contact_totals
 
@@ -53,13 +54,10 @@ def tool_columns(names, forces: np.ndarray, tools) -> dict[str, float]:
     arrays), and tool.NAME.vx/vy/vz (m/s) for a free one, in history order."""
     row: dict[str, float] = {}
     for j, (name, f, u) in enumerate(zip(names, forces, tools.disp)):
-        for axis, k in zip("xyz", range(3)):
-            row[f"tool.{name}.f{axis}"] = float(f[k])
-        for axis, k in zip("xyz", range(3)):
-            row[f"tool.{name}.u{axis}"] = float(u[k])
+        row.update(zip(tool_column_names(name, "f"), map(float, f)))
+        row.update(zip(tool_column_names(name, "u"), map(float, u)))
         if tools.mass[j] > 0.0:
-            for axis, k in zip("xyz", range(3)):
-                row[f"tool.{name}.v{axis}"] = float(tools.velocity[j, k])
+            row.update(zip(tool_column_names(name, "v"), map(float, tools.velocity[j])))
     return row
 
 

@@ -29,6 +29,7 @@ from ..analysis.energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, ener
 from .simulation import Simulation
 from ..io._units import duration_text, time_unit
 from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
+from ..io.outputs import NO_ROOM, tool_magnitude
 from ..io.plots import RUN_PLOTS
 
 
@@ -54,7 +55,7 @@ class DiskFullError(RuntimeError):
 
 
 # The write errors that mean "no room": stop the run cleanly rather than show a traceback.
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+DISK_FULL = NO_ROOM
 
 
 def _no_room(err: OSError, out: Path) -> tuple[str, str]:
@@ -613,7 +614,7 @@ def _next_multiple(step: int, every: int) -> int:
 
 
 def _tool_force(row: dict, name: str) -> float:
-    return math.sqrt(sum(row.get(f"tool.{name}.f{a}", 0.0) ** 2 for a in "xyz"))
+    return float(tool_magnitude(row, name, "f"))
 
 
 def _stop_reason(control: RunControl, row, tool_names, peak_force, peak_time, low_since, now) -> str:
@@ -621,7 +622,7 @@ def _stop_reason(control: RunControl, row, tool_names, peak_force, peak_time, lo
     if stop.tool_displacement is not None:
         names = [stop.tool] if stop.tool else tool_names
         for name in names:
-            u = math.sqrt(sum(row.get(f"tool.{name}.u{a}", 0.0) ** 2 for a in "xyz"))
+            u = float(tool_magnitude(row, name, "u"))
             if u >= stop.tool_displacement:
                 return f"tool {name} moved {u:.4g} m"
     if stop.force_drop is not None and low_since is not None:
@@ -648,13 +649,19 @@ class _InterruptRequest:
     def __init__(self):
         self.requested = False
         self.why = "by the user"
+        self.ctrl_c = 0  # Ctrl-Cs received
         self._previous = None
 
     def _handler(self, signum, frame):
-        if self.requested:
-            if signum == signal.SIGINT:  # Ctrl-C again: at once
+        # Only a second Ctrl-C stops at once: a hang-up or SIGTERM while stopping lets the stop under
+        # way keep its summary and checkpoint (Python runs signals that arrive within one compiled
+        # piece lowest number first: SIGHUP before the SIGINT that came earlier).
+        if signum == signal.SIGINT:
+            self.ctrl_c += 1
+            if self.ctrl_c > 1:
                 raise KeyboardInterrupt
-            return  # a hang-up or SIGTERM while stopping: the stop under way keeps its summary and checkpoint
+        if self.requested:
+            return
         self.ask(self.SIGNALS.get(signum, "by a signal"))
         print(f"\ncrackle: stopping ({self.why}) with the summary and checkpoint within about a second (Ctrl-C again "
               "to stop at once)", file=sys.stderr, flush=True)

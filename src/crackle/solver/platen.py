@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis.strength import platen_modulus
+from ..io.outputs import tool_vector
 from ..io.plots import plot_stress_strain, run_plot_path
 from .simulation import Probe
 
@@ -29,10 +30,10 @@ class Platen:
 
     def stress_strain(self, row: dict, loaded_area: float) -> tuple[float, float]:
         """(stress, strain) of a history row with the tools' force and travel columns."""
-        force = np.array([row[f"tool.{self.name}.f{c}"] for c in "xyz"])  # on the sample
-        approach = np.array([row[f"tool.{self.name}.u{c}"] for c in "xyz"])
+        force = tool_vector(row, self.name, "f")  # on the sample
+        approach = tool_vector(row, self.name, "u")
         if self.opposite is not None:
-            approach = approach - np.array([row[f"tool.{self.opposite}.u{c}"] for c in "xyz"])
+            approach = approach - tool_vector(row, self.opposite, "u")
         return float(force @ self.direction) / loaded_area, float(approach @ self.direction) / self.length
 
 
