@@ -185,12 +185,19 @@ def history_rows(out):
 
 
 # ---------------------------------------------------------------- running
+def _default_signals():
+    for name in ("SIGINT", "SIGQUIT"):
+        sigmod.signal(getattr(sigmod, name), sigmod.SIG_DFL)
+
+
 def run_proc(cmd, shell, env, cwd, timeout, signals):
     """Run one command in its own process group; send signals; return (rc, out, err, wall, t_sig)."""
     t0 = time.time()
+    # SIGINT and SIGQUIT back to their defaults: a battery started in the background of a script
+    # has them ignored, and a command would inherit that (a sweep then cannot be stopped by Ctrl-C).
     p = subprocess.Popen(cmd if not shell else ["bash", "-c", cmd], cwd=cwd, env=env,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=_default_signals)
     import threading
 
     last_sig = [None]

@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import threading
+import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -233,6 +234,10 @@ def _run_on_dask(plan, out, todo, scheduler, workers, threads_per_run, report) -
     return outcome
 
 
+# Seconds between the sweep's looks at its runs (and at a Ctrl-C).
+POLL_SECONDS = 0.2
+
+
 def run_tasks(client, tasks: dict, threads: int, done) -> None:
     """Run `tasks` ({key: (scenario, folder, overrides, quick)}) with run_one on the client's
     workers, calling done(key, {"status", "message"}) as each ends. A Ctrl-C stops the runs in
@@ -248,11 +253,16 @@ def run_tasks(client, tasks: dict, threads: int, done) -> None:
     waiting = dict(futures)
 
     def gather():
-        for future in as_completed(list(waiting)):
-            result = outcome_of(future)
-            del waiting[future]
-            if result["message"] != NOT_STARTED:
-                done(futures[future], result)
+        # Polled, not waited on: a Ctrl-C the kernel hands to one of Dask's threads reaches
+        # Python's handler only when the main thread wakes (it waited for the next run to end).
+        finished = as_completed(list(waiting))
+        while not finished.is_empty():
+            for future in finished.next_batch(block=False):
+                result = outcome_of(future)
+                del waiting[future]
+                if result["message"] != NOT_STARTED:
+                    done(futures[future], result)
+            time.sleep(POLL_SECONDS)
 
     try:
         gather()
