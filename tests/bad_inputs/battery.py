@@ -3,7 +3,7 @@
 Not a pytest module (no test_ prefix): run it by hand,
 
     python tests/bad_inputs/battery.py [--only ID,...] [--items 1,3] [--jobs N]
-        [--out /work/battery/report.md] [--src PATH] [--work DIR] [--timeout S]
+        [--out REPORT.md] [--src PATH] [--work DIR] [--timeout S]   (default: TMPDIR/crackle-battery/)
 
 Each input of inputs.toml (beside this file) runs `python -m crackle.cli ARGS` in its own folder
 WORK/ID (cwd), with PYTHONPATH set to --src (default: this repository's src). Placeholders in
@@ -44,6 +44,7 @@ import signal as sigmod
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import tomllib
 from pathlib import Path
@@ -435,9 +436,9 @@ def main(argv=None):
     ap.add_argument("--only", default="")
     ap.add_argument("--items", default="")
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--out", default="/work/battery/report.md")
+    ap.add_argument("--out", default=str(Path(tempfile.gettempdir()) / "crackle-battery" / "report.md"))
     ap.add_argument("--src", default=str(REPO / "src"))
-    ap.add_argument("--work", default="/work/battery/runs")
+    ap.add_argument("--work", default=str(Path(tempfile.gettempdir()) / "crackle-battery" / "runs"))
     ap.add_argument("--timeout", type=float, default=120.0)
     args = ap.parse_args(argv)
     args.src = str(Path(args.src).resolve())
