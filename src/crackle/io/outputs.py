@@ -66,7 +66,8 @@ def _check_names(names: Sequence[str]) -> list[str]:
     return names
 
 
-# Write errors that mean no room (a full disk or quota, a file past ulimit -f).
+# Write errors that mean no room (a full disk or quota, a file past ulimit -f): a run stops on
+# them as on an interrupt, its outputs kept (solver.driver), rather than in a traceback.
 NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 

@@ -54,10 +54,6 @@ class DiskFullError(RuntimeError):
     interrupt, with what could be written kept and the last checkpoint resumable."""
 
 
-# The write errors that mean "no room": stop the run cleanly rather than show a traceback.
-DISK_FULL = NO_ROOM
-
-
 def _no_room(err: OSError, out: Path) -> tuple[str, str]:
     """What ran out, in words (the disk or quota, or the size a file may have: ulimit -f), and
     what makes room."""
@@ -266,7 +262,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         try:
             outputs = _Outputs.open(stack, sim, out, state, rows, resumed_from)
         except OSError as err:  # the first row or field frame: nothing to resume from yet
-            if err.errno not in DISK_FULL:
+            if err.errno not in NO_ROOM:
                 raise
             progress.finish("disk full", sim.time, sim.steps, sim.broken)
             again = "rerun" if resume is None else f"continue with --resume {out}"
@@ -283,7 +279,7 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
         except UnstableRunError as err:
             state.status, state.message = "unstable", str(err) + sim.where_unstable()
         except OSError as err:
-            if err.errno not in DISK_FULL:
+            if err.errno not in NO_ROOM:
                 raise
             what, state.fix = _no_room(err, out)
             state.status, state.message = "disk full", f"{what} at t = {sim.time:.4e} s"
@@ -497,7 +493,7 @@ def _close_run(sim, control: RunControl, out: Path, scenario, state: _DriverStat
     try:
         save_checkpoint(out, state.checkpoint(sim, scenario))
     except OSError as err:
-        if err.errno not in DISK_FULL:
+        if err.errno not in NO_ROOM:
             raise
         what, state.fix = _no_room(err, out)
         state.status = "disk full"
