@@ -113,7 +113,8 @@ def test_every_registered_method_has_a_contract_run():
 @pytest.mark.parametrize("method", sorted(CONTRACT_RUNS))
 def test_every_method_writes_the_output_contract(tmp_path, method):
     """Each method's run writes summary.json (its method, status completed, the steps, step and
-    energy error: the audit closes within 2 % this early), history.csv (time, the external work
+    energy error: the audit closes within 2 % this early; its size, warnings and failures per
+    material), history.csv (time, the external work
     and the kinetic energy, a row at t = 0 and at the end), events.csv with its header,
     fields.pvd naming VTU frames that exist, status.json completed, and the energy and
     load-displacement plots."""
@@ -122,6 +123,9 @@ def test_every_method_writes_the_output_contract(tmp_path, method):
     s = json.loads((out / "summary.json").read_text())
     assert s["method"] == method and s["status"] == "completed"
     assert s["steps"] > 0 and s["dt"] > 0 and abs(s["energy_error"]) < 0.02
+    # The summary every method's is assembled into (solver.simulation.SimulationBase.summary).
+    assert isinstance(s["warnings"], list) and "failures_by_material" in s
+    assert {"elements", "particles", "nodes"} & set(s)
     h = read_history_csv(out / "history.csv")
     assert {"time", "energy.external", "energy.kinetic"} <= set(h)
     assert h["time"][0] == 0.0 and h["time"][-1] == pytest.approx(s["end_time"], rel=0.05)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..loading.arrays import seat_on_tools, tool_arrays
 from ..solver.integrator import support_constraints
+from ..solver.setup import tool_stiffness, tools_on_body
 from .kernels import BLOCK
 from .model import (BondLaw, GroupedLaws, Joint, bond_gamma, bonds, draw_bond_strengths, make_particles, normal_stiffness,
                     pair_parameters, stable_dt, with_joints)
@@ -47,8 +47,9 @@ def build_dem_simulation(centers, radii, density, law: BondLaw | GroupedLaws, bo
     # A particle against a tool: the spring of a bond to a particle of infinite radius,
     # 2 Y R, as the penalty (per area) 2 Y / (pi R_mean) times the particle's area pi R^2.
     penalty = 2.0 * law.bond_modulus / (np.pi * mean_radius)
-    tool_table = tool_arrays(list(tools), penalty, 2.0 * float(radii.max()), -(-len(radii) // BLOCK))
-    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    tool_table, seating = tools_on_body(tools, particles, penalty, 2.0 * float(radii.max()), -(-len(radii) // BLOCK),
+                                        "particles")
+    tool_k = tool_stiffness(tool_table, particles.area)
     # Contacts that form later come on top of the bonds (the touching pairs are bonded at set-up,
     # so new ones replace broken bonds or close gaps): room for 6 more per particle.
     if isinstance(law, GroupedLaws):
@@ -58,7 +59,6 @@ def build_dem_simulation(centers, radii, density, law: BondLaw | GroupedLaws, bo
     else:
         contact_k = 2.0 * NEW_CONTACTS * (1.0 + law.stiffness_ratio) * normal_stiffness(law, radii, radii)
     dt = stable_dt(particles, inter, tool_k + contact_k)
-    seating = seat_on_tools(tools, tool_table, particles, "particles")
     sim = DemSimulation(particles, inter, len(inter.a), law, tool_table, [t.name for t in tools], dt, gravity,
                         damping, SKIN * mean_radius, loaded_area)
     # The bound at set-up, without room for later contacts: what a user's run.dt may reach.

@@ -12,7 +12,7 @@ import numpy as np
 from ..materials.random_properties import draw, statistics
 from scipy.spatial import cKDTree
 
-from ..solver.body import body_arrays
+from ..solver.body import body_arrays, pair_incidence
 from .kernels import BONDED, CONTACT, GONE, JOINT, TRANSFER_COLUMNS, Interactions, Particles
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
@@ -146,7 +146,7 @@ def interactions(particles: Particles, law: BondLaw, pairs: np.ndarray, state: n
     area = math.pi * np.minimum(ra, rb) ** 2
     bonded = state == BONDED
     tan_phi = np.where(state == CONTACT, tan_contact, tan_bond)
-    start, entry, sign = _particle_csr(len(particles.radius), a, b)
+    start, entry, sign = pair_incidence(len(particles.radius), a, b)
     return Interactions(
         a=a, b=b, state=state.astype(np.int8), d0=d0.astype(float), kn=kn, kt=kt,
         fn_max=np.where(bonded, strength * area, 0.0),
@@ -210,18 +210,6 @@ def with_joints(particles: Particles, inter: Interactions, joint: Joint) -> Inte
     index[ids] = np.arange(len(ids))
     return inter._replace(joint=index, joint_normal=np.ascontiguousarray(normal), joint_un=np.zeros(len(ids)),
                           joint_tan_psi=np.full(len(ids), np.tan(joint.dilatancy_angle)), joint_slip=np.zeros(len(ids)))
-
-
-def _particle_csr(n: int, a: np.ndarray, b: np.ndarray):
-    """Per particle, its interactions in interaction order, with sign -1 as a and +1 as b (int8)."""
-    k = len(a)
-    ends = np.concatenate([a, b])
-    ids = np.concatenate([np.arange(k), np.arange(k)])
-    signs = np.concatenate([-np.ones(k, dtype=np.int8), np.ones(k, dtype=np.int8)])
-    order = np.lexsort((ids, ends))
-    start = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(start, ends + 1, 1)
-    return np.cumsum(start), ids[order].astype(np.int64), signs[order]
 
 
 def bonds(particles: Particles, law: BondLaw, gamma: float) -> Interactions:

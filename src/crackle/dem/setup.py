@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..analysis.strength import BrazilianTest, TensionTest, pulling_grip
-from ..loading.build import build_loading, selection as build_selection, touch_tools
+from ..loading.build import selection as build_selection, touch_tools
 from ..scenario import (MaterialPlace, ScenarioBase, ScenarioError, Specimen, assign_materials, no_such_file,
                         check_material_tables, check_one_rest, material_pair, refuse_unused_keys, resolve_path)
 from ..materials.random_properties import RandomProperty, check_names
@@ -24,6 +24,7 @@ from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
 from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_labels, read_sphere_list
+from ..solver.setup import SetUp
 from ..solver.simulation import PeakForceProbe
 from ..solver.platen import Platen, PlatenProbe, facing_tool
 from .membrane import Face, Membrane, box_faces, selected_faces
@@ -311,7 +312,8 @@ def build_packing(scenario: Scenario, base: Path | None) -> Packing:
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> DemSimulation:
-    tools, supports, pressures = build_loading(scenario, base)
+    setup = SetUp(scenario, base)  # the packing checks its own size (pack_spheres)
+    tools, supports, pressures = setup.tools, setup.supports, setup.pressures
     loaded = _loaded_faces(scenario)  # before the packing: bad pressures fail fast
     packing = build_packing(scenario, base)
     centers, radii = packing.centers, packing.radii

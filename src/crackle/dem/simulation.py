@@ -7,7 +7,6 @@ import math
 import numpy as np
 
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .kernels import BONDED, GONE, TRANSFER_FORCE, TRANSFER_LEVER_A, TRANSFER_LEVER_B, advance
 from .membrane import no_membrane
@@ -46,7 +45,6 @@ class DemSimulation(SimulationBase):
         self.drawn, self.random_properties = {}, None
         self._x_listed = particles.x.copy()  # positions when the contact list was last built
         self._dropped_friction = 0.0  # friction of contacts no longer listed (J)
-        self._failures = FailureRecorder(n_bonds)
         # [[pressures]]: the membrane on the loaded faces (dem.membrane), set by set_membrane
         self.membrane = None
         self._membrane_args = no_membrane(len(radius))
@@ -102,9 +100,12 @@ class DemSimulation(SimulationBase):
         """Which bonds have failed (a joint never does)."""
         return np.isfinite(self.inter.fail_time[: self.n_bonds])
 
-    @property
-    def broken(self) -> int:
-        return int(np.count_nonzero(self.failed_bonds()))
+    def failure_state(self):
+        n = self.n_bonds
+        return self.failed_bonds(), self.inter.fail_time[:n], self.inter.fail_mode[:n]
+
+    def failure_positions(self, ids) -> np.ndarray:
+        return 0.5 * (self.x0[self.inter.a[ids]] + self.x0[self.inter.b[ids]])
 
     def broken_by_mode(self) -> dict[str, int]:
         from ..solver.failures import MODE_NAMES
@@ -156,12 +157,6 @@ class DemSimulation(SimulationBase):
             # Friction of the listed pairs and of those dropped from the list (particles' own on the tools: shared).
             "friction": float(np.sum(self.inter.e_friction) + self._dropped_friction),
         }
-
-    def new_events(self):
-        s = self.inter
-        n = self.n_bonds
-        return self._failures.new(self.failed_bonds(), s.fail_time[:n], s.fail_mode[:n],
-                                  lambda ids: 0.5 * (self.x0[s.a[ids]] + self.x0[s.b[ids]]))
 
     def particle_stress(self) -> np.ndarray:
         """Per particle, the stress tensor (1 / Vp) sum_c x_c (x) f_c (x_c from the centre to the
@@ -253,9 +248,6 @@ class DemSimulation(SimulationBase):
         """Each particle's material (its index in [materials]; 0 with one [material])."""
         return np.asarray(getattr(self.law, "group", np.zeros(len(self.particles.radius), dtype=np.int64)), np.int64)
 
-    def failed_ids(self) -> np.ndarray:
-        return np.flatnonzero(self.failed_bonds())
-
     def failure_materials(self, ids):
         """The materials of the two particles of bonds `ids`."""
         group = self.particle_material()
@@ -282,22 +274,19 @@ class DemSimulation(SimulationBase):
         r = self.particles.radius[:, None]
         return (self.x0 - r).min(axis=0), (self.x0 + r).max(axis=0)
 
-    def summary(self) -> dict:
+    def own_summary(self) -> dict:
         n = len(self.particles.radius)
-        out = {
+        return {
             "particles": n,
             "bonds": self.n_bonds,
             "bonds_per_particle": 2.0 * self.n_bonds / n,
             "broken_by_mode": self.broken_by_mode(),
             "love_weber_stress": [float(v) for v in self.love_weber_stress()],
             "random_properties": self.random_properties,
-            "failures_by_material": self.failures_by_material(),
             # [initial_stress]: the energy the preloaded bonds held at t = 0 (J), counted in the
             # audit's input
             "initial_stored_energy": self._initial_stored,
-            "warnings": list(self.warnings),
         }
-        return {**out, **self.probe_summary()}
 
 
 def _grid_cells(lower, cell: float, shape) -> tuple[np.ndarray, np.ndarray]:

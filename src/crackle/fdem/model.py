@@ -14,10 +14,11 @@ import numpy as np
 
 from ..geometry import TetMesh, internal_faces
 from ..loading import Precrack, Pressure, Support, Tool
-from ..loading.arrays import HistoryTable, Tools, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import HistoryTable, Tools, default_tool_penalty, history_tables
 from ..loading.tools import HIDDEN, NO_TOOL
 from ..solver.body import BODY_FIELDS, body_arrays
 from ..solver.integrator import support_constraints
+from ..solver.setup import tools_on_body
 from ..materials import Material
 from ..materials.random_properties import draw, statistics
 from .extrinsic import TIED, VERTEX_BLOCK, Ties, build_ties
@@ -167,10 +168,8 @@ def build_fdem_model(
     # contact (penetrations stay ~1e-4 of it); each block of the tet pass writes its own slot of
     # the tool forces, and each block of the extrinsic node pass its own moving supports' reaction.
     slots = max(-(-m // TET_BLOCK), -(-len(mesh.points) // VERTEX_BLOCK))
-    tool_table = tool_arrays(tools, default_penalty, median_altitude, slots)
-
     nodes = _nodes(bulk, pairs, face_iface, supports, initial_velocity, angular_velocity, scale)
-    seating = seat_on_tools(tools, tool_table, nodes, "nodes")
+    tool_table, seating = tools_on_body(tools, nodes, default_penalty, median_altitude, slots, "nodes")
     s0 = np.zeros((0, 6)) if initial_stress is None else np.ascontiguousarray(initial_stress, dtype=float)
     tets = Tets(bulk.dm_inv, bulk.vol, bulk.lam, bulk.mu, bulk.face_area, face_iface, face_side, face_pressure, s0)
     n_if = len(pairs.area)
@@ -216,7 +215,7 @@ def build_fdem_model(
         prestressed=np.ones(1 if len(s0) else 0, dtype=np.uint8),
     )
     ties = build_ties(bulk.corner_point, len(mesh.points), ifs.na, ifs.nb, np.where(extrinsic, TIED, 0).astype(np.uint8), m)
-    tool_penalty = tool_table.penalty.max() if len(tools) else 0.0
+    tool_penalty = np.max(tool_table.penalty, initial=0.0)
     surface_penalty = default_penalty if contact else 0.0
     step = time_step(bulk, pairs, face_iface, surface_penalty, tool_penalty)
     # The advice reads the unscaled masses: it comes before mass scaling changes them.

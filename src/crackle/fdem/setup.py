@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Annotated, ClassVar, Literal, Union
+from typing import Annotated, Literal, Union
 
 import numpy as np
 from pydantic import Discriminator, Tag, model_validator
@@ -12,9 +12,8 @@ from pydantic import Discriminator, Tag, model_validator
 from ..analysis import CrackSettings, FracturePlane
 from ..analysis.strength import BrazilianTest, TensionTest, mean_section, pulling_grip
 from ..geometry import MeshError
-from ..budget import check_model_size
 from ..geometry.specimens import check_file_units, planned_tets, specimen_mesh
-from ..loading.build import build_loading, build_precracks, touch_tools, with_named_surfaces
+from ..loading.build import build_precracks, touch_tools, with_named_surfaces
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
 from ..scenario import (OPTIONAL_KEYS, ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError, Specimen,
@@ -22,6 +21,7 @@ from ..scenario import (OPTIONAL_KEYS, ElasticSpec, MaterialPlace, PrecrackSpec,
 from .laws import LAWS
 from .model import build_fdem_model
 from ..solver.platen import Platen, PlatenProbe, facing_tool
+from ..solver.setup import SetUp
 from ..solver.simulation import PeakForceProbe
 from .probes import BrazilianProbe, CrackProbe, FractureTipProbe
 from .simulation import FdemSimulation
@@ -193,11 +193,11 @@ def _initial_stress(scenario: Scenario, mesh) -> np.ndarray | None:
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> FdemSimulation:
     """The FdemSimulation of a validated scenario; ScenarioError for what cannot be built."""
-    tools, supports, pressures = build_loading(scenario, base)
     planned = planned_tets(scenario.specimen)
-    if planned is not None:
-        check_model_size(planned, "tets", "specimen.element_size", scenario.run.max_memory,
-                         "; a specimen in mm reads 1000x too large: its size, diameter and thickness are in metres too")
+    setup = SetUp(scenario, base, None if planned is None else (
+        planned, "tets", "specimen.element_size",
+        "; a specimen in mm reads 1000x too large: its size, diameter and thickness are in metres too"))
+    tools, supports, pressures = setup.tools, setup.supports, setup.pressures
     try:
         mesh, region = specimen_mesh(scenario.specimen, base, _zone_planes(scenario))
     except MeshError as err:

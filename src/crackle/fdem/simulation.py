@@ -7,7 +7,6 @@ import numpy as np
 from ..analysis import Fragments, find_fragments
 from ..io.plots import plot_fragment_sizes, plot_time_steps, run_plot_path
 from ..io.fields import STRESS_COMPONENTS
-from ..solver.failures import FailureRecorder
 from ..solver.simulation import SimulationBase
 from .contact import build_contact, contact_energy, empty_contact, find_candidates
 from .kernels import advance, interface_energy, tet_energy_and_stress
@@ -32,7 +31,6 @@ class FdemSimulation(SimulationBase):
         self.model = model
         self.body = model.nodes
         self.material_names = [mat.name for mat in model.materials]
-        self._failures = FailureRecorder(model.n_interfaces)
         self._tet_energy = np.zeros(model.n_tets)
         self._stress = np.zeros((model.n_tets, 6))
         self._cohesive = np.zeros(model.n_interfaces)
@@ -173,9 +171,13 @@ class FdemSimulation(SimulationBase):
                 f"stretches {stretch.min():.3g}-{stretch.max():.3g}; faces: {failed} failed, {len(inner) - failed} intact, "
                 f"{len(faces) - len(inner)} outer{touching})")
 
-    @property
-    def broken(self) -> int:
-        return int(np.count_nonzero((self.model.ifs.state != INTACT) & (self.model.ifs.state != PRECRACK)))
+    def failure_state(self):
+        """The faces that failed (a pre-crack is not a failure)."""
+        ifs = self.model.ifs
+        return (ifs.state != INTACT) & (ifs.state != PRECRACK), ifs.fail_time, ifs.fail_mode
+
+    def failure_positions(self, ids) -> np.ndarray:
+        return self.model.iface_centroids(ids=ids)
 
     def own_energies(self, dt: float) -> dict[str, float]:
         m = self.model
@@ -210,12 +212,6 @@ class FdemSimulation(SimulationBase):
             self._fragments_failed = failed
         return self._fragments
 
-    def new_events(self):
-        """Failures since the last call: times, positions, mode names, interface ids."""
-        ifs = self.model.ifs
-        failed = (ifs.state != INTACT) & (ifs.state != PRECRACK)
-        return self._failures.new(failed, ifs.fail_time, ifs.fail_mode, lambda ids: self.model.iface_centroids(ids=ids))
-
     def fields(self) -> dict:
         """Arrays for a ParaView snapshot on the exploded mesh."""
         m = self.model
@@ -242,10 +238,6 @@ class FdemSimulation(SimulationBase):
 
     def bounds(self):
         return self.model.mesh.bounds()
-
-    def failed_ids(self) -> np.ndarray:
-        ifs = self.model.ifs
-        return np.flatnonzero((ifs.state != INTACT) & (ifs.state != PRECRACK))
 
     def failure_materials(self, ids):
         """The tets' materials on the two sides of faces `ids` (an exploded node's tet: node // 4)."""
@@ -278,7 +270,7 @@ class FdemSimulation(SimulationBase):
             for mat in self.model.materials
         ]
 
-    def summary(self) -> dict:
+    def own_summary(self) -> dict:
         m = self.model
         insertion = float(np.sum(m.ifs.e_inserted)) if len(m.ties.load) else None
         # Velocities change without new failures: refresh the fragment velocities for the record.
@@ -291,10 +283,8 @@ class FdemSimulation(SimulationBase):
             "fragment_speeds": np.linalg.norm(frags.velocities[:20], axis=1).tolist(),
             "largest_fragment_velocity": frags.velocities[0].tolist(),
             "contact_rebuilds": self.rebuilds,
-            **self.probe_summary(),
             "process_zones": self._process_zones(),
             "random_properties": m.random_properties or None,
-            "failures_by_material": self.failures_by_material(),
             "elements": m.n_tets,
             "interfaces": m.n_interfaces,
             "nodes": 4 * m.n_tets,
@@ -311,13 +301,13 @@ class FdemSimulation(SimulationBase):
             "initial_stored_energy": self._initial_stored if len(m.tets.s0) else None,
             "added_mass": m.mass_scaling.added_mass,
             "mass_scaling": m.mass_scaling.as_summary(m.mesh.label),
-            "warnings": [*self.warnings, *self._insertion_warning(insertion)],
         }
 
-    def _insertion_warning(self, insertion: float | None) -> list[str]:
+    def late_warnings(self, summary: dict) -> list[str]:
         """The preload of faces inserted against a soft penalty can return to the body as motion
         (fdem.extrinsic): where it rivals the work done on the specimen, the run is not the
         quasi-static or energy-conserving one it looks like."""
+        insertion = summary["insertion_energy"]
         external = self.external_work()
         if insertion is None or not external or insertion <= INSERTION_WARNING * abs(external):
             return []

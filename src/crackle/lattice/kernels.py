@@ -11,10 +11,10 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import load_cell_step, move_tools, tool_velocities
 from ..solver.failures import MODE_TENSION
 from ..solver.body import Body
-from ..solver.integrator import block_kernel, move, update_velocity
+from ..solver.integrator import block_kernel, step_point
 
 Nodes = Body  # the lattice's nodes need nothing beyond the shared per-node arrays
 Springs = namedtuple("Springs", "a b rest k intact fail_time fail_mode e_damage force node_start node_spring node_sign")
@@ -65,7 +65,7 @@ def _spring_block(lo, hi, t, dt, x, v, springs, break_strain):
 
 @block_kernel
 def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_next, gravity, alpha):
-    x, v, mass = nodes.x, nodes.v, nodes.mass
+    mass = nodes.mass
     start, node_spring, node_sign, force = springs.node_start, springs.node_spring, springs.node_sign, springs.force
     for g in range(lo, hi):
         fx = 0.0
@@ -78,10 +78,8 @@ def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_nex
             fy += sign * force[s, 1]
             fz += sign * force[s, 2]
         m = mass[g]
-        cx, cy, cz, tool_work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
-        update_velocity(g, nodes, (fx, fy, fz), (m * gravity[0], m * gravity[1], m * gravity[2]), (cx, cy, cz),
-                        tool_work, m, alpha, dt, tools, tool_v_next, slot)
-        move(g, x, v, dt)
+        step_point(g, nodes, (fx, fy, fz), (m * gravity[0], m * gravity[1], m * gravity[2]), m, alpha, dt, dt, slot,
+                   tools, tool_v_prev, tool_v_next)
 
 
 @njit(parallel=True, cache=True)

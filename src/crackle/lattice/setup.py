@@ -16,16 +16,13 @@ from typing import Literal
 
 import numpy as np
 
-from ..budget import check_model_size
-from ..loading.arrays import default_tool_penalty, seat_on_tools, tool_arrays
-from ..loading.build import build_loading
+from ..loading.arrays import default_tool_penalty
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
-from ..solver.body import body_arrays
-from ..solver.integrator import support_constraints
+from ..solver.body import pair_incidence
+from ..solver.setup import SetUp, tool_stiffness
 from .kernels import BLOCK, Nodes, Springs
 from .simulation import LatticeSimulation
-
 
 
 class LatticeSpec(Strict):
@@ -78,49 +75,26 @@ def lattice_arrays(spec: LatticeSpec, material: ElasticSpec):
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> LatticeSimulation:
-    spec = scenario.lattice
-    tools, supports, _ = build_loading(scenario, base)  # no pressures: the lattice does not read them
-    check_model_size(math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes", "lattice.spacing",
-                     scenario.run.max_memory)
-    x, mass, pairs, rest = lattice_arrays(spec, scenario.material)
+    spec, material = scenario.lattice, scenario.material
+    setup = SetUp(scenario, base, (math.prod(L / spec.spacing + 1.0 for L in spec.size), "lattice nodes",
+                                   "lattice.spacing"))
+    x, mass, pairs, rest = lattice_arrays(spec, material)
     n, n_spring = len(x), len(pairs)
-    k = np.full(n_spring, 0.4 * scenario.material.youngs_modulus * spec.spacing)
-    scale = float(max(spec.size))
-    try:
-        constraint, projection, support_tool = support_constraints(supports, x, scale)
-    except ValueError as err:
-        raise ScenarioError(f"supports: {err}") from None
-    # Node -> (spring, sign) CSR in spring order: the spring force acts on b, its negative on a.
-    ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    signs = np.concatenate([-np.ones(n_spring), np.ones(n_spring)])
-    ids = np.concatenate([np.arange(n_spring), np.arange(n_spring)])
-    order = np.lexsort((ids, ends))
-    start = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(start, ends + 1, 1)
-    springs = Springs(
-        a=pairs[:, 0].copy(), b=pairs[:, 1].copy(), rest=rest, k=k, intact=np.ones(n_spring, dtype=np.bool_),
-        fail_time=np.full(n_spring, np.nan), fail_mode=np.zeros(n_spring, dtype=np.int8), e_damage=np.zeros(n_spring),
-        force=np.zeros((n_spring, 3)), node_start=np.cumsum(start), node_spring=ids[order], node_sign=signs[order],
-    )
-    area = np.full(n, spec.spacing**2)
-    penalty = default_tool_penalty(scenario.material.youngs_modulus, spec.spacing)
-    tool_table = tool_arrays(tools, penalty, spec.spacing, -(-n // BLOCK))
+    k = np.full(n_spring, 0.4 * material.youngs_modulus * spec.spacing)
+    # Each node gathers its springs' forces in spring order (node_start, node_spring, node_sign).
+    springs = Springs(pairs[:, 0].copy(), pairs[:, 1].copy(), rest, k, np.ones(n_spring, dtype=np.bool_),
+                      np.full(n_spring, np.nan), np.zeros(n_spring, dtype=np.int8), np.zeros(n_spring),
+                      np.zeros((n_spring, 3)), *pair_incidence(n, pairs[:, 0], pairs[:, 1]))
     radius = 0.5 * spec.spacing if spec.contact_radius is None else spec.contact_radius
-    nodes = Nodes(**body_arrays(x, mass, area, radius, (constraint, projection, support_tool)))
+    nodes = Nodes(**setup.body_arrays(x, mass, np.full(n, spec.spacing**2), radius, float(max(spec.size))))
+    tools = setup.tools_on(nodes, default_tool_penalty(material.youngs_modulus, spec.spacing), spec.spacing,
+                           -(-n // BLOCK), "nodes")
     # Stable step (Gershgorin per node): 2 sqrt(m / sum of its spring and tool stiffnesses).
-    k_node = np.zeros(n)
-    np.add.at(k_node, ends, np.concatenate([k, k]))
-    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * area
-    stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_k) / mass)))
-    seating = seat_on_tools(tools, tool_table, nodes, "nodes")
+    k_node = np.bincount(pairs.T.ravel(), np.tile(k, 2), minlength=n)
+    stable_dt = float(np.min(2.0 / np.sqrt((2.0 * k_node + tool_stiffness(tools, nodes.area)) / mass)))
     # P-wave speed of the lattice: C11 = 3k/a = 1.2 E.
-    wave_transit = spec.spacing / math.sqrt(1.2 * scenario.material.youngs_modulus / scenario.material.density)
-    sim = LatticeSimulation(
-        nodes, springs, tool_table, [t.name for t in tools], spec.break_strain, stable_dt,
-        wave_transit, np.asarray(scenario.run.gravity, float), scenario.run.damping,
-    )
-    sim.warnings.extend(seating)
-    nu = scenario.material.poissons_ratio
-    if nu != 0.25:
-        sim.warnings.append(f"material.poissons_ratio = {nu:g} is not used: this lattice's Poisson's ratio is 1/4")
-    return sim
+    wave_transit = spec.spacing / math.sqrt(1.2 * material.youngs_modulus / material.density)
+    if material.poissons_ratio != 0.25:
+        setup.warnings.append(f"material.poissons_ratio = {material.poissons_ratio:g} is not used: this lattice's "
+                              "Poisson's ratio is 1/4")
+    return LatticeSimulation(setup, nodes, springs, tools, spec.break_strain, stable_dt, wave_transit)

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..loading.arrays import default_tool_penalty, history_tables, seat_on_tools, tool_arrays
+from ..loading.arrays import default_tool_penalty, history_tables
 from ..solver.body import body_arrays
 from ..solver.integrator import support_constraints
+from ..solver.setup import tool_stiffness, tools_on_body
 from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
 from .kernels import BLOCK, Links, Particles, PressedFaces, stabilisation_stiffness
@@ -113,8 +114,8 @@ def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[fl
     )
     h = float(np.min(plate.spacing))
     penalty = default_tool_penalty(float(np.max(own.youngs_modulus)), h)  # the stiffest material's
-    tool_table = tool_arrays(list(tools), penalty, h, -(-n // BLOCK))
-    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * particles.area
+    tool_table, seating = tools_on_body(tools, particles, penalty, h, -(-n // BLOCK), "particles")
+    tool_k = tool_stiffness(tool_table, particles.area)
     contact = None
     if bodies or self_contact:
         radius = np.concatenate([np.broadcast_to(d.contact_radius, (len(d.X),)) for d in shapes])
@@ -122,7 +123,6 @@ def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[fl
         contact = ParticleContact(X, body, radius, spring, [np.max(d.radius) for d in shapes], self_contact)
         # The step allows STEP_PAIRS pairs at once on a particle, each two equal springs in series.
         tool_k = np.maximum(tool_k, 0.5 * STEP_PAIRS * spring)
-    seating = seat_on_tools(list(tools), tool_table, particles, "particles")
     dt, step_ratio = stable_step(particles, links, columns, row, table, tool_k, h)
     c_p = max(math.sqrt((rows[0] + 2.0 * rows[1]) / rho) for rows, rho in zip(table, own.densities))  # the fastest
     breaking = None

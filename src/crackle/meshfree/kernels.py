@@ -42,9 +42,9 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.body import BODY_FIELDS
-from ..solver.integrator import block_kernel, move, update_velocity
+from ..solver.integrator import block_kernel, step_point
 from .material import elastic_energy, stress_update
 from .shape import quartic_spline_array
 
@@ -291,7 +291,7 @@ def _contact_block(lo, hi, x, contact):
 @block_kernel
 def _particle_block(lo, hi, slot, t_now, dt, kick, p, links, tools, pressed, pressures, contact, tool_v_prev,
                     tool_v_next, gravity, alpha):
-    x, v, mass = p.x, p.v, p.mass
+    mass = p.mass
     pairs = contact.other.shape[0] > 0
     for g in range(lo, hi):
         fx, fy, fz = _link_force(g, p, links)
@@ -308,10 +308,7 @@ def _particle_block(lo, hi, slot, t_now, dt, kick, p, links, tools, pressed, pre
             ex += px
             ey += py
             ez += pz
-        cx, cy, cz, tool_work = contact_with_tools(g, p, dt, slot, tools, tool_v_prev, tool_v_next)
-        update_velocity(g, p, (fx, fy, fz), (ex, ey, ez), (cx, cy, cz), tool_work, m, alpha, kick, tools,
-                        tool_v_next, slot)
-        move(g, x, v, dt)
+        step_point(g, p, (fx, fy, fz), (ex, ey, ez), m, alpha, dt, kick, slot, tools, tool_v_prev, tool_v_next)
 
 
 @njit(cache=True, inline="always")

@@ -22,9 +22,10 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..budget import check_model_size
-from ..loading.build import build_loading, build_precracks
+from ..loading.build import build_precracks
 from ..scenario import (ElasticSpec, MaterialPlace, PrecrackSpec, ScenarioBase, ScenarioError,
                         Specimen, assign_materials, check_material_tables, check_one_rest, resolve_path)
+from ..solver.setup import SetUp
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 from .build import MeshfreeBody, SetupError, build_meshfree_simulation
 from .material import J2Law, ThermoLaw
@@ -443,10 +444,11 @@ def _check_body_sizes(bodies, max_memory) -> None:
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> MeshfreeSimulation:
-    tools, supports, pressures = build_loading(scenario, base)
+    setup = SetUp(scenario, base)
+    tools, supports, pressures = setup.tools, setup.supports, setup.pressures
     spec, particles = scenario.specimen, scenario.particles
     for planned, key, note in _planned_particles(spec, particles):
-        check_model_size(planned, "particles", key, scenario.run.max_memory, note)
+        setup.check_size(planned, "particles", key, note)
     mesh = None
     try:
         if spec.shape == "mesh":

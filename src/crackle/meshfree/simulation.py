@@ -10,7 +10,7 @@ from ..analysis.fragments import find_fragments
 from ..analysis.perforation import measure_perforation
 from ..io.fields import STRESS_COMPONENTS
 from ..loading.tools import TOOL_SPHERE
-from ..solver.failures import MODE_TENSION, FailureRecorder
+from ..solver.failures import MODE_TENSION
 from ..solver.simulation import SimulationBase
 from .fracture import FRACTURE_CHECK
 from .kernels import PairContact, advance, strain_energies
@@ -60,7 +60,6 @@ class MeshfreeSimulation(SimulationBase):
         self._no_pairs = PairContact(np.zeros(len(particles.x) + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
                                      np.zeros(0), np.zeros(0), np.zeros((0, 3)))
         # One failure per particle (the particle where a crack plane was put).
-        self._failures = FailureRecorder(len(particles.x))
         # The properties drawn per particle ([material.random], fracture.draw_thresholds): {property:
         # values on the specimen's particles}, and their statistics per material (summary.json); the
         # thresholds they set are the link breaking's (LinkBreaking.fracture_stress, failure_strain).
@@ -156,15 +155,16 @@ class MeshfreeSimulation(SimulationBase):
             **thermal,
         }
 
-    def new_events(self):
-        """Particle failures (a crack plane through the particle, mode tension) not reported yet."""
+    def failure_state(self):
+        """Particle failures (a crack plane through the particle, mode tension)."""
         n = len(self.particles.x)
         b = self.breaking
         if b is None:
-            return self._failures.new(np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n, dtype=np.int8),
-                                      lambda ids: self.particles.X[ids])
-        return self._failures.new(b.failed, b.fail_time, np.where(b.failed, MODE_TENSION, 0).astype(np.int8),
-                                  lambda ids: self.particles.X[ids])
+            return np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n, dtype=np.int8)
+        return b.failed, b.fail_time, np.where(b.failed, MODE_TENSION, 0).astype(np.int8)
+
+    def failure_positions(self, ids) -> np.ndarray:
+        return self.particles.X[ids]
 
     def cauchy_stress(self) -> np.ndarray:
         """Per particle, the Cauchy stress sigma = F S F^T / det F from the last step (n, 6), in the
@@ -245,7 +245,7 @@ class MeshfreeSimulation(SimulationBase):
     def bounds(self):
         return self.particles.X.min(axis=0), self.particles.X.max(axis=0)
 
-    def summary(self) -> dict:
+    def own_summary(self) -> dict:
         p = self.particles
         n = len(p.x)
         return {
@@ -264,17 +264,12 @@ class MeshfreeSimulation(SimulationBase):
             **self.bodies(),
             "random_properties": self.random_properties,
             "material_names": self.material_names,
-            "failures_by_material": self.failures_by_material(),
-            "warnings": list(self.warnings),
         }
 
     @property
     def several_materials(self) -> bool:
         """Several materials in the specimen (the bodies' rows do not count: they do not fail)."""
         return self.specimen_materials > 1
-
-    def failed_ids(self) -> np.ndarray:
-        return np.zeros(0, dtype=np.int64) if self.breaking is None else np.flatnonzero(self.breaking.failed)
 
     def failure_materials(self, ids):
         """A particle's failure is in its own material, on both sides."""

@@ -34,9 +34,9 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.arrays import HistoryTable
-from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities
 from ..solver.body import BODY_FIELDS
-from ..solver.integrator import block_kernel, move, update_velocity
+from ..solver.integrator import block_kernel, step_point
 
 BLOCK = 256  # faces, edges or nodes per parallel task
 
@@ -305,17 +305,14 @@ def _gathered(g, nodes, faces, edges):
 @block_kernel
 def _node_block(lo, hi, slot, t, dt, nodes, faces, edges, tools, tool_v_prev, tool_v_next, load_factor, gravity,
                 alpha):
-    x, v, mass, load = nodes.x, nodes.v, nodes.mass, nodes.load
+    mass, load = nodes.mass, nodes.load
     scale = interp_history(t, load_factor.times, load_factor.values, load_factor.n)
     for g in range(lo, hi):
         fx, fy, fz, px, py, pz = _gathered(g, nodes, faces, edges)
         m = mass[g]
-        cx, cy, cz, tool_work = contact_with_tools(g, nodes, dt, slot, tools, tool_v_prev, tool_v_next)
         external = (m * gravity[0] + scale * load[g, 0] + px, m * gravity[1] + scale * load[g, 1] + py,
                     m * gravity[2] + scale * load[g, 2] + pz)
-        update_velocity(g, nodes, (fx, fy, fz), external, (cx, cy, cz), tool_work, m, alpha, dt, tools, tool_v_next,
-                        slot)
-        move(g, x, v, dt)
+        step_point(g, nodes, (fx, fy, fz), external, m, alpha, dt, dt, slot, tools, tool_v_prev, tool_v_next)
 
 
 @njit(parallel=True, cache=True)

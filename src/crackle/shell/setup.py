@@ -19,17 +19,16 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..budget import check_model_size
 from ..geometry.meshes import MeshError, read_with_meshio
 from ..geometry.specimens import check_file_units
 from ..loading import History
-from ..loading.arrays import HistoryTable, default_tool_penalty, history_tables, seat_on_tools, tool_arrays
-from ..loading.build import build_loading, selection
+from ..loading.arrays import HistoryTable, default_tool_penalty, history_tables
+from ..loading.build import selection
 from ..scenario import ElasticSpec, ScenarioBase, ScenarioError, Where, resolve_path
 from ..materials import Material
 from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
-from ..solver.integrator import support_constraints
+from ..solver.setup import SetUp, supports_on, tool_stiffness
 from .kernels import BLOCK, LoadFactor
 from .mesh import SurfaceError, cylinder, edge_path, rectangle, shell_mesh, split_along
 from .model import ShellMaterial, build_shell, edge_loads
@@ -214,11 +213,10 @@ class Scenario(ScenarioBase):
 
 
 def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimulation:
-    tools, supports, pressures = build_loading(scenario, base)
     spec, mat = scenario.shell, scenario.material
     planned = _planned_triangles(spec)
-    if planned is not None:
-        check_model_size(planned, "triangles", "shell.element_size", scenario.run.max_memory)
+    setup = SetUp(scenario, base, None if planned is None else (planned, "triangles", "shell.element_size"))
+    tools, supports, pressures = setup.tools, setup.supports, setup.pressures
     try:
         mesh = _surface(spec, base)
     except (SurfaceError, MeshError) as err:
@@ -259,18 +257,13 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     ramp = scenario.edge_loads[0].ramp_time if scenario.edge_loads else 0.0
     factor = LoadFactor(np.array([0.0, ramp]) if ramp > 0 else np.array([0.0]),
                         np.array([0.0, 1.0]) if ramp > 0 else np.array([1.0]), 2 if ramp > 0 else 1)
-    try:
-        constraint, projection, support_tool = support_constraints(supports, mesh.X, scale)
-    except ValueError as err:
-        raise ScenarioError(f"supports: {err}") from None
+    constraint, projection, support_tool = supports_on(supports, mesh.X, scale)
     h = mesh.element_size()
-    penalty = default_tool_penalty(mat.youngs_modulus, h)
-    tool_table = tool_arrays(tools, penalty, h, -(-len(mesh.X) // BLOCK))
     shell.nodes = shell.nodes._replace(load=load, constraint=constraint, projection=projection,
                                        support_tool=support_tool)
-    tool_k = (tool_table.penalty.max() if len(tools) else 0.0) * shell.nodes.area
-    stable_dt = shell.stable_dt(tool_k)
-    seating = seat_on_tools(tools, tool_table, shell.nodes, "nodes")
+    tool_table = setup.tools_on(shell.nodes, default_tool_penalty(mat.youngs_modulus, h), h, -(-len(mesh.X) // BLOCK),
+                                "nodes")
+    stable_dt = shell.stable_dt(tool_stiffness(tool_table, shell.nodes.area))
     c = math.sqrt(mat.youngs_modulus / (mat.density * (1.0 - mat.poissons_ratio**2)))
     fracture = scenario.fracture
     rings = fracture.j_rings or [(4 * h, 10 * h), (8 * h, 14 * h), (12 * h, 18 * h)]
@@ -285,9 +278,9 @@ def build_simulation(scenario: Scenario, base: Path | None = None) -> ShellSimul
     if math.isfinite(fracture.toughness):
         growth = GrowthLaw(fracture.toughness, fracture.max_speed or rayleigh_speed(mat), fracture.speed_exponent,
                            fracture.criterion, fracture.kink, fracture.strength, sites)
-    sim = ShellSimulation(shell, tool_table, [t.name for t in tools], factor, pressure_table, tips, rings, stable_dt,
+    sim = ShellSimulation(shell, tool_table, setup.tool_names, factor, pressure_table, tips, rings, stable_dt,
                           h / c, np.asarray(scenario.run.gravity, float), scenario.run.damping, growth)
-    sim.warnings.extend(seating)
+    sim.warnings.extend(setup.warnings)
     sim.pre_cracks = pre_cracks
     if sites is not None:
         sim.random_properties = sites.statistics(sim.shell.mesh, [m.name for m in materials])

@@ -381,7 +381,7 @@ class ShellSimulation(SimulationBase):
         X = self.shell.mesh.X
         return X.min(axis=0), X.max(axis=0)
 
-    def summary(self) -> dict:
+    def own_summary(self) -> dict:
         j, g = self.j_values(), self.g_values()
         out = {
             "triangles": len(self.shell.mesh.tri),
@@ -396,14 +396,12 @@ class ShellSimulation(SimulationBase):
             "g_tips": g.tolist(),
             "energy_release_rate": float(np.mean(g[0])) if len(self.tips) else None,
             "random_properties": self.random_properties,
-            "warnings": list(self.warnings),
         }
         if self.tips:
             out["configurational_force"] = self.configurational_forces().tolist()
             ratio = self.kinetic_to_strain()
             out["kinetic_to_strain"] = ratio
             out["j_static"] = not ratio > STATIC_KINETIC
-            out["warnings"] += static_warning(ratio)
         if self.growth is not None and np.isfinite(self.growth.strength):
             out["nucleations"] = list(self.nucleations)
         if self.growth is not None:
@@ -418,6 +416,9 @@ class ShellSimulation(SimulationBase):
             out["g_ratio"] = (out["energy_release_rate"] / self.j_reference
                               if out["energy_release_rate"] is not None else None)
         return out
+
+    def late_warnings(self, summary: dict) -> list[str]:
+        return static_warning(summary["kinetic_to_strain"]) if self.tips else []
 
     def extra_plots(self, out_dir) -> None:
         """plots/crack_pattern.png redrawn with the pre-cracks and the paths the tips ran;

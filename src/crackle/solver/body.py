@@ -55,3 +55,17 @@ def body_arrays(x, mass, area, radius, supports=None, velocity=None, tool=None) 
         tool_offset=np.zeros(n), friction=np.zeros((n, 3)), d_friction=np.zeros(n), w_external=np.zeros(n),
         w_damping=np.zeros(n),
     )
+
+
+def pair_incidence(n: int, a: np.ndarray, b: np.ndarray):
+    """Per point (n of them), the pairs (a[k], b[k]) it is an end of, in pair order, with sign -1
+    as a and +1 as b (int8): (start, pair, sign) in CSR form, so that a point gathers its pairs'
+    forces in a fixed order (no races, thread-count independent)."""
+    k = len(a)
+    ends = np.concatenate([a, b])
+    ids = np.concatenate([np.arange(k), np.arange(k)])
+    signs = np.concatenate([-np.ones(k, dtype=np.int8), np.ones(k, dtype=np.int8)])
+    order = np.lexsort((ids, ends))
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(start, ends + 1, 1)
+    return np.cumsum(start), ids[order].astype(np.int64), signs[order]

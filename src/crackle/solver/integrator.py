@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..loading.tools import contact_with_tools
+
 # The serial block functions that a method's parallel loop calls once per block of elements
 # (particles, nodes), and that call the inline pieces below, are compiled without numba's
 # reference counting (NRT). With it, every array handed to an inline function gets an atomic
@@ -50,6 +52,16 @@ def update_velocity(g, body, f, e, c, tool_work, m, alpha, dt, tools, tool_v_nex
     v = body.v
     damping = (-alpha * m * v[g, 0], -alpha * m * v[g, 1], -alpha * m * v[g, 2])
     _step_velocity(g, body, f, e, c, damping, alpha != 0.0, tool_work, m, dt, tools, tool_v_next, slot)
+
+
+@njit(cache=True, inline="always")
+def step_point(g, body, f, e, m, alpha, dt, kick, slot, tools, tool_v_prev, tool_v_next):
+    """One point's step after its forces: the tool contact (loading.tools.contact_with_tools),
+    the new velocity from the internal forces f and external ones e (update_velocity, over
+    `kick`: dt, or the meshfree's first half kick) and the move over dt."""
+    cx, cy, cz, tool_work = contact_with_tools(g, body, dt, slot, tools, tool_v_prev, tool_v_next)
+    update_velocity(g, body, f, e, (cx, cy, cz), tool_work, m, alpha, kick, tools, tool_v_next, slot)
+    move(g, body.x, body.v, dt)
 
 
 @njit(cache=True, inline="always")

@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from ..analysis.energy import PREFIX, energy_order
-from .failures import material_labels
+from .failures import FailureRecorder, material_labels
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 
 
@@ -111,7 +111,10 @@ class SimulationBase:
                         replaces them, the shell at a cut)
       `own_energies(dt)`  its stored and dissipated terms ({"elastic": J, "damage": J, ...};
                         "contact" and "friction" add to the shared ones), at mid-step positions
-    and, as today, `advance`, `broken`, `new_events`, `fields`, `describe`, `summary`, `bounds`.
+      `own_summary()`   its set-up facts and results for summary.json (`summary` adds the probes',
+                        the failures per material and the warnings)
+    and `advance`, `broken`, `new_events`, `fields`, `describe`, and `x0` (the points at set-up,
+    for `bounds`) or its own `bounds`.
     """
 
     method: str = ""
@@ -128,6 +131,31 @@ class SimulationBase:
     @property
     def several_materials(self) -> bool:
         return bool(self.material_names) and len(self.material_names) > 1
+
+    def failure_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(failed, fail_time, fail_mode), one row per element that can fail (a bond, a face, a
+        spring, a particle): what `new_events`, `failed_ids` and `broken` read. A method whose
+        failures are of another kind (the shell's cuts) gives those three itself."""
+        raise NotImplementedError
+
+    def failure_positions(self, ids) -> np.ndarray:
+        """Where failures `ids` are on the specimen at set-up (k, 3): events.csv's position."""
+        raise NotImplementedError
+
+    def new_events(self):
+        """Failures since the last call, each once (solver.failures.FailureRecorder)."""
+        failed, fail_time, fail_mode = self.failure_state()
+        if self.__dict__.get("_failures") is None:
+            self._failures = FailureRecorder(len(failed))
+        return self._failures.new(failed, fail_time, fail_mode, self.failure_positions)
+
+    def failed_ids(self) -> np.ndarray:
+        return np.flatnonzero(self.failure_state()[0])
+
+    @property
+    def broken(self) -> int:
+        """Elements failed so far (a method that counts otherwise, links or cuts, gives its own)."""
+        return int(np.count_nonzero(self.failure_state()[0]))
 
     def failure_labels(self, ids) -> list[str] | None:
         """The material each failure `ids` happened in, or the pair "A-B" it parted (events.csv's
@@ -250,12 +278,29 @@ class SimulationBase:
             row.update(probe.columns(self, row))
         return row
 
-    def probe_summary(self) -> dict:
-        """The probes' results, for the method's summary()."""
-        out = {}
+    def summary(self) -> dict:
+        """summary.json's set-up facts and results, assembled: the method's own (own_summary),
+        the probes', the failures per material (None with one material) and the warnings: the
+        set-up's, then those the results raise (late_warnings)."""
+        out = self.own_summary()
         for probe in self.probes:
             out.update(probe.summary(self))
+        out["failures_by_material"] = self.failures_by_material()
+        out["warnings"] = [*self.warnings, *self.late_warnings(out)]
         return out
+
+    def own_summary(self) -> dict:
+        """The method's set-up facts and results: at least `elements`, `particles` or `nodes`."""
+        return {}
+
+    def late_warnings(self, summary: dict) -> list[str]:
+        """Warnings the results raise (the method's own_summary in `summary`); none by default."""
+        return []
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corner of the specimen's points at set-up (a method whose points have a
+        size, or whose set-up positions are elsewhere, gives its own)."""
+        return self.x0.min(axis=0), self.x0.max(axis=0)
 
     def extra_plots(self, out_dir: Path) -> None:
         """The probes' figures (a method with figures of its own adds them)."""
