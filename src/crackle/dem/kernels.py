@@ -35,7 +35,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import (contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities,
+                             tool_velocity_rows)
 from ..solver.body import BODY_FIELDS
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
 from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
@@ -328,11 +329,9 @@ def advance(n_steps, first_step, dt, particles, inter, tools, gravity, alpha, me
     exposed area vector and its cells' moment about its centre per unit pressure, `membrane_x`
     the positions they were taken at (dem.membrane), `pressures` their HistoryTable (k rows;
     k = 0: none)."""
-    n_tool = tools.kind.shape[0]
     n_inter = inter.a.shape[0]
     n = particles.x.shape[0]
-    tool_v_prev = np.zeros((max(n_tool, 1), 3))
-    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    tool_v_prev, tool_v_next = tool_velocity_rows(tools)
     n_pressure = membrane_area.shape[0]
     pressure_now = np.zeros(max(n_pressure, 1))
     for step in range(n_steps):

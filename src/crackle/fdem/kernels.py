@@ -23,7 +23,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.friction import coulomb_update
-from ..loading.tools import contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import (contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities,
+                             tool_velocity_rows)
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
@@ -408,14 +409,12 @@ def advance(n_steps, first_step, dt, nodes, tets, ifs, contact, tools, pressures
     clustered = ties.load.shape[0] > 0
     n_vertex_blocks = (ties.vertex_ptr.shape[0] - 1 + VERTEX_BLOCK - 1) // VERTEX_BLOCK
     n_tet = tets.vol.shape[0]
-    n_tool = tools.kind.shape[0]
     n_press = pressures.counts.shape[0]
     n_slot = contact.counts[1]
     n_if_blocks = (n_if + INTERFACE_BLOCK - 1) // INTERFACE_BLOCK
     n_tet_blocks = (n_tet + TET_BLOCK - 1) // TET_BLOCK
     pressure_now = np.zeros(max(n_press, 1))
-    tool_v_prev = np.zeros((max(n_tool, 1), 3))
-    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    tool_v_prev, tool_v_next = tool_velocity_rows(tools)
     released_blocks = np.zeros(n_if_blocks, dtype=np.uint8)
     taken = n_steps
     stopped = False

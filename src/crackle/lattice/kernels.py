@@ -11,7 +11,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import load_cell_step, move_tools, tool_velocities
+from ..loading.tools import load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.failures import MODE_TENSION
 from ..solver.body import Body
 from ..solver.integrator import block_kernel, step_point
@@ -86,11 +86,9 @@ def _node_block(lo, hi, slot, dt, nodes, springs, tools, tool_v_prev, tool_v_nex
 def advance(n_steps, first_step, dt, nodes, springs, tools, break_strain, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt, the
     same however a run is split into calls); arrays updated in place."""
-    n_tool = tools.kind.shape[0]
     n_spring = springs.a.shape[0]
     n_node = nodes.x.shape[0]
-    tool_v_prev = np.zeros((max(n_tool, 1), 3))
-    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    tool_v_prev, tool_v_next = tool_velocity_rows(tools)
     for step in range(n_steps):
         t = (first_step + step) * dt
         tool_velocities(t, dt, tools, tool_v_prev, tool_v_next)

@@ -56,6 +56,14 @@ def interp_history(t, times, values, n):
 
 
 @njit(cache=True, inline="always")
+def tool_velocity_rows(tools):
+    """The rows tool_velocities fills, one per tool (one at least): each method's step allocates
+    them once per call."""
+    n = max(tools.kind.shape[0], 1)
+    return np.zeros((n, 3)), np.zeros((n, 3))
+
+
+@njit(cache=True, inline="always")
 def tool_velocities(t, dt, tools, v_prev, v_next):
     """Each tool's velocity over the half steps before and after time t (rows of v_prev, v_next).
     A free tool's is its velocity now in both: move_tools sets the one after the step once the

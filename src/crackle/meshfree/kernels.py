@@ -42,7 +42,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
 from ..solver.integrator import block_kernel, step_point
 from .material import elastic_energy, stress_update
@@ -372,11 +372,9 @@ def advance(n_steps, first_step, dt, particles, links, columns, law, tools, pres
     particle contact (PairContact; none: no pass). first_kick (s, if positive): the first step's
     velocity update spans that time instead of dt, the central difference where the step changes
     (v(t + dt_new / 2) = v(t - dt_old / 2) + a(t) (dt_old + dt_new) / 2)."""
-    n_tool = tools.kind.shape[0]
     n = particles.x.shape[0]
     n_block = (n + BLOCK - 1) // BLOCK
-    tool_v_prev = np.zeros((max(n_tool, 1), 3))
-    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    tool_v_prev, tool_v_next = tool_velocity_rows(tools)
     for step in range(n_steps):
         t = (first_step + step) * dt
         kick = first_kick if step == 0 and first_kick > 0.0 else dt

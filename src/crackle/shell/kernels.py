@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..loading.arrays import HistoryTable
-from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities
+from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
 from ..solver.integrator import block_kernel, step_point
 
@@ -364,10 +364,8 @@ def internal_forces(x, nodes, faces, edges, out):
 def advance(n_steps, first_step, dt, nodes, faces, edges, tools, load_factor, pressures, gravity, alpha):
     """n_steps central-difference steps from step number first_step (time first_step x dt);
     arrays updated in place."""
-    n_tool = tools.kind.shape[0]
     n_node = nodes.x.shape[0]
-    tool_v_prev = np.zeros((max(n_tool, 1), 3))
-    tool_v_next = np.zeros((max(n_tool, 1), 3))
+    tool_v_prev, tool_v_next = tool_velocity_rows(tools)
     x = nodes.x
     for step in range(n_steps):
         t = (first_step + step) * dt
