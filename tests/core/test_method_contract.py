@@ -113,8 +113,8 @@ def test_every_registered_method_has_a_contract_run():
 @pytest.mark.parametrize("method", sorted(CONTRACT_RUNS))
 def test_every_method_writes_the_output_contract(tmp_path, method):
     """Each method's run writes summary.json (its method, status completed, the steps, step and
-    energy error: the audit closes within 2 % this early; its size, warnings and failures per
-    material), history.csv (time, the external work
+    energy error: the audit closes within 2 % this early; its size, warnings, failures per
+    material and a unit for every history column), history.csv (time, the external work
     and the kinetic energy, a row at t = 0 and at the end), events.csv with its header,
     fields.pvd naming VTU frames that exist, status.json completed, and the energy and
     load-displacement plots."""
@@ -127,6 +127,8 @@ def test_every_method_writes_the_output_contract(tmp_path, method):
     assert isinstance(s["warnings"], list) and "failures_by_material" in s
     assert {"elements", "particles", "nodes"} & set(s)
     h = read_history_csv(out / "history.csv")
+    # Every history column was registered with its unit (SimulationBase.history_units).
+    assert set(s["history_units"]) == set(h) and all(s["history_units"].values()), s["history_units"]
     assert {"time", "energy.external", "energy.kinetic"} <= set(h)
     assert h["time"][0] == 0.0 and h["time"][-1] == pytest.approx(s["end_time"], rel=0.05)
     assert (out / "events.csv").read_text().splitlines()[0].startswith("time")

@@ -50,6 +50,8 @@ class MembraneProbe(Probe):
     summary; a triaxial test's confinement at the peak is the platens' probe's
     (solver.platen.PlatenProbe, from Membrane.confinement)."""
 
+    units = {"pressure.*": "Pa"}
+
     def columns(self, sim, row: dict) -> dict[str, float]:
         return {f"pressure.{k}": float(p) for k, p in enumerate(sim.membrane.pressures(sim.time))}
 

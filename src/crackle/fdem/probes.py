@@ -33,6 +33,8 @@ class FractureTipProbe(Probe):
         self.tips: list[float] = []
         self.zones: list[float] = []
 
+    units = {"fracture.tip": "m", "fracture.plastic_zone": "m"}
+
     def columns(self, sim, row: dict) -> dict[str, float]:
         m = sim.model
         ifs = m.ifs

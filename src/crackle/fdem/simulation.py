@@ -25,6 +25,7 @@ class FdemSimulation(SimulationBase):
     """Steps an FdemModel and reports histories, events and fields."""
 
     method = "fdem"
+    HISTORY_UNITS = {"fragments": "1"}
 
     def __init__(self, model: FdemModel):
         self._start_clock_and_tools(model.tools, [t.name for t in model.tool_specs], model.warnings)
@@ -251,11 +252,11 @@ class FdemSimulation(SimulationBase):
         columns = {name: type(mat.interface).RANDOM[name] for mat in m.materials for name in mat.random}
         return {name: rows[:, column].copy() for name, column in sorted(columns.items())}
 
-    def extra_plots(self, out_dir) -> None:
+    def extra_plots(self, out_dir, history) -> None:
         plot_fragment_sizes(self.fragments().masses, run_plot_path(out_dir, "fragment_sizes"))
         step = self.model.time_step
         plot_time_steps(step.element_dt, step.bulk_dt, step.as_summary(), run_plot_path(out_dir, "time_step"))
-        super().extra_plots(out_dir)
+        super().extra_plots(out_dir, history)
 
     def _process_zones(self) -> list[dict]:
         """Paper 004 eqs 4-5 (paper 001 eqs 10-11) per material, with the minimal discretisation

@@ -45,6 +45,59 @@ def tool_vector(columns: Mapping, name: str, quantity: str) -> np.ndarray:
     return np.stack([np.asarray(columns[c], float) for c in tool_column_names(name, quantity)], axis=-1)
 
 
+def tool_column_units(names: Sequence[str]) -> dict[str, str]:
+    """The units of the tool columns of tools `names` (TOOL_QUANTITIES)."""
+    return {column: unit for name in names for quantity, unit in TOOL_QUANTITIES.items()
+            for column in tool_column_names(name, quantity)}
+
+
+def column_unit(units: Mapping[str, str], name: str) -> str:
+    """The unit registered for history column `name`: its own entry, or a family's (a key ending
+    in "*" covers the columns it begins: one per crack tip, per pressure); "" if none."""
+    if name in units:
+        return units[name]
+    family = max((key for key in units if key.endswith("*") and name.startswith(key[:-1])), key=len, default=None)
+    return "" if family is None else units[family]
+
+
+class RunHistory(Mapping):
+    """A run's history as arrays: {column: float64 array} in history.csv's column order, each
+    column with the unit it was registered with (`units`). The driver appends each row as it
+    writes it to history.csv, so that the summary and the plots read the numbers, not the file
+    back (the values are the file's bit for bit: it writes each with repr)."""
+
+    def __init__(self, units: Mapping[str, str], kept: Mapping[str, np.ndarray] | None = None):
+        """`kept`: the rows a resumed run keeps (read from its history.csv once)."""
+        self.units = dict(units)
+        self._index = {name: i for i, name in enumerate(self.units)}
+        self._rows: list[np.ndarray] = []
+        if kept is not None and len(kept) and len(next(iter(kept.values()))):
+            self._rows = list(np.column_stack([np.asarray(kept[name], float) for name in self.units]))
+        self._table: np.ndarray | None = None
+
+    def append(self, row: Mapping[str, Any]) -> None:
+        """One row (a missing column is nan, as history.csv writes it)."""
+        values = np.full(len(self._index), np.nan)
+        for name, value in row.items():
+            values[self._index[name]] = float(value)
+        self._rows.append(values)
+        self._table = None
+
+    def _columns(self) -> np.ndarray:
+        if self._table is None:
+            self._table = np.array(self._rows, dtype=np.float64).reshape(-1, len(self._index))
+        return self._table
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._columns()[:, self._index[name]].copy()
+
+    def __iter__(self):
+        return iter(self._index)
+
+    def __len__(self) -> int:
+        return len(self._index)
+
+
 def format_number(value: Any) -> str:
     """Exact text for one CSV value: integers as integers, floats via repr."""
     if isinstance(value, (bool, np.bool_)):

@@ -48,6 +48,8 @@ class CrackTip:
 
 class ShellSimulation(SimulationBase):
     method = "shell"
+    HISTORY_UNITS = {EDGE_LOAD_FORCE: "N", EDGE_LOAD_DISPLACEMENT: "m", "j.tip*": "J/m^2", "g.tip*": "J/m^2",
+                     "crack.tip*": "m"}
 
     def __init__(self, shell: Shell, tools, tool_names, load_factor, pressures, tips, rings, stable_dt, wave_transit,
                  gravity, damping, growth: GrowthLaw | None = None):
@@ -420,15 +422,13 @@ class ShellSimulation(SimulationBase):
     def late_warnings(self, summary: dict) -> list[str]:
         return static_warning(summary["kinetic_to_strain"]) if self.tips else []
 
-    def extra_plots(self, out_dir) -> None:
+    def extra_plots(self, out_dir, history) -> None:
         """plots/crack_pattern.png redrawn with the pre-cracks and the paths the tips ran;
         plots/j_history.png: each tip's J and G over the run and the closed form."""
-        from ..io import read_history_csv
-
         out = Path(out_dir)
         grown = [np.array([start] + [a.position for a in self.advances if a.tip == k])
                  for k, start in enumerate(self._tip_starts)]
         plot_crack_pattern(out / "events.csv", self.bounds(), run_plot_path(out, "crack_pattern"),
                            paths=[("pre-crack", p) for p in self.pre_cracks] + [("grown", p) for p in grown if len(p) > 1])
         if self.tips:
-            plot_j_history(read_history_csv(out / "history.csv"), run_plot_path(out, "j_history"), self.j_reference)
+            plot_j_history(history, run_plot_path(out, "j_history"), self.j_reference)

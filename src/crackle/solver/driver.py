@@ -28,7 +28,8 @@ from .checkpoint import CHECKPOINT_FILE, Checkpoint, save_checkpoint
 from ..analysis.energy import EXTERNAL, UNSTABLE_CREATED, created_fraction, energy_error, imbalance_growth
 from .simulation import Simulation
 from ..io._units import duration_text, time_unit
-from ..io import EventWriter, FieldWriter, HistoryWriter, Progress, read_history_csv, write_standard_plots, write_summary
+from ..io import (EventWriter, FieldWriter, HistoryWriter, Progress, RunHistory, read_history_csv, write_standard_plots,
+                  write_summary)
 from ..io.outputs import NO_ROOM, tool_magnitude
 from ..io.plots import RUN_PLOTS
 
@@ -203,7 +204,7 @@ def choose_time_step(sim, control: RunControl) -> float:
 class RunResult:
     out_dir: Path
     summary: dict
-    history: dict[str, np.ndarray]
+    history: RunHistory
 
 
 def run(sim: Simulation, control: RunControl, out_dir: str | Path, scenario_name: str = "",
@@ -294,12 +295,12 @@ def _run(sim: Simulation, control: RunControl, out: Path, scenario_name: str, sc
                 f"; {state.fix} and continue with --resume {out} (the same scenario, --quick and --set)"
                 if resumable else f"; no checkpoint was written, so {state.fix} and rerun")
         )
-    hist = read_history_csv(out / "history.csv")
+    hist = outputs.table
     summary = _summary(sim, control, state, scenario_name, hist, wallclock.perf_counter() - started, resumed_from)
     write_summary(out / "summary.json", summary)
     if control.plots:
         write_standard_plots(out, hist, out / "events.csv", sim.bounds())
-        sim.extra_plots(out)
+        sim.extra_plots(out, hist)
     if state.status == "unstable":
         raise UnstableRunError(state.message + f" (outputs so far are in {out})")
     return RunResult(out, summary, hist)
@@ -356,6 +357,7 @@ class _Outputs:
     """The files a run writes as it goes: history.csv, events.csv, the field frames."""
 
     history: HistoryWriter
+    table: RunHistory  # the same rows as arrays, for the summary and the plots
     events: EventWriter
     fields: FieldWriter | None
 
@@ -369,12 +371,15 @@ class _Outputs:
         # uninterrupted run's, row for row.
         kept = resumed_from if resumed_from is None or not state.off_grid else math.nextafter(resumed_from, -math.inf)
         history = stack.enter_context(HistoryWriter(out / "history.csv", list(first), keep_until=kept))
+        # A resumed run's rows before its checkpoint are in the file alone: read once.
+        table = RunHistory(sim.history_units(first), None if kept is None else read_history_csv(history.path))
         events = stack.enter_context(EventWriter(out / "events.csv", keep_rows=None if resumed_from is None else state.events,
                                                        materials=sim.several_materials))
-        outputs = cls(history, events, FieldWriter(out, keep_until=resumed_from) if rows.field_every else None)
+        outputs = cls(history, table, events, FieldWriter(out, keep_until=resumed_from) if rows.field_every else None)
         state.written_until, state.off_grid = sim.steps, False
         if resumed_from is None:
             history.append(first)
+            table.append(first)
             if outputs.fields is not None:
                 _write_fields(outputs.fields, sim)
             state.scale = max(1.0, abs(first.get("energy.external", 0.0)))
@@ -384,6 +389,7 @@ class _Outputs:
         """The history row of the current state, its new failures and (on the grid) its frame."""
         row = {"time": sim.time, **sim.sample(state.dt)}
         self.history.append(row)
+        self.table.append(row)
         state.written_until = sim.steps
         t, xyz, modes, ids = sim.new_events()
         if len(ids):
@@ -525,6 +531,7 @@ def _summary(sim, control: RunControl, state: _DriverState, scenario_name: str, 
         "peak_forces": {name: float(f) for name, f in zip(tool_names, peaks)},
         "load_cell_window": sim.load_cell.window * state.dt,
         "energy_error": energy_error(hist),
+        "history_units": hist.units,
         "crackle_version": __version__,
         **({"resumed_from": resumed_from} if resumed_from is not None else {}),
         **_free_tools_summary(sim.load_cell.tools, tool_names),

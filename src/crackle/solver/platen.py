@@ -64,6 +64,8 @@ class PlatenProbe(Probe):
         self.confinement = confinement
         self.curve: dict[float, tuple[float, float]] = {}  # time -> (strain, stress)
 
+    units = {"platen.stress": "Pa", "platen.strain": "1"}
+
     def columns(self, sim, row: dict) -> dict[str, float]:
         stress, strain = self.platen.stress_strain(row, self.loaded_area)
         self.curve[sim.time] = (strain, stress)

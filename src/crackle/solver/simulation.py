@@ -8,7 +8,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ..analysis.energy import PREFIX, energy_order
+from ..analysis.energy import ENERGY_ROLES, PREFIX, energy_order
+from ..io.outputs import column_unit, tool_column_units
 from .failures import FailureRecorder, material_labels
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 
@@ -68,15 +69,23 @@ class Simulation(Protocol):
         """Set-up facts and final results for summary.json: at least `elements`, `particles`
         or `nodes`, and `warnings`."""
 
-    def extra_plots(self, out_dir: Path) -> None:
-        """Method-specific plots into out_dir / 'plots' (may do nothing)."""
+    def extra_plots(self, out_dir: Path, history) -> None:
+        """Method-specific plots into out_dir / 'plots' (may do nothing); `history`: the run's
+        (io.outputs.RunHistory)."""
+
+
+# The units of the history columns every run has: the driver's time, and SimulationBase.sample's.
+SHARED_HISTORY_UNITS = {"time": "s", **{f"{PREFIX}{name}": "J" for name in ENERGY_ROLES}, "broken": "1", "dt": "s"}
 
 
 class Probe:
     """A measurement a simulation carries (LAMMPS's compute): it adds its columns to each history
-    row (`columns`, from the simulation and the row so far), its results to summary.json
-    (`summary`) and its figures (`plots`, named in io.plots.RUN_PLOTS). A set-up appends the
-    probes its scenario asks for to `sim.probes`; the default of each part is nothing."""
+    row (`columns`, from the simulation and the row so far; their units registered in `units`),
+    its results to summary.json (`summary`) and its figures (`plots`, named in
+    io.plots.RUN_PLOTS). A set-up appends the probes its scenario asks for to `sim.probes`; the
+    default of each part is nothing."""
+
+    units: dict[str, str] = {}
 
     def columns(self, sim, row: dict) -> dict[str, float]:
         return {}
@@ -265,9 +274,22 @@ class SimulationBase:
                  "external": self.external_work()}
         return {f"{PREFIX}{name}": terms[name] for name in energy_order(terms)}
 
+    # The units of the columns history_columns adds, registered once with the class that adds
+    # them: a name ending in "*" covers the columns it begins (io.outputs.column_unit).
+    HISTORY_UNITS: dict[str, str] = {}
+
     def history_columns(self, dt: float) -> dict[str, float]:
-        """A method's own history columns after `broken` (none by default)."""
+        """A method's own history columns after `broken` (none by default; units in HISTORY_UNITS)."""
         return {}
+
+    def history_units(self, columns) -> dict[str, str]:
+        """{column: unit} of the history `columns` (a row's names), from where each was
+        registered: the shared columns, the tools', the method's HISTORY_UNITS and its probes'
+        units ("" for a column none registered)."""
+        units = {**SHARED_HISTORY_UNITS, **tool_column_units(self._tool_names), **self.HISTORY_UNITS}
+        for probe in self.probes:
+            units.update(probe.units)
+        return {name: column_unit(units, name) for name in columns}
 
     def sample(self, dt: float) -> dict[str, float]:
         row = tool_columns(self._tool_names, self.tool_forces(), self.tools)
@@ -302,7 +324,7 @@ class SimulationBase:
         size, or whose set-up positions are elsewhere, gives its own)."""
         return self.x0.min(axis=0), self.x0.max(axis=0)
 
-    def extra_plots(self, out_dir: Path) -> None:
+    def extra_plots(self, out_dir: Path, history) -> None:
         """The probes' figures (a method with figures of its own adds them)."""
         for probe in self.probes:
             probe.plots(self, out_dir)
