@@ -17,16 +17,13 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from .schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3, schema_fields, section_schemas
+from .schema import (NonNegative, Positive, PositiveOrInf, ScenarioError, Strict, Vec3, resolve_path, schema_fields,
+                     section_schemas)
 
 if TYPE_CHECKING:
     import numpy as np
 
     from .geometry.aggregates import Aggregates
-
-
-class ScenarioError(ValueError):
-    """A scenario that cannot run; the message names the field or file and the fix."""
 
 
 # The [specimen] keys each shape reads (FDEM's; the DEM's are fewer): a key set that the shape
@@ -1272,14 +1269,6 @@ def load_scenario(source: str | Path, overrides: list[str] | None = None, quick:
                     "relative to the scenario file's folder, or an absolute one"
                 )
     return scenario, base
-
-
-def resolve_path(file: str, base: Path | None) -> Path:
-    """A file named in a scenario: relative paths are taken from the scenario file's folder."""
-    path = Path(file)
-    if not path.is_absolute() and base is not None:
-        path = base / path
-    return path
 
 
 def no_such_file(key: str, path: Path) -> ScenarioError:

@@ -4,6 +4,7 @@ their own schema: one home for a parameter, its unit, default and range)."""
 from __future__ import annotations
 
 import typing
+from pathlib import Path
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -82,3 +83,16 @@ def section_schemas(annotation) -> list:
         else:
             stack.extend(typing.get_args(t))
     return found
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the field or file and the fix. Here, below
+    every layer that checks a scenario's values (geometry, loading, the methods' set-ups)."""
+
+
+def resolve_path(file: str, base: Path | None) -> Path:
+    """A file named in a scenario: relative paths are taken from the scenario file's folder."""
+    path = Path(file)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    return path

@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-from crackle.io.outputs import HistoryWriter, RunHistory, column_unit, read_history_csv, tool_column_units
+from crackle.analysis.columns import column_unit, tool_column_units
+from crackle.io.outputs import HistoryWriter, RunHistory, read_history_csv
 
 
 def test_the_arrays_are_the_file_s_numbers_bit_for_bit(tmp_path):

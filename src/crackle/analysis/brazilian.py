@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..io.outputs import tool_magnitude
+from .columns import tool_magnitude
 
 
 def loading_direction(angle_deg: float) -> np.ndarray:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..loading.build import ahead_of
 from .brazilian import brazilian_strength, splitting_angle
 
 
@@ -52,6 +51,13 @@ class BrazilianTest:
         return {"brazilian_strength": brazilian_strength(float(np.max(peaks, initial=0.0)), self.diameter, self.thickness),
                 # JSON has no NaN: None until three tension or mixed failures near the centre.
                 "splitting_angle": angle if math.isfinite(angle) else None}
+
+
+def ahead_of(tool, points: np.ndarray) -> bool:
+    """Whether the tool's centre lies beyond the specimen's centroid along the tool's direction:
+    moving, it leaves the specimen (a grip that pulls) rather than pressing on it."""
+    d = np.asarray(tool.direction, dtype=float)
+    return float((np.asarray(tool.center, dtype=float) - points.mean(axis=0)) @ d) > 0.0
 
 
 def pulling_grip(tools, points: np.ndarray, supports=(), scale: float = 1.0) -> int | None:

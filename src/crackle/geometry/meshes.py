@@ -737,7 +737,7 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     """
     path = Path(path)
     if not path.is_file():
-        # The path is already resolved (scenario.resolve_path): name where that led, not the working folder.
+        # The path is already resolved (schema.resolve_path): name where that led, not the working folder.
         raise MeshError(
             f"mesh file {path.absolute()} does not exist; check the path (a relative path is taken from the "
             "scenario file's folder, or from the working folder for a shipped example)"

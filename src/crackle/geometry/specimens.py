@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..schema import resolve_path
 from .meshes import Hole, TetMesh, gmsh_box, gmsh_cylinder, gmsh_sphere, locality_order, read_mesh, structured_box
 from .walnut import shell_from_surface, walnut_shell
 
@@ -21,8 +22,6 @@ def specimen_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh,
     its regular order. `planes`
     ((point, normal) pairs: the material zones' bounding planes) cut a gmsh-meshed box, cylinder,
     disc or sphere so that faces lie on them."""
-    from ..scenario import resolve_path
-
     if spec.shape == "mesh":
         mesh = read_mesh(resolve_path(spec.file, base))
         if mesh.labels is None:
@@ -117,8 +116,6 @@ def _graded_hole_tets(spec, hole) -> float:
 
 
 def _generated_mesh(spec, base: Path | None, planes: tuple = ()) -> tuple[TetMesh, np.ndarray | None]:
-    from ..scenario import resolve_path
-
     walls = dict(wall=spec.wall, suture_wall=spec.suture_wall, suture_band=spec.suture_band, layers=spec.layers)
     if spec.shape == "walnut":
         return walnut_shell(spec.length, spec.width, spec.thickness, spec.element_size, center=spec.center, **walls)

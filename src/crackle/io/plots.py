@@ -16,9 +16,10 @@ import numpy as np
 
 from ..analysis.energy import ENERGY_NOISE, imbalance, imbalance_growth
 from ._units import time_unit
-from .outputs import read_events_csv, read_history_csv, tool_magnitude
+from ..analysis.columns import tool_magnitude
+from .outputs import read_events_csv, read_history_csv
 
-_TOOL_COLUMN = re.compile(r"^tool\.(.+)\.([fu][xyz])$")  # outputs.tool_column_names' force and travel
+_TOOL_COLUMN = re.compile(r"^tool\.(.+)\.([fu][xyz])$")  # analysis.columns.tool_column_names' force and travel
 EDGE_LOAD_FORCE, EDGE_LOAD_DISPLACEMENT = "edge_load.force", "edge_load.displacement"  # a shell's edge loads
 _MODE_MARKERS = {"tension": "o", "shear": "^", "mixed": "s"}
 

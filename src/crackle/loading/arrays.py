@@ -7,7 +7,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from ..scenario import ScenarioError
+from ..schema import ScenarioError
 from .tools import BARY_TOL, SURF_TRI_COLUMNS, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
 # Piecewise-linear histories padded into tables, one row each (history_tables): the one layout of

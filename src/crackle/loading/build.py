@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scenario import ScenarioError, resolve_path
+from ..analysis.strength import ahead_of
+from ..schema import ScenarioError, resolve_path
 from . import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 
 
@@ -119,13 +120,6 @@ def touch_specimen(tool: Tool, points: np.ndarray) -> Tool:
     else:
         shift = float(np.min(along)) - (float(c @ d) + _half_extent(tool, d))
     return dataclasses.replace(tool, center=tuple(float(x) for x in c + shift * d))
-
-
-def ahead_of(tool: Tool, points: np.ndarray) -> bool:
-    """Whether the tool's centre lies beyond the specimen's centroid along the tool's direction:
-    moving, it leaves the specimen (a grip that pulls) rather than pressing on it."""
-    d = np.asarray(tool.direction, dtype=float)
-    return float((np.asarray(tool.center, dtype=float) - points.mean(axis=0)) @ d) > 0.0
 
 
 def _half_extent(tool: Tool, d: np.ndarray) -> float:

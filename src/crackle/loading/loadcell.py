@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.outputs import tool_column_names
+from ..analysis.columns import tool_column_names
 from .arrays import LOAD_CELL_RING, free_tool_work
 from .tools import interp_history, tool_contact_totals
 

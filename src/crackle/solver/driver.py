@@ -30,7 +30,8 @@ from .simulation import Simulation
 from ..io._units import duration_text, time_unit
 from ..io import (EventWriter, FieldWriter, HistoryWriter, Progress, RunHistory, read_history_csv, write_standard_plots,
                   write_summary)
-from ..io.outputs import NO_ROOM, tool_magnitude
+from ..analysis.columns import tool_magnitude
+from ..io.outputs import NO_ROOM
 from ..io.plots import RUN_PLOTS
 
 

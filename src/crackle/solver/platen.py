@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis.strength import platen_modulus
-from ..io.outputs import tool_vector
+from ..analysis.columns import tool_vector
 from ..io.plots import plot_stress_strain, run_plot_path
 from .simulation import Probe
 

@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from ..analysis.energy import ENERGY_ROLES, PREFIX, energy_order
-from ..io.outputs import column_unit, tool_column_units
+from ..analysis.columns import column_unit, tool_column_units
 from .failures import FailureRecorder, material_labels
 from ..loading.loadcell import LoadCell, ToolSprings, tool_columns
 
@@ -275,7 +275,7 @@ class SimulationBase:
         return {f"{PREFIX}{name}": terms[name] for name in energy_order(terms)}
 
     # The units of the columns history_columns adds, registered once with the class that adds
-    # them: a name ending in "*" covers the columns it begins (io.outputs.column_unit).
+    # them: a name ending in "*" covers the columns it begins (analysis.columns.column_unit).
     HISTORY_UNITS: dict[str, str] = {}
 
     def history_columns(self, dt: float) -> dict[str, float]:
