@@ -25,6 +25,7 @@ from numba import njit, prange
 from ..loading.friction import coulomb_update
 from ..loading.tools import (contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities,
                              tool_velocity_rows)
+from ..materials.elasticity import green_lagrange, svk_stress
 from ..solver.integrator import block_kernel, move, update_velocity
 from .contact import gathered_contact_force, node_contact, reaction_lists
 from .extrinsic import (LOAD_EXTERNAL, LOAD_FORCE, LOAD_MASS, LOAD_TOOL_WORK, TIED, VERTEX_BLOCK, cluster_block,
@@ -223,22 +224,8 @@ def _tet_forces(e, x, rows, dm_inv, vol, lam, mu, s0, prestressed, f, tet_stress
     f31 = a31 * m00 + a32 * m10 + a33 * m20
     f32 = a31 * m01 + a32 * m11 + a33 * m21
     f33 = a31 * m02 + a32 * m12 + a33 * m22
-    # Green-Lagrange strain E = (F^T F - I) / 2
-    e11 = 0.5 * (f11 * f11 + f21 * f21 + f31 * f31 - 1.0)
-    e22 = 0.5 * (f12 * f12 + f22 * f22 + f32 * f32 - 1.0)
-    e33 = 0.5 * (f13 * f13 + f23 * f23 + f33 * f33 - 1.0)
-    e12 = 0.5 * (f11 * f12 + f21 * f22 + f31 * f32)
-    e13 = 0.5 * (f11 * f13 + f21 * f23 + f31 * f33)
-    e23 = 0.5 * (f12 * f13 + f22 * f23 + f32 * f33)
-    lam_e = lam[e]
-    mu2 = 2.0 * mu[e]
-    tr = lam_e * (e11 + e22 + e33)
-    s11 = tr + mu2 * e11
-    s22 = tr + mu2 * e22
-    s33 = tr + mu2 * e33
-    s12 = mu2 * e12
-    s13 = mu2 * e13
-    s23 = mu2 * e23
+    e11, e22, e33, e12, e23, e13 = green_lagrange(f11, f12, f13, f21, f22, f23, f31, f32, f33)
+    s11, s22, s33, s12, s23, s13 = svk_stress(lam[e], mu[e], e11, e22, e33, e12, e23, e13)
     if prestressed:
         s11 += s0[e, 0]
         s22 += s0[e, 1]

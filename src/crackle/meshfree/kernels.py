@@ -42,6 +42,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
+from ..materials.elasticity import green_lagrange
 from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
 from ..solver.integrator import block_kernel, step_point
@@ -135,18 +136,10 @@ def _gradient_block(lo, hi, p, links):
 
 
 @njit(cache=True, inline="always")
-def _green(f00, f01, f02, f10, f11, f12, f20, f21, f22):
-    """Green-Lagrange strain E = (F^T F - I) / 2 (xx yy zz xy yz xz)."""
-    return (0.5 * (f00 * f00 + f10 * f10 + f20 * f20 - 1.0), 0.5 * (f01 * f01 + f11 * f11 + f21 * f21 - 1.0),
-            0.5 * (f02 * f02 + f12 * f12 + f22 * f22 - 1.0), 0.5 * (f00 * f01 + f10 * f11 + f20 * f21),
-            0.5 * (f01 * f02 + f11 * f12 + f21 * f22), 0.5 * (f00 * f02 + f10 * f12 + f20 * f22))
-
-
-@njit(cache=True, inline="always")
 def _gauss_point(g, f00, f01, f02, f10, f11, f12, f20, f21, f22, dt, p, law):
     """The stress at one Gauss point (state row g) of deformation gradient F: its second
     Piola-Kirchhoff stress S (6), P = F S (9) and the plastic work density of the update."""
-    e0, e1, e2, e3, e4, e5 = _green(f00, f01, f02, f10, f11, f12, f20, f21, f22)
+    e0, e1, e2, e3, e4, e5 = green_lagrange(f00, f01, f02, f10, f11, f12, f20, f21, f22)
     s0, s1, s2, s3, s4, s5, work = stress_update(g, e0, e1, e2, e3, e4, e5, p.plastic, p.eq_plastic, p.thermal,
                                                  dt, law)
     # P = F S (S symmetric: s0 s3 s5 / s3 s1 s4 / s5 s4 s2).

@@ -53,6 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..materials.elasticity import energy_density, svk_stress
+
 # Rows of the law table the kernels read: the J2 law's, then the thermo law's (zero for J2).
 LAMBDA, MU, YIELD, EP0, HARDENING, RATE0, RATE_EXP = range(7)
 (MODEL, T_REF, HEATING, SOFTENING, SOFTENING_T, E_REF, NU_REF, E_T1, E_T2, NU_T1, NU_T2, YIELD_T1, YIELD_T2,
@@ -152,13 +154,6 @@ def thermo_flow(ep, T, law):
 
 
 @njit(cache=True, inline="always")
-def energy_density(ee0, ee1, ee2, ee3, ee4, ee5, lam, mu):
-    """The St. Venant-Kirchhoff stored energy per reference volume of the elastic strain ee."""
-    tr = ee0 + ee1 + ee2
-    return 0.5 * lam * tr * tr + mu * (ee0 * ee0 + ee1 * ee1 + ee2 * ee2 + 2.0 * (ee3 * ee3 + ee4 * ee4 + ee5 * ee5))
-
-
-@njit(cache=True, inline="always")
 def elastic_energy(g, ee0, ee1, ee2, ee3, ee4, ee5, thermal, law):
     """Stored energy per reference volume of particle g at the strain less its plastic strain
     ee (the thermo law's thermal strain and moduli at its temperature thermal[g, 0])."""
@@ -182,14 +177,6 @@ def flow_stress(ep, dep, dt, law):
     factor = rate**mexp
     dfactor = mexp / (dt * rate0) * rate ** (mexp - 1.0)
     return g * factor, dg * factor + g * dfactor
-
-
-@njit(cache=True, inline="always")
-def svk_stress(lam, mu, ee0, ee1, ee2, ee3, ee4, ee5):
-    """St. Venant-Kirchhoff: the second Piola-Kirchhoff stress of the elastic strain ee0..ee5."""
-    tr = ee0 + ee1 + ee2
-    return (lam * tr + 2.0 * mu * ee0, lam * tr + 2.0 * mu * ee1, lam * tr + 2.0 * mu * ee2, 2.0 * mu * ee3,
-            2.0 * mu * ee4, 2.0 * mu * ee5)
 
 
 @njit(cache=True, inline="always")
