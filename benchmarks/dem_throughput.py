@@ -51,14 +51,15 @@ PACKING_CACHE = os.path.join(tempfile.gettempdir(), "crackle-bench-packings")
 
 def cached_packing(domain, cache_dir: str, **kwargs):
     """pack_spheres(domain, **kwargs), kept as centres and radii in cache_dir under a key of the
-    arguments and dem/packing.py's source (the same seed packs the same spheres bit for bit)."""
+    arguments and the source of the packer and its domains (the same seed packs the same spheres
+    bit for bit)."""
     import hashlib
     from pathlib import Path
 
-    from crackle.dem import packing as packing_module
+    from crackle.dem import domains as domains_module, packing as packing_module
     from crackle.dem.packing import Packing, pack_spheres
 
-    key = hashlib.sha1(Path(packing_module.__file__).read_bytes())
+    key = hashlib.sha1(Path(packing_module.__file__).read_bytes() + Path(domains_module.__file__).read_bytes())
     key.update(repr((domain.lo.tolist(), domain.hi.tolist(), sorted(kwargs.items()))).encode())
     path = Path(cache_dir) / f"packing-{key.hexdigest()[:16]}.npz"
     if path.exists():
@@ -77,7 +78,7 @@ def sample_packing(n_particles: int, particle_density: float, cache_dir: str):
     particle_density 0): the packing, the side (m) and the seconds the packing took (or its load)."""
     import numpy as np
 
-    from crackle.dem.packing import Box
+    from crackle.dem.domains import Box
 
     if particle_density > 0.0:
         volume = n_particles * (2.0 * MEAN_RADIUS) ** 3 / particle_density

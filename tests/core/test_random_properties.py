@@ -177,7 +177,8 @@ def test_dem_bonds_carry_their_drawn_strengths():
 
     from crackle.dem.build import build_dem_simulation
     from crackle.dem.model import BondLaw
-    from crackle.dem.packing import Box, pack_spheres
+    from crackle.dem.domains import Box
+    from crackle.dem.packing import pack_spheres
 
     law = BondLaw(50e9, 1.0 / 3.0, 4.5e6, 45e6, math.radians(18.0), math.radians(18.0))
     packing = pack_spheres(Box(np.zeros(3), np.full(3, 8e-3)), porosity=0.45, mean_radius=4e-4, seed=1)

@@ -215,7 +215,8 @@ def test_elastic_pair_energy_converges_at_second_order():
 def _shaken(seed=3):
     """~300 bonded particles in a 6 mm cube, flung about fast enough to break bonds and make
     contacts (and the contact list rebuilt)."""
-    from crackle.dem.packing import Box, pack_spheres
+    from crackle.dem.domains import Box
+    from crackle.dem.packing import pack_spheres
 
     packing = pack_spheres(Box(np.zeros(3), np.full(3, 6e-3)), porosity=0.45, mean_radius=4e-4, seed=seed)
     rng = np.random.default_rng(seed)

@@ -17,8 +17,10 @@ import numpy as np
 import pytest
 
 from crackle.dem import packing
+from crackle.dem.sphere_list import read_sphere_list
 from crackle.scenario import load_scenario
-from crackle.dem.packing import Box, ClosedSurface, Cylinder, Packing, Sphere, from_surface, pack_spheres, radius_range
+from crackle.dem.domains import Box, ClosedSurface, Cylinder, Sphere, from_surface
+from crackle.dem.packing import Packing, pack_spheres, radius_range
 
 RATIO = 1.86  # Rmax / Rmin of paper 003
 
@@ -312,7 +314,7 @@ def test_text_sphere_list_from_another_code_gives_the_same_run(tmp_path):
         sep = "," if k % 2 else " "
         lines.append(sep.join(f"{v:.17g}" for v in (x, y, z, r)) + f"{sep}{k % 7}")
     (tmp_path / "mine.txt").write_text("\n".join(lines) + "\n\n")
-    read = packing.read_sphere_list(tmp_path / "mine.txt", Box([0.0, 0.0, 0.0], [0.027, 0.012, 0.054]))
+    read = read_sphere_list(tmp_path / "mine.txt", Box([0.0, 0.0, 0.0], [0.027, 0.012, 0.054]))
     assert read.centers.tobytes() == made.centers.tobytes() and read.radii.tobytes() == made.radii.tobytes()
     assert read.porosity == pytest.approx(made.porosity, abs=1e-12)
     histories = []

@@ -23,7 +23,9 @@ from ..materials.random_properties import RandomProperty, check_names
 from ..schema import NonNegative, Positive, Strict, Vec3
 from .build import build_dem_simulation
 from .model import RANDOM_BOND_PROPERTIES, BondLaw, GroupedLaws, Joint
-from .packing import Box, Cylinder, Packing, Sphere, pack_spheres, read_sphere_labels, read_sphere_list
+from .domains import Box, Cylinder, Sphere
+from .packing import Packing, pack_spheres
+from .sphere_list import read_sphere_labels, read_sphere_list
 from ..solver.setup import SetUp
 from ..solver.simulation import PeakForceProbe
 from ..solver.platen import Platen, PlatenProbe, facing_tool
