@@ -1,4 +1,4 @@
-"""Types shared by every scenario schema (scenario.py, and the parameters of each law, which are
+"""Types shared by every scenario schema (scenario/sections.py, and the parameters of each law, which are
 their own schema: one home for a parameter, its unit, default and range)."""
 
 from __future__ import annotations

@@ -1,29 +1,58 @@
-"""Scenario files: TOML validated against a schema before any work, then built into a run.
-
-A scenario is data: it is parsed with tomllib and validated with pydantic; nothing in it is
-evaluated. Errors name the field and say how to fix it (ScenarioError), and the command line
-turns them into exit code 2.
-"""
+"""What a scenario is: the sections every method shares (`ScenarioBase`, `[run]`, `[[tools]]`,
+`[plates]`, `[[supports]]`, `[[pressures]]`, `[initial_stress]`, ...) and the shared section
+schemas a method's own `Scenario` is made of (`Specimen`, `ElasticSpec`, `Zone`, ...). Validated
+with pydantic; nothing in a scenario is evaluated."""
 
 from __future__ import annotations
 
 import math
-import re
-import tomllib
 from functools import cached_property
-from importlib import resources
-from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from .schema import (NonNegative, Positive, PositiveOrInf, ScenarioError, Strict, Vec3, resolve_path, schema_fields,
-                     section_schemas)
+from ..schema import NonNegative, Positive, PositiveOrInf, Strict, Vec3
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from .geometry.aggregates import Aggregates
+    from ..geometry.aggregates import Aggregates
+
+__all__ = [
+    "ANY_SHAPE_KEYS",
+    "AnalysisSpec",
+    "CracksSpec",
+    "ElasticSpec",
+    "FracturePlaneSpec",
+    "HoleSpec",
+    "InitialStressSpec",
+    "LoadingSpec",
+    "MaterialPlace",
+    "OPTIONAL_KEYS",
+    "PlatesSpec",
+    "PrecrackSpec",
+    "PressureSpec",
+    "RunSpec",
+    "SPECIMEN_KEYS",
+    "STRESS_ORDER",
+    "ScenarioBase",
+    "Specimen",
+    "Stop",
+    "SupportSpec",
+    "ToolSpec",
+    "VelocityTable",
+    "Where",
+    "Zone",
+    "assign_materials",
+    "check_material_names",
+    "check_material_tables",
+    "check_one_motion",
+    "check_one_rest",
+    "fills_the_rest",
+    "material_pair",
+    "refuse_unused_keys",
+    "stress_matrices",
+]
 
 
 # The [specimen] keys each shape reads (FDEM's; the DEM's are fewer): a key set that the shape
@@ -468,7 +497,7 @@ class Zone(Strict):
 
     def _check_aggregates(self) -> None:
         """What take-and-place cannot do, refused before any aggregate is placed."""
-        from .geometry.aggregates import check_request
+        from ..geometry.aggregates import check_request
 
         axis = self.aggregate_axis()
         extent = [self.box_max[k] - self.box_min[k] for k in range(3) if k != axis]
@@ -492,7 +521,7 @@ class Zone(Strict):
     def placed_aggregates(self) -> "Aggregates":
         """aggregates: the placed set (geometry.aggregates.Aggregates), placed once per zone;
         AggregatePlacementError (a ValueError) when the fraction cannot be placed."""
-        from .geometry.aggregates import place_aggregates
+        from ..geometry.aggregates import place_aggregates
 
         return place_aggregates(self.box_min, self.box_max, self.min_diameter, self.max_diameter,
                                 self.volume_fraction, self.aggregate_gap(), seed=self.seed, exponent=self.exponent,
@@ -1128,266 +1157,3 @@ class ScenarioBase(Strict):
         """The moving supports: (index in [[supports]], name), in order; each also becomes a tool of
         shape "support" after all_tools() (loading.build.build_loading)."""
         return [(i, s.name or f"support{i + 1}") for i, s in enumerate(self.supports) if s.moves]
-
-
-# ---------------------------------------------------------------------------------------------
-
-
-def examples_dir():
-    return resources.files("crackle") / "examples"
-
-
-# The end of a description's first sentence: a full stop before a space or the end, not one of
-# an abbreviation ("Fig. 1a", "e.g. a plate").
-_SENTENCE_END = re.compile(r"(?<!\bFig)(?<!\bFigs)(?<!\be\.g)(?<!\bi\.e)(?<!\beq)(?<!\bEq)\.(?=\s|$)")
-
-
-def list_examples() -> dict[str, str]:
-    """Shipped example names and the first sentence of their descriptions (whole, on one line)."""
-    out = {}
-    for entry in sorted(examples_dir().iterdir(), key=lambda p: p.name):
-        if entry.name.endswith(".toml"):
-            text = " ".join(tomllib.loads(entry.read_text()).get("description", "").split())
-            end = _SENTENCE_END.search(text)
-            out[entry.name[:-5]] = text[: end.end()] if end else text
-    return out
-
-
-def read_scenario_data(source: str | Path) -> tuple[dict, Path | None]:
-    """Raw TOML data of a file path or shipped example name, and the folder relative paths use."""
-    path = Path(source)
-    if path.is_dir():
-        inside = sorted(p.name for p in path.glob("*.toml"))
-        hint = f" (it holds {', '.join(inside)})" if inside else ""
-        raise ScenarioError(f"{path} is a folder{hint}: give a .toml scenario file or a shipped example name")
-    if path.suffix == ".toml" or path.exists():
-        if not path.exists():
-            raise ScenarioError(f"scenario file {path} does not exist; check the path or run 'crackle examples'")
-        try:
-            # utf-8-sig: a byte-order mark (some Windows editors write one) is not TOML.
-            text, base = path.read_text(encoding="utf-8-sig"), path.parent
-        except UnicodeDecodeError as err:
-            raise ScenarioError(f"{path}: not UTF-8 text ({err.reason} at byte {err.start}); save it as UTF-8") from None
-    else:
-        entry = examples_dir() / f"{source}.toml"
-        if not entry.is_file():
-            known = ", ".join(list_examples())
-            raise ScenarioError(f"'{source}' is neither a scenario file nor a shipped example (examples: {known})")
-        text, base = entry.read_text(), None
-    try:
-        return tomllib.loads(text), base
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(f"{source}: broken TOML ({err}); fix the syntax at that line") from None
-
-
-def apply_overrides(data: dict, overrides: dict[str, Any] | list[str]) -> dict:
-    """Set dotted keys (`run.end_time`, `tools.0.speed`) in a copy of the raw data.
-
-    String overrides `key=value` parse their value as a TOML value (`1e-3`, `"text"`, `[1, 2]`);
-    a bare word that is not TOML is taken as a string.
-    """
-    import copy
-
-    data = copy.deepcopy(data)
-    items = overrides.items() if isinstance(overrides, dict) else (split_override(s) for s in overrides)
-    for key, value in items:
-        parts = key.split(".")
-        node = data
-        for k, part in enumerate(parts[:-1]):
-            if isinstance(node, list):
-                node = node[_index(part, key, node)]
-            elif isinstance(node, dict):
-                node = node.setdefault(part, {})
-            else:
-                raise ScenarioError(f"--set {key}: '{'.'.join(parts[:k])}' is a value ({node!r}), not a table; set it directly")
-        last = parts[-1]
-        if isinstance(node, list):
-            node[_index(last, key, node)] = value
-        elif isinstance(node, dict):
-            node[last] = value
-        else:
-            raise ScenarioError(f"--set {key}: '{'.'.join(parts[:-1])}' is a value ({node!r}), not a table; set it directly")
-    return data
-
-
-def split_override(text: str) -> tuple[str, Any]:
-    if "=" not in text:
-        raise ScenarioError(f"--set {text!r}: write key=value, e.g. --set run.end_time=1e-3")
-    key, raw = text.split("=", 1)
-    try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw.strip()
-    return key.strip(), value
-
-
-def _index(part: str, key: str, items: list) -> int:
-    """The position of `part` in a list of tables: its number, or the `name` of one of them."""
-    if part.isdigit() and int(part) < len(items):
-        return int(part)
-    names = [item.get("name") if isinstance(item, dict) else None for item in items]
-    if part in names:
-        return names.index(part)
-    listed = ", ".join(f"{i} ({n})" if n else str(i) for i, n in enumerate(names)) or "none"
-    raise ScenarioError(f"--set {key}: '{part}' is neither the number nor the name of an entry; entries: {listed}")
-
-
-def load_scenario(source: str | Path, overrides: list[str] | None = None, quick: bool = False) -> tuple[ScenarioBase, Path | None]:
-    """Read, override and validate a scenario against its method's schema; raises ScenarioError
-    with one clear message."""
-    from .methods import get_method
-
-    data, base = read_scenario_data(source)
-    written_method = data.get("method", "fdem")
-    if quick:
-        if not data.get("quick"):
-            raise ScenarioError(f"--quick: {source} has no [quick] section; run it without --quick or add one")
-        data = apply_overrides(data, data.get("quick", {}))
-    if overrides:
-        data = apply_overrides(data, overrides)
-    try:
-        schema = get_method(data.get("method", "fdem")).Scenario
-    except KeyError as err:
-        raise ScenarioError(f"{source}: method: {err.args[0]}") from None
-    _refuse_nan(data, source)
-    try:
-        scenario = schema.model_validate(data)
-    except ValidationError as err:
-        if "method" not in data:
-            _refuse_without_method(data, source)
-        switched = data.get("method", "fdem") != written_method
-        raise ScenarioError(_describe(err, source, schema) + (
-            f". The scenario is written for method = \"{written_method}\", whose sections the {data.get('method')!r} "
-            "method does not read: a method is chosen by a scenario written for it (crackle examples lists one of "
-            "each), not by --set method" if switched else "")) from None
-    for i, tool in enumerate(scenario.tools):
-        if tool.shape == "surface":
-            path = resolve_path(tool.file, base)
-            if not path.is_file():
-                raise ScenarioError(
-                    f"{source}: tools.{i}.file: surface file {path} does not exist; give a path "
-                    "relative to the scenario file's folder, or an absolute one"
-                )
-    return scenario, base
-
-
-def no_such_file(key: str, path: Path) -> ScenarioError:
-    """The error for a scenario's file (`key`, resolved to `path`) that is missing or a folder."""
-    what = "is a folder, not a file" if path.is_dir() else "does not exist"
-    return ScenarioError(f"{key}: {path.absolute()} {what}; check the path (a relative path is taken from the scenario "
-                         "file's folder, or from the working folder for a shipped example)")
-
-
-# Fields whose value is one of several schemas chosen by a name (e.g. `law`).
-TAGGED_CHOICES = ("interface",)
-
-
-def _refuse_nan(data, source, where: str = "") -> None:
-    """No value of a scenario may be nan (pydantic takes it for a float)."""
-    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
-    for key, value in items:
-        path = f"{where}.{key}" if where else str(key)
-        if isinstance(value, float) and math.isnan(value):
-            raise ScenarioError(f"{source}: {path}: nan is not a value; give a number")
-        _refuse_nan(value, source, path)
-
-
-def _field_names(model, seen=None) -> set[str]:
-    """Every field name of a schema and the schemas nested in it (for did-you-mean hints)."""
-    import typing
-
-    seen = set() if seen is None else seen
-    if model in seen or not hasattr(model, "model_fields"):
-        return set()
-    seen.add(model)
-    names = set(model.model_fields)
-    for field in model.model_fields.values():
-        stack = [field.annotation]
-        while stack:
-            t = stack.pop()
-            stack.extend(typing.get_args(t))
-            names |= _field_names(t, seen)
-    return names
-
-
-def _refuse_without_method(data: dict, source) -> None:
-    """A scenario without `method` is read as FDEM's; when it does not validate so but does as
-    another method's, the error is the missing method, not FDEM's nearest key."""
-    from .methods import METHODS, get_method
-
-    for name in METHODS:
-        if name == "fdem":
-            continue
-        try:
-            get_method(name).Scenario.model_validate({**data, "method": name})
-        except ValidationError:
-            continue
-        raise ScenarioError(f"{source}: method: not given, so read as method = \"fdem\", which it is not; it is a "
-                            f"{name} scenario: add method = \"{name}\"")
-
-
-def _section_model(model, path):
-    """The schema of the section at `path` (field names, list indices skipped), or None where the
-    path leaves the schemas (a choice by kind, a dict)."""
-    for part in path:
-        if isinstance(part, int):
-            continue
-        field = schema_fields(model).get(part)
-        models = section_schemas(field.annotation) if field is not None else []
-        if len(models) != 1:  # not a field, a plain value, or a choice among sections
-            return None
-        model = models[0]
-    return model
-
-
-# The field that names which schema of a tagged choice a section is (material.interface.law).
-_TAG_KEY = "law"
-
-
-def _tagged_choice(schema, loc, tag):
-    """For an unknown key loc[-1] in a section chosen by name (`tag`, e.g. "guo-munjiza"): the
-    chosen schema, and the name of another choice that has the key (None if none does)."""
-    parent = _section_model(schema, loc[:-2])
-    field = schema_fields(parent).get(str(loc[-2])) if parent is not None else None
-    choices = section_schemas(field.annotation) if field is not None else []
-    named = {getattr(schema_fields(c).get(_TAG_KEY), "default", None): c for c in choices}
-    other = next((name for name, c in named.items() if name != tag and str(loc[-1]) in schema_fields(c)), None)
-    return named.get(tag), other
-
-
-def _describe(err: ValidationError, source, schema=None) -> str:
-    errors = err.errors()
-    # A misspelt key also leaves the right one missing: name the unknown key first.
-    errors.sort(key=lambda e: e["type"] not in ("extra_forbidden", "unexpected_keyword_argument"))
-    first = errors[0]
-    loc = first["loc"]
-    # The tag of a choice by name that pydantic puts in the path (material.interface.bilinear.kn).
-    tag = next((p for k, p in enumerate(loc) if 0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES), None)
-    loc = [p for k, p in enumerate(loc) if not (0 < k < len(loc) - 1 and loc[k - 1] in TAGGED_CHOICES)]
-    where = ".".join(str(p) for p in loc) or "(top level)"
-    kind = first["type"]
-    if kind in ("extra_forbidden", "unexpected_keyword_argument"):
-        import difflib
-
-        what = "section" if len(loc) == 1 else "key"
-        section = _section_model(schema, loc[:-1]) if schema else None
-        other = None
-        if section is None and tag is not None and schema is not None:
-            section, other = _tagged_choice(schema, loc, tag)
-        names = set(schema_fields(section)) if section is not None else (_field_names(schema) if schema else set())
-        close = difflib.get_close_matches(str(loc[-1]), sorted(names - {str(loc[-1])}), n=1)
-        if other is not None:
-            hint = (f"{loc[-1]} is a key of the {other} {loc[-2]}, not of the {tag} one this {loc[-2]} is; "
-                    f"set {'.'.join(map(str, loc[:-1]))}.{_TAG_KEY} = \"{other}\" to use it, or remove it")
-        else:
-            hint = f"unknown {what} {loc[-1]}; " + (f"did you mean {close[0]}?" if close else "remove it or check its spelling")
-    elif kind == "missing":
-        hint = "required: add it"
-    else:
-        hint = first["msg"].removeprefix("Value error, ")
-        if first.get("input") is not None and kind != "value_error":
-            hint += f" (got {first['input']!r})"
-    more = f" (and {len(err.errors()) - 1} more problem(s))" if len(err.errors()) > 1 else ""
-    if not loc and kind == "value_error":  # a check across sections: its message names the keys
-        return f"{source}: {hint}{more}"
-    return f"{source}: {where}: {hint}{more}"
