@@ -5,10 +5,11 @@ with its own pieces, in this order:
     body = Nodes(**setup.body_arrays(x, mass, area, radius, scale))           # the supports held
     tools = setup.tools_on(body, penalty, element_size, slots, "nodes")       # tool table, seating
     ... the method's stable step, with tool_stiffness(tools, body.area) ...
-    sim = MethodSimulation(...); sim.warnings = setup.warnings (SimulationBase._start_clock_and_tools)
+    sim = MethodSimulation(...)  # _start_clock_and_tools(tools, setup.tool_names, setup.warnings)
 
 A method whose builder is also called without a scenario (DEM's build_dem_simulation, FDEM's
-build_fdem_model) uses the scenario-free parts: `tools_on_body`, `tool_stiffness`.
+build_fdem_model, the meshfree's build_meshfree_simulation) uses the scenario-free parts:
+`tools_on_body`, `tool_stiffness`.
 """
 
 from __future__ import annotations
