@@ -59,15 +59,16 @@ def _interaction_floor(particles, inter):
 
 
 @njit(parallel=True)
-def _particle_pass(dt, particles, inter, tools, gravity, alpha):
+def _particle_pass(dt, particles, inter, tools, gravity, alpha, membrane_area, membrane_moment, membrane_x):
     n = particles.x.shape[0]
     n_tool = tools.kind.shape[0]
     v_prev = np.zeros((max(n_tool, 1), 3))
     v_next = np.zeros((max(n_tool, 1), 3))
+    pressure_now = np.zeros(max(membrane_area.shape[0], 1))
     for blk in prange((n + kernels.BLOCK - 1) // kernels.BLOCK):
         lo = blk * kernels.BLOCK
         kernels._particle_block(lo, min(lo + kernels.BLOCK, n), np.int64(blk), dt, particles, inter, tools, v_prev,
-                                v_next, gravity, alpha)
+                                v_next, gravity, alpha, membrane_area, membrane_moment, membrane_x, pressure_now)
 
 
 @njit(parallel=True)
@@ -112,7 +113,8 @@ def main() -> None:
     passes = {
         "interaction": lambda: _interaction_pass(dt, p, inter),
         "interaction floor": lambda: _interaction_floor(p, inter),
-        "particle": lambda: _particle_pass(dt, p, inter, sim.tools, sim.gravity, sim.damping),
+        # No membrane on this sample: the step's empty membrane arrays (no_membrane).
+        "particle": lambda: _particle_pass(dt, p, inter, sim.tools, sim.gravity, sim.damping, *sim._membrane_args[:3]),
         "particle floor": lambda: _particle_floor(p, inter, out),
     }
     rounds = {name: [] for name in passes}
