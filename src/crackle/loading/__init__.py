@@ -86,7 +86,9 @@ class Tool:
                 .obj, .ply, .vtu, .msh ...; see `load_surface` for scale and offset). The
                 triangles' normals (right-hand rule on the winding) must point out of the tool,
                 towards the specimen; a closed surface is re-oriented outwards by its signed
-                volume, an open one (a base plate, a die) is taken as given.
+                volume, an open one (a base plate, a die) is taken as given. A scenario's
+                projectile (a nose on a cylinder) arrives here as a surface too
+                (geometry.projectile, loading.build.build_tools).
     """
 
     name: str

@@ -8,7 +8,7 @@ from collections import namedtuple
 import numpy as np
 
 from ..schema import ScenarioError
-from .tools import BARY_TOL, SURF_TRI_COLUMNS, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
+from .tools import BARY_TOL, SURF_TRI_COLUMNS, SURF_TRI_TOL, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
 
 # Piecewise-linear histories padded into tables, one row each (history_tables): the one layout of
 # every method's pressure histories (FDEM's and the shell's pressures, the last three fields of
@@ -142,7 +142,8 @@ def free_tool_work(tools: Tools) -> float:
 
 def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
     """Triangle rows and static contact grids of the surface tools (see `Tools`); fills each
-    surface tool's geom row with its grid origin, 1 / cell size and contact depth."""
+    surface tool's geom row with its grid origin, 1 / cell size, contact depth and the surface's
+    area centroid (geom[5:8]: on a projectile's axis, the impact axis of a perforation)."""
     grids = np.zeros((len(tools), 4), dtype=np.int64)
     starts = [np.zeros(1, dtype=np.int64)]
     cell_tris = []
@@ -164,6 +165,8 @@ def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
         row[:, 0:3], row[:, 3:6], row[:, 6:9], row[:, 9:12] = p0, e1, e2, normal
         row[:, 12], row[:, 13], row[:, 14] = d00, d01, d11
         row[:, 15] = 1.0 / (d00 * d11 - d01 * d01)
+        edges = np.stack([np.linalg.norm(p2 - p1, axis=1), np.sqrt(d11), np.sqrt(d00)], axis=1)  # opposite 0, 1, 2
+        row[:, SURF_TRI_TOL:SURF_TRI_TOL + 3] = BARY_TOL * edges / edges.max(axis=1, keepdims=True)
         rows.append(row)
 
         # Boxes of the triangles widened by the barycentric tolerance, then by the depth.
@@ -205,6 +208,8 @@ def _surface_tool_grids(tools, geom: np.ndarray, depth: float) -> dict:
         geom[j, 0:3] = origin
         geom[j, 3] = 1.0 / cell
         geom[j, 4] = depth
+        area = np.linalg.norm(np.cross(e1, e2), axis=1)
+        geom[j, 5:8] = area @ ((p0 + p1 + p2) / 3.0) / area.sum()
     return {
         "surf_grid": grids,
         "surf_cell_start": np.concatenate(starts),

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.strength import ahead_of
+from ..geometry.projectile import projectile_surface
 from ..schema import ScenarioError, resolve_path
 from . import History, Precrack, Pressure, Selection, Support, Tool, load_surface
 
@@ -80,10 +81,14 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
             if R is not None:
                 vertices = c0 + (np.asarray(vertices, dtype=float) - c0) @ R.T
             surface = {"surface": str(path), "vertices": vertices, "triangles": triangles}
+        elif t.shape == "projectile":
+            vertices, triangles = projectile_surface(point(t.center), vec(t.direction), t.radius, t.length, t.nose,
+                                                     t.nose_length)
+            surface = {"surface": f"a projectile with a {t.nose} nose", "vertices": vertices, "triangles": triangles}
         tools.append(
             Tool(
                 name=t.name,
-                shape=t.shape,
+                shape="surface" if surface else t.shape,
                 direction=vec(t.direction),
                 speed=_history_of(t),
                 friction=t.friction,

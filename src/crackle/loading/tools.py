@@ -25,11 +25,19 @@ from .friction import coulomb_update
 # integrator drives the support's nodes and puts their reaction in its force slots).
 TOOL_PLANE, TOOL_BOX, TOOL_CYLINDER, TOOL_SPHERE, TOOL_SURFACE, TOOL_SUPPORT = 0, 1, 2, 3, 4, 5
 # Columns of a surface tool's triangle rows (Tools.surf_tri), in the tool's own frame: corner 0,
-# edges e1 = p1 - p0 and e2 = p2 - p0, unit outward normal, and the barycentric Gram terms
-# e1.e1, e1.e2, e2.e2 and 1 / (e1.e1 e2.e2 - (e1.e2)^2).
-SURF_TRI_COLUMNS = 16
-# Barycentric tolerance of a point-over-triangle test (a fraction of the triangle): a point over
-# a shared edge or corner stays in contact with one of the triangles despite round-off.
+# edges e1 = p1 - p0 and e2 = p2 - p0, unit outward normal, the barycentric Gram terms
+# e1.e1, e1.e2, e2.e2 and 1 / (e1.e1 e2.e2 - (e1.e2)^2), and the tolerances of the three
+# barycentric coordinates (SURF_TRI_TOL: see BARY_TOL).
+SURF_TRI_TOL = 16
+SURF_TRI_COLUMNS = 19
+# Tolerance of a point-over-triangle test: a point over a shared edge or corner stays in contact
+# with one of the triangles despite round-off. For FDEM's faces, a fraction of each barycentric
+# coordinate; for a surface tool's triangle, a fraction of its shortest altitude h_min, the same
+# distance past every edge and every corner (coordinate i's tolerance BARY_TOL x |edge i| / the
+# longest edge, on both sides: below 0 and above 1). A relative tolerance on a long sliver, as
+# CAD exports a cylinder's side, reaches tenths of a millimetre past its sharp corners, where a
+# point in front of the next face (a projectile's nose) took the sliver's plane, behind which it
+# lies, for the tool's surface and was thrown out.
 BARY_TOL = 0.01
 # Per-point tool state (the `node_tool` array): the index of the tool the point touches, NO_TOOL,
 # or HIDDEN while the point is inside the body (no tool contact until a crack exposes it).
@@ -144,7 +152,10 @@ def _surface_gap(j, px, py, pz, radius, tools):
         l1 = (d11 * d20 - d01 * d21) * inv_den
         l2 = (d00 * d21 - d01 * d20) * inv_den
         l0 = 1.0 - l1 - l2
-        if l0 < -BARY_TOL or l1 < -BARY_TOL or l2 < -BARY_TOL:
+        # Within the band of every edge's line and of the line through each corner parallel to
+        # the opposite edge (beyond a sliver's sharp corner the edges' bands alone reach far).
+        t0, t1, t2 = tri[t, SURF_TRI_TOL], tri[t, SURF_TRI_TOL + 1], tri[t, SURF_TRI_TOL + 2]
+        if l0 < -t0 or l1 < -t1 or l2 < -t2 or l0 > 1.0 + t0 or l1 > 1.0 + t1 or l2 > 1.0 + t2:
             continue
         nearest = abs(gap)
         best_gap = gap

@@ -9,7 +9,7 @@ import numpy as np
 from ..analysis.fragments import find_fragments
 from ..analysis.perforation import measure_perforation
 from ..io.fields import STRESS_COMPONENTS
-from ..loading.tools import TOOL_SPHERE
+from ..loading.tools import TOOL_SPHERE, TOOL_SURFACE
 from ..solver.failures import MODE_TENSION
 from ..solver.simulation import SimulationBase
 from .fracture import FRACTURE_CHECK
@@ -289,19 +289,24 @@ class MeshfreeSimulation(SimulationBase):
 
     def perforation(self) -> dict:
         """The hole's diameter and the petals (analysis.perforation) of a plate that can fracture,
-        struck along its normal by a sphere tool (the first such: its path is the impact axis) or
-        by a second body (its centre of mass); nothing for other set-ups."""
+        struck along its normal by a sphere or surface tool (a projectile; the first such: its
+        path is the impact axis) or by a second body (its centre of mass); nothing for other
+        set-ups."""
         plate, t = self.plate, self.tools
         if plate.thickness_axis is None or self.breaking is None:
             return {}
         normal = np.eye(3)[plate.thickness_axis]
-        strikers = [j for j in range(len(t.kind)) if t.kind[j] == TOOL_SPHERE and abs(t.direction[j] @ normal) > 0.9]
+        # A surface strikes when it moves (a projectile); a fixed one is a die or a support.
+        moving = [t.mass[j] > 0.0 or np.any(t.speeds[j, :t.n[j]] != 0.0) for j in range(len(t.kind))]
+        strikers = [j for j in range(len(t.kind)) if abs(t.direction[j] @ normal) > 0.9 and
+                    (t.kind[j] == TOOL_SPHERE or (t.kind[j] == TOOL_SURFACE and moving[j]))]
         p, b = self.particles, self.breaking
         if len(self.body_start) > 2:
             lo, hi = self.body_start[1], self.body_start[2]
             axis_point = p.mass[lo:hi] @ p.x[lo:hi] / np.sum(p.mass[lo:hi])
         elif strikers:
-            axis_point = t.geom[strikers[0], :3]
+            j = strikers[0]  # a sphere's centre, a surface's area centroid (loading.arrays)
+            axis_point = t.geom[j, :3] if t.kind[j] == TOOL_SPHERE else t.geom[j, 5:8]
         else:
             return {}
         own = slice(0, self.body_start[1])

@@ -252,13 +252,14 @@ def check_one_motion(spec, motion_keys: tuple[str, ...] = ("speed", "ramp_time")
 
 
 class ToolSpec(Strict):
-    """[[tools]]: a rigid tool moving by translation along `direction` (plane, box, cylinder, sphere
-    or a triangle surface from a file)."""
+    """[[tools]]: a rigid tool moving by translation along `direction` (plane, box, cylinder, sphere,
+    projectile, or a triangle surface from a file)."""
 
     name: str
     """for history.csv columns (tool.NAME.fx ...) and --set tools.NAME.key"""
-    shape: Literal["plane", "box", "cylinder", "sphere", "surface"]
-    """plane: a half-space; box, cylinder, sphere: solids; surface: triangles from `file`"""
+    shape: Literal["plane", "box", "cylinder", "sphere", "projectile", "surface"]
+    """plane: a half-space; box, cylinder, sphere: solids; projectile: a nose on a cylinder, its tip at center,
+    pointing along direction (geometry.projectile); surface: triangles from `file`"""
     direction: Vec3
     """of motion (normalised; need not be a unit vector)"""
     speed: float = 0.0
@@ -270,7 +271,7 @@ class ToolSpec(Strict):
     friction: NonNegative = 0.0
     """Coulomb coefficient against the specimen"""
     center: Vec3 = (0.0, 0.0, 0.0)
-    """m, plane: a point on it; box, sphere: centre; cylinder: a point on the axis"""
+    """m, plane: a point on it; box, sphere: centre; cylinder: a point on the axis; projectile: the nose's tip"""
     normal: Vec3 = (0.0, 0.0, 1.0)
     """plane: pointing out of the tool, towards the specimen"""
     size: tuple[Positive, Positive, Positive] = (1.0, 1.0, 1.0)
@@ -280,9 +281,14 @@ class ToolSpec(Strict):
     axis: Vec3 = (0.0, 0.0, 1.0)
     """cylinder: its axis"""
     radius: NonNegative = 0.0
-    """m, cylinder and sphere"""
+    """m, cylinder, sphere and projectile (its shank's)"""
     length: PositiveOrInf = math.inf
-    """m, cylinder: inf for an endless roller"""
+    """m, cylinder: inf for an endless roller; projectile: tip to tail (required)"""
+    nose: Literal["conical", "ogival", "hemispherical", "flat"] | None = None
+    """projectile: its nose; ogival is a pointed tangent ogive (calibre-radius-head psi: nose_length = radius x
+    sqrt(4 psi - 1)); flat: a blunt cylinder"""
+    nose_length: Positive | None = None
+    """m, projectile with a conical or ogival nose: tip to shank along the axis (an ogive's at least its radius)"""
     penalty: Positive | None = None
     """N/m^3 per unit contact area; default 10 E / h of the specimen"""
     touch: bool = False
@@ -312,8 +318,9 @@ class ToolSpec(Strict):
 
     @model_validator(mode="after")
     def _shape_needs(self):
-        if self.shape in ("cylinder", "sphere") and self.radius <= 0:
+        if self.shape in ("cylinder", "sphere", "projectile") and self.radius <= 0:
             raise ValueError(f"a {self.shape} tool needs radius > 0")
+        self._projectile_needs()
         if self.shape == "surface" and not self.file:
             raise ValueError("a surface tool needs file = \"...\" (an STL or other triangle surface)")
         surface_only = sorted({"file", "scale", "offset"} & self.model_fields_set)
@@ -334,6 +341,30 @@ class ToolSpec(Strict):
             raise ValueError(f"{', '.join(driven)}: a tool with a mass is free and starts at `speed`; "
                              "remove mass to drive it, or these keys to launch it")
         return self
+
+    def _projectile_needs(self):
+        from ..geometry.projectile import nose_extent  # here: crackle.geometry's meshing imports take 0.1 s
+
+        projectile_only = sorted({"nose", "nose_length"} & self.model_fields_set)
+        if self.shape != "projectile":
+            if projectile_only:
+                raise ValueError(f"{', '.join(projectile_only)}: only for shape = \"projectile\"")
+            return
+        if self.nose is None:
+            raise ValueError("a projectile needs nose = \"conical\", \"ogival\", \"hemispherical\" or \"flat\"")
+        pointed = self.nose in ("conical", "ogival")
+        if pointed and self.nose_length is None:
+            raise ValueError(f"a {self.nose} nose needs nose_length (m, tip to shank)")
+        if not pointed and self.nose_length is not None:
+            raise ValueError(f"nose_length: a {self.nose} nose has its own length (hemispherical: the radius; flat: "
+                             "none); remove it")
+        if self.nose == "ogival" and self.nose_length < self.radius:
+            raise ValueError(f"nose_length = {self.nose_length:g} m: a pointed tangent ogive is at least as long "
+                             f"as its radius {self.radius:g} m (calibre-radius-head >= 0.5)")
+        extent = nose_extent(self.nose, self.radius, self.nose_length)
+        if not extent < self.length < math.inf:
+            raise ValueError(f"length = {self.length:g}: a projectile needs its length, tip to tail, longer than its "
+                             f"nose ({extent:g} m)")
 
 
 class PlatesSpec(Strict):
