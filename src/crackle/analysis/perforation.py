@@ -40,6 +40,9 @@ class Perforation:
     petals: int  # radial cracks that cross the circle `reach` beyond the hole's rim
     petal_circle: float  # m, that circle's radius about the axis
     plug_particles: int  # particles no longer part of the plate (plug, fragments, free particles)
+    # of those, the particles of the largest piece still linked together: a plug is one piece, a
+    # hole whose material went as debris or single particles leaves none large
+    largest_loose_piece: int
     # The rule's sensitivity: (reach in spacings, petals) for 1 to 4 spacings beyond the rim
     petals_by_reach: tuple = ()
 
@@ -47,14 +50,15 @@ class Perforation:
         return {"hole_diameter": self.hole_diameter, "hole_diameter_min": self.hole_diameter_min,
                 "hole_diameter_max": self.hole_diameter_max, "petals": self.petals,
                 "petal_circle_radius": self.petal_circle, "petals_by_reach": [list(r) for r in self.petals_by_reach],
-                "plug_particles": self.plug_particles}
+                "plug_particles": self.plug_particles, "largest_loose_piece": self.largest_loose_piece}
 
 
-def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, spacing: float,
+def measure_perforation(X, x, piece, failed, crack_normal, axis_point, axis, spacing: float,
                         reach: float | None = None) -> Perforation:
     """The hole and the petals of a plate about the impact axis (the line through `axis_point`
     along the unit `axis`, the plate's normal): X and x the particles' reference and current
-    positions (n, 3), `in_plate` (n,) bool the particles of the plate's main piece, `failed` (n,)
+    positions (n, 3), `piece` (n,) each particle's piece (particles still linked together; 0 the
+    plate's main piece, analysis.fragments), `failed` (n,)
     bool with `crack_normal` (n, 3) their material crack normals, `spacing` the in-plane particle
     spacing (m) and `reach` the distance beyond the hole's rim that a radial crack must reach
     (m; default the hole's radius, at least PETAL_REACH spacings)."""
@@ -64,6 +68,9 @@ def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, 
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(axis, e1)
     origin = np.asarray(axis_point, dtype=float)
+    piece = np.asarray(piece)
+    in_plate = piece == 0
+    loose = np.bincount(piece[~in_plate]) if np.any(~in_plate) else np.zeros(1, dtype=np.int64)
 
     def polar(points):
         d = np.asarray(points, dtype=float) - origin
@@ -99,7 +106,7 @@ def measure_perforation(X, x, in_plate, failed, crack_normal, axis_point, axis, 
     reach = max(PETAL_REACH * spacing, hole) if reach is None else float(reach)
     by_reach = tuple((k, petals_at(hole + k * spacing)) for k in (1, 2, 3, 4))
     return Perforation(2.0 * hole, 2.0 * float(radius.min()), 2.0 * float(radius.max()), petals_at(hole + reach),
-                       hole + reach, int(np.count_nonzero(~np.asarray(in_plate))), by_reach)
+                       hole + reach, int(np.count_nonzero(~in_plate)), int(loose.max()), by_reach)
 
 
 def _runs(angles: np.ndarray, circle: float, gap: float) -> int:

@@ -317,7 +317,7 @@ class MeshfreeSimulation(SimulationBase):
             off_axis -= np.outer(off_axis @ normal, normal)
             nearest = np.argsort(np.einsum("ij,ij->i", off_axis, off_axis), kind="stable")[:PERFORATION_SPACING_SAMPLE]
             spacing = float(np.median(plate.local_spacing[nearest, 1]))
-        found = measure_perforation(p.X[own], p.x[own], (self.pieces() == 0)[own], b.failed[own], b.normal[own],
+        found = measure_perforation(p.X[own], p.x[own], self.pieces()[own], b.failed[own], b.normal[own],
                                     axis_point, normal, spacing)
         return found.summary()
 
