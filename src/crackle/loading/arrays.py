@@ -8,7 +8,8 @@ from collections import namedtuple
 import numpy as np
 
 from ..schema import ScenarioError
-from .tools import BARY_TOL, SURF_TRI_COLUMNS, SURF_TRI_TOL, seat_points, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE, TOOL_SUPPORT, TOOL_SURFACE
+from .tools import (BARY_TOL, SURF_TRI_COLUMNS, SURF_TRI_TOL, TOOL_BOX, TOOL_CYLINDER, TOOL_PLANE, TOOL_SPHERE,
+                    TOOL_SUPPORT, TOOL_SURFACE, seat_points)
 
 # Piecewise-linear histories padded into tables, one row each (history_tables): the one layout of
 # every method's pressure histories (FDEM's and the shell's pressures, the last three fields of
