@@ -84,7 +84,7 @@ def build_tools(specs, base: Path | None = None, loading=None) -> list[Tool]:
         elif t.shape == "projectile":
             vertices, triangles = projectile_surface(point(t.center), vec(t.direction), t.radius, t.length, t.nose,
                                                      t.nose_length)
-            surface = {"surface": f"a projectile with a {t.nose} nose", "vertices": vertices, "triangles": triangles}
+            surface = {"vertices": vertices, "triangles": triangles}  # no file
         tools.append(
             Tool(
                 name=t.name,
