@@ -39,7 +39,7 @@ from ..loading.tools import (contact_with_tools, interp_history, load_cell_step,
                              tool_velocity_rows)
 from ..solver.body import BODY_FIELDS
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
-from ..solver.integrator import block_kernel, local_damping_force, move, update_velocity_local_damping
+from ..solver.integrator import block_kernel, fused_block_kernel, local_damping_force, move, update_velocity_local_damping
 
 BONDED, BROKEN, CONTACT, GONE, JOINT = 0, 1, 2, 3, 4
 
@@ -83,7 +83,7 @@ def _contact_velocity(v, w, radius, a, b, dist, ex, ey, ez):
     return la, lb, rx, ry, rz
 
 
-@block_kernel
+@fused_block_kernel
 def _interaction_block(lo, hi, t, dt, particles, inter):
     x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
     a_of, b_of, state, d0, kn, kt = inter.a, inter.b, inter.state, inter.d0, inter.kn, inter.kt
@@ -99,7 +99,8 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
         dx = x[b, 0] - x[a, 0]
         dy = x[b, 1] - x[a, 1]
         dz = x[b, 2] - x[a, 2]
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        dist2 = dx * dx + dy * dy + dz * dz
+        dist = math.sqrt(dist2)
         inv_dist = 1.0 / dist
         nx = dx * inv_dist
         ny = dy * inv_dist
@@ -110,19 +111,19 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
             _joint(i, dt, x, v, w, radius, a, b, dx, dy, dz, dist, k_t, inter)
             continue
         fn = kn[i] * un
-        # The old shear force, turned into the new tangent plane (its magnitude kept).
+        # The old shear force s, turned into the new tangent plane (its magnitude kept):
+        # (s - (s.n) n) x keep, keep^2 = |s|^2 / |s - (s.n) n|^2 = |s|^2 |d|^2 / (|s|^2 |d|^2 - (s.d)^2).
+        # keep from the unnormalised d, so that its division and root run beside those of n,
+        # not after them: the step's longest chain of dependent operations, halved.
         sx, sy, sz = shear[i, 0], shear[i, 1], shear[i, 2]
         old2 = sx * sx + sy * sy + sz * sz
+        sd = sx * dx + sy * dy + sz * dz
+        turned = old2 * dist2 - sd * sd
+        keep = math.sqrt(old2 * dist2 / turned) if turned > 0.0 else 1.0
         sn = sx * nx + sy * ny + sz * nz
-        sx -= sn * nx
-        sy -= sn * ny
-        sz -= sn * nz
-        turned2 = sx * sx + sy * sy + sz * sz
-        if turned2 > 0.0:
-            keep = math.sqrt(old2 / turned2)  # one root, not two: the step's longest chain
-            sx *= keep
-            sy *= keep
-            sz *= keep
+        sx = (sx - sn * nx) * keep
+        sy = (sy - sn * ny) * keep
+        sz = (sz - sn * nz) * keep
         # Relative motion of the contact point over the last step, tangential part.
         la, lb, rx, ry, rz = _contact_velocity(v, w, radius, a, b, dist, nx, ny, nz)
         rn = rx * nx + ry * ny + rz * nz

@@ -23,6 +23,11 @@ from ..loading.tools import contact_with_tools
 # counters: measured a quarter of the FDEM step at 2 threads. Such a block cannot allocate
 # arrays (numba refuses to compile one that tries); allocate in the caller.
 block_kernel = njit(cache=True, _nrt=False)
+# The same, with a * b + c allowed to be one fused multiply-add (one rounding instead of two;
+# the machine's FMA unit where it has one): for a block whose time is its arithmetic's chain of
+# dependent operations (measured: the DEM's interaction pass, 10.5 -> 8.2 ms at 100k). Still the
+# same operations in the same order for every element, so results stay thread-count independent.
+fused_block_kernel = njit(cache=True, _nrt=False, fastmath={"contract"})
 
 # constraint[node]: FREE, or the node's row of the support table (row FIXED = 0: no motion).
 # Per row: projection[row], the velocity projector P (3, 3) of the supports that hold the node
