@@ -83,6 +83,27 @@ def _contact_velocity(v, w, radius, a, b, dist, ex, ey, ez):
     return la, lb, rx, ry, rz
 
 
+@njit(cache=True, inline="always")
+def _distance(x, a, b):
+    """|x_b - x_a| and its components. The one formula for a pair's distance, in the step and in
+    the rest distances d0 (pair_distances), so that a pair set up at rest starts with exactly no
+    force however its multiply-adds are fused."""
+    dx = x[b, 0] - x[a, 0]
+    dy = x[b, 1] - x[a, 1]
+    dz = x[b, 2] - x[a, 2]
+    dist2 = dx * dx + dy * dy + dz * dz
+    return math.sqrt(dist2), dist2, dx, dy, dz
+
+
+@njit(cache=True, fastmath={"contract"})  # as the interaction pass (fused_block_kernel)
+def pair_distances(x, a, b):
+    """|x[b] - x[a]| per pair, as the interaction pass measures it."""
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        out[i] = _distance(x, a[i], b[i])[0]
+    return out
+
+
 @fused_block_kernel
 def _interaction_block(lo, hi, t, dt, particles, inter):
     x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
@@ -96,11 +117,7 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
             continue
         a = a_of[i]
         b = b_of[i]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        dist2 = dx * dx + dy * dy + dz * dz
-        dist = math.sqrt(dist2)
+        dist, dist2, dx, dy, dz = _distance(x, a, b)
         inv_dist = 1.0 / dist
         nx = dx * inv_dist
         ny = dy * inv_dist

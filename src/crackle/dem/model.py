@@ -13,7 +13,7 @@ from ..materials.random_properties import draw, statistics
 from scipy.spatial import cKDTree
 
 from ..solver.body import body_arrays, pair_incidence
-from .kernels import BONDED, CONTACT, GONE, JOINT, TRANSFER_COLUMNS, Interactions, Particles
+from .kernels import BONDED, CONTACT, GONE, JOINT, TRANSFER_COLUMNS, Interactions, Particles, pair_distances
 
 # Largest gamma_int searched for the asked bond count: beyond it bonds would join particles that
 # other particles separate.
@@ -216,7 +216,7 @@ def bonds(particles: Particles, law: BondLaw, gamma: float) -> Interactions:
     """Bonds between every pair with D0 <= gamma (Ra + Rb), at rest at their set-up distance."""
     x, r = particles.x, particles.radius
     pairs = _pairs_within(x, r, gamma, 0.0)
-    d0 = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+    d0 = pair_distances(x, pairs[:, 0], pairs[:, 1])
     return interactions(particles, law, pairs, np.full(len(pairs), BONDED), d0)
 
 
@@ -256,7 +256,7 @@ def with_contacts(particles: Particles, law: BondLaw, current: Interactions, n_b
     shear = np.zeros((len(near), 3))
     # A new contact rests at Ra + Rb, or where it is if already closer (a pair whose bond broke
     # while the spheres overlapped, as packed): its spring starts unloaded, no energy from nowhere.
-    contact_d0 = np.minimum(r[near[:, 0]] + r[near[:, 1]], np.linalg.norm(x[near[:, 1]] - x[near[:, 0]], axis=1))
+    contact_d0 = np.minimum(r[near[:, 0]] + r[near[:, 1]], pair_distances(x, near[:, 0], near[:, 1]))
     old_key = current.a[n_bonds:] * n + current.b[n_bonds:]
     if len(old_key):
         # Old contacts are in sorted key order (they were built here); they keep their state.
