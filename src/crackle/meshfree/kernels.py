@@ -45,7 +45,7 @@ from numba import njit, prange
 from ..materials.elasticity import green_lagrange
 from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
-from ..solver.integrator import block_kernel, step_point
+from ..solver.integrator import block_kernel, fused_block_kernel, step_point
 from .material import elastic_energy, stress_update
 from .shape import quartic_spline_array
 
@@ -81,7 +81,7 @@ PairContact = namedtuple("PairContact", "start other stiffness reach force")
 BLOCK = 128  # particles per parallel task
 
 
-@block_kernel
+@fused_block_kernel
 def _gradient_block(lo, hi, p, links):
     """Each particle's smoothed F (into p.deformation) and its stabilisation force k eps."""
     x, X, start, neighbour, grad, value = p.x, p.X, links.start, links.neighbour, links.grad, links.value
@@ -150,7 +150,7 @@ def _gauss_point(g, f00, f01, f02, f10, f11, f12, f20, f21, f22, dt, p, law):
             work)
 
 
-@block_kernel
+@fused_block_kernel
 def _stress_block(lo, hi, dt, p, columns, law):
     """At each particle's two Gauss points through the wall (thickness.py), F = F_I -+ a_I dF/dzeta,
     the stress (material.stress_update, state rows 2 I and 2 I + 1); stores the mean second
@@ -220,7 +220,7 @@ def _stress_block(lo, hi, dt, p, columns, law):
         b[i, 8] = ha * (q8 - p8)
 
 
-@block_kernel
+@fused_block_kernel
 def _through_wall_block(lo, hi, p, columns):
     """T_J += sum_I c_IJ a_I V_I (P_I+ - P_I-) / 2 over the particles I whose dF/dzeta holds J
     (thickness.py): what J's F moves through its neighbours' Gauss points."""
@@ -281,7 +281,7 @@ def _contact_block(lo, hi, x, contact):
         force[g, 2] = fz
 
 
-@block_kernel
+@fused_block_kernel
 def _particle_block(lo, hi, slot, t_now, dt, kick, p, links, tools, pressed, pressures, contact, tool_v_prev,
                     tool_v_next, gravity, alpha):
     mass = p.mass
