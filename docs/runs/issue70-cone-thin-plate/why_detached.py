@@ -6,14 +6,17 @@ scenario to 150 us and counts the detached particles by reason.
     python docs/runs/issue70-cone-thin-plate/why_detached.py docs/runs/issue70-cone-thin-plate/cone-thin-plate.toml \
         material.tensile_strength=inf material.failure_plastic_strain=0.3      # about 2.5 min
 """
-import sys, numpy as np
+import sys
 from pathlib import Path
+
+import numpy as np
+
 import crackle.meshfree.fracture as fr
 from crackle.scenario import load_scenario
 from crackle.api import build_simulation
 from crackle.solver.driver import choose_time_step
 
-state = {"limit": None, "bad": set(), "steep": set(), "last_owner_bad": None}
+state = {"limit": None, "bad": set(), "steep": set()}
 orig_cg, orig_gs = fr.cell_gradients, fr._gradient_sums
 
 def cg(*a, **k):

@@ -39,7 +39,8 @@ from ..loading.tools import (contact_with_tools, interp_history, load_cell_step,
                              tool_velocity_rows)
 from ..solver.body import BODY_FIELDS
 from ..solver.failures import MODE_SHEAR, MODE_TENSION
-from ..solver.integrator import block_kernel, fused_block_kernel, local_damping_force, move, update_velocity_local_damping
+from ..solver.integrator import (FUSED_MATH, block_kernel, fused_block_kernel, local_damping_force, move,
+                                 update_velocity_local_damping)
 
 BONDED, BROKEN, CONTACT, GONE, JOINT = 0, 1, 2, 3, 4
 
@@ -95,7 +96,7 @@ def _distance(x, a, b):
     return math.sqrt(dist2), dist2, dx, dy, dz
 
 
-@njit(cache=True, fastmath={"contract"})  # as the interaction pass (fused_block_kernel)
+@njit(cache=True, fastmath=FUSED_MATH)  # as the interaction pass (fused_block_kernel)
 def pair_distances(x, a, b):
     """|x[b] - x[a]| per pair, as the interaction pass measures it."""
     out = np.empty(a.shape[0])

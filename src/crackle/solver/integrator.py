@@ -28,7 +28,8 @@ block_kernel = njit(cache=True, _nrt=False)
 # dependent operations (measured at 100k: the DEM's interaction pass 9.4 -> 8.2 ms, the meshfree
 # step 60 -> 48 ms). Still the same operations in the same order for every element, so results
 # stay thread-count independent.
-fused_block_kernel = njit(cache=True, _nrt=False, fastmath={"contract"})
+FUSED_MATH = {"contract"}  # numba fastmath flags: fusion only, nothing reassociated
+fused_block_kernel = njit(cache=True, _nrt=False, fastmath=FUSED_MATH)
 
 # constraint[node]: FREE, or the node's row of the support table (row FIXED = 0: no motion).
 # Per row: projection[row], the velocity projector P (3, 3) of the supports that hold the node
