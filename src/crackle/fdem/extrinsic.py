@@ -103,7 +103,7 @@ def build_ties(corner_point: np.ndarray, n_points: int, na: np.ndarray, nb: np.n
         tied=tied,
         vertex_ptr=vertex_ptr,
         vertex_nodes=order.astype(np.int64),
-        member_leader=np.zeros(n_nodes, dtype=np.int64),
+        member_leader=np.full(n_nodes, -1, dtype=np.int64),
         node_vertex=corner_point.astype(np.int64),
         partner=partner,
         partner_iface=partner_iface,
@@ -155,17 +155,14 @@ def regroup(vertex, ties, na, nb):
                     leader[g] = low
                     leader[q] = low
                     changed = True
-    # Insertion sort by (leader, node): a handful of copies per mesh point.
-    for j in range(lo + 1, hi):
-        g = nodes[j]
-        k = j - 1
-        while k >= lo and (leader[nodes[k]] > leader[g] or (leader[nodes[k]] == leader[g] and nodes[k] > g)):
-            nodes[k + 1] = nodes[k]
-            k -= 1
-        nodes[k + 1] = g
+    # The faces' points read their copy's leader: only those of copies whose leader changed (an
+    # insertion splits one cluster; the part that keeps the lowest node keeps its leader) need
+    # rewriting. member_leader still holds the leaders of `nodes` before this regroup, in their
+    # old order (-1 before the first).
     for j in range(lo, hi):
         g = nodes[j]
-        ties.member_leader[j] = leader[g]
+        if leader[g] == ties.member_leader[j]:
+            continue
         for k in range(3):
             i = ties.partner_iface[g, k]
             if i < 0:
@@ -175,6 +172,16 @@ def regroup(vertex, ties, na, nb):
                     ties.na_at[i, p] = leader[g]
                 elif nb[i, p] == g:
                     ties.nb_at[i, p] = leader[g]
+    # Insertion sort by (leader, node): a handful of copies per mesh point.
+    for j in range(lo + 1, hi):
+        g = nodes[j]
+        k = j - 1
+        while k >= lo and (leader[nodes[k]] > leader[g] or (leader[nodes[k]] == leader[g] and nodes[k] > g)):
+            nodes[k + 1] = nodes[k]
+            k -= 1
+        nodes[k + 1] = g
+    for j in range(lo, hi):
+        ties.member_leader[j] = leader[nodes[j]]
 
 
 @njit(cache=True, inline="always")
@@ -267,26 +274,41 @@ def try_insert(i, ta, tb, x, na, nb, area, damage, slip_plastic, dn_shift, e_dam
 
 
 @njit(cache=True)
-def regroup_released(ties, na, nb, x, v, released_blocks, block):
-    """After an interface pass that inserted faces: regroup the clusters of their mesh points, in
-    interface order (serial, so the result does not depend on the threads), each copy first taking
-    its old leader's state (x at t, v at t - dt / 2) for its new cluster. True if any was."""
+def released_vertices(ties, na, released_blocks, block, touched, seen):
+    """After an interface pass that inserted faces (the blocks flagged in released_blocks): mark
+    them free and list the mesh points of their corners in `touched`, each once (seen: a zeroed
+    flag per mesh point, zeroed again on return); returns how many. Serial and in interface
+    order, so the list does not depend on the threads."""
     tied = ties.tied
     n_if = tied.shape[0]
-    inserted = False
+    n_touched = 0
     for blk in range(released_blocks.shape[0]):
         if not released_blocks[blk]:
             continue
-        inserted = True
         released_blocks[blk] = 0
         for i in range(blk * block, min(n_if, (blk + 1) * block)):
             if tied[i] == RELEASED:
                 tied[i] = FREE
                 for p in range(3):
                     vertex = ties.node_vertex[na[i, p]]
-                    copies_from_leader(vertex, ties, x, v)
-                    regroup(vertex, ties, na, nb)
-    return inserted
+                    if not seen[vertex]:
+                        seen[vertex] = 1
+                        touched[n_touched] = vertex
+                        n_touched += 1
+    for k in range(n_touched):
+        seen[touched[k]] = 0
+    return n_touched
+
+
+@njit(cache=True, inline="always")
+def regroup_released(vertex, ties, na, nb, x, v):
+    """Mesh point `vertex` (released_vertices) after its faces' insertion: each copy takes its old
+    leader's state (x at t, v at t - dt / 2) for its new cluster, then the clusters are regrouped.
+    Mesh points write only their own copies' rows and their faces' points: kernels.advance runs
+    them in parallel. A mesh point whose faces were inserted by several faces at once is regrouped
+    once: its clusters depend on which faces are tied, not on their order."""
+    copies_from_leader(vertex, ties, x, v)
+    regroup(vertex, ties, na, nb)
 
 
 @block_kernel
