@@ -137,6 +137,14 @@ def regroup(vertex, ties, na, nb):
     cluster is a contiguous run of vertex_nodes (member_leader: the leader of each entry, read in
     order by the node pass). The interface points of the copies (na, nb) read their leader's row
     from then on (na_at, nb_at)."""
+    _new_leaders(vertex, ties)
+    _apply_leaders(vertex, ties, na, nb)
+
+
+@njit(cache=True)
+def _new_leaders(vertex, ties):
+    """regroup's first half: each copy's new leader into ties.leader (member_leader keeps the old
+    ones, in the old order of vertex_nodes)."""
     lo, hi = ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]
     nodes, leader, tied = ties.vertex_nodes, ties.leader, ties.tied
     for j in range(lo, hi):
@@ -155,6 +163,14 @@ def regroup(vertex, ties, na, nb):
                     leader[g] = low
                     leader[q] = low
                     changed = True
+
+
+@njit(cache=True)
+def _apply_leaders(vertex, ties, na, nb):
+    """regroup's second half: the faces' points of the copies whose leader changed, then
+    vertex_nodes sorted by (leader, node) and member_leader."""
+    lo, hi = ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]
+    nodes, leader = ties.vertex_nodes, ties.leader
     # The faces' points read their copy's leader: only those of copies whose leader changed (an
     # insertion splits one cluster; the part that keeps the lowest node keeps its leader) need
     # rewriting. member_leader still holds the leaders of `nodes` before this regroup, in their
@@ -300,15 +316,31 @@ def released_vertices(ties, na, released_blocks, block, touched, seen):
     return n_touched
 
 
-@njit(cache=True, inline="always")
+# regroup_released and the halves of regroup are compiled as functions, not inlined: inlined
+# (numba's inline="always") into kernels.advance's parallel loop, the halves gave other clusters
+# than the serial code (the Akantu bar's state hashes differed; found 2026-12-07).
+@njit(cache=True)
 def regroup_released(vertex, ties, na, nb, x, v):
-    """Mesh point `vertex` (released_vertices) after its faces' insertion: each copy takes its old
-    leader's state (x at t, v at t - dt / 2) for its new cluster, then the clusters are regrouped.
+    """Mesh point `vertex` (released_vertices) after its faces' insertion: the clusters are
+    regrouped, each copy that changes cluster taking its old leader's state (x at t, v at t - dt /
+    2) for its new one.
     Mesh points write only their own copies' rows and their faces' points: kernels.advance runs
     them in parallel. A mesh point whose faces were inserted by several faces at once is regrouped
     once: its clusters depend on which faces are tied, not on their order."""
-    copies_from_leader(vertex, ties, x, v)
-    regroup(vertex, ties, na, nb)
+    _new_leaders(vertex, ties)
+    # Within a call of kernels.advance only a leader's row is read (state_row) and copies_block
+    # refreshes the others when it returns: only the copies that change cluster need their old
+    # leader's state, which no copy here overwrites (an old leader, its cluster's lowest node,
+    # stays the leader of its part).
+    nodes, leader, member_leader = ties.vertex_nodes, ties.leader, ties.member_leader
+    for j in range(ties.vertex_ptr[vertex], ties.vertex_ptr[vertex + 1]):
+        g = nodes[j]
+        old = member_leader[j]
+        if leader[g] != old:
+            for d in range(3):
+                x[g, d] = x[old, d]
+                v[g, d] = v[old, d]
+    _apply_leaders(vertex, ties, na, nb)
 
 
 @block_kernel
