@@ -11,7 +11,8 @@ import sys
 BENDING = ["three-point-bending", "run.end_time=7.5e-4", "run.stop.force_drop=0.5"]
 # Fragmentation with surface contact on: failures, rebuilds of the surface and candidate lists.
 IMPACT = ["sphere-impact-fast", "run.end_time=4e-5"]
-# Extrinsic interfaces: insertions, the serial regrouping of clusters, the node pass over points.
+# Extrinsic interfaces: insertions, the regrouping of clusters (their mesh points in parallel), the
+# node pass over points.
 EXTRINSIC = ["three-point-bending", "run.end_time=1e-3", "material.interface.insertion=extrinsic"]
 # Glued grips pulling a bar apart, faces inserted by either tet's traction, the effective mixed mode
 # (the example's), Weibull face strengths in a random field (one law row per face); the bar

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from crackle.fdem import model as fdem_model
-from crackle.fdem.extrinsic import TIED
+from crackle.fdem.extrinsic import TIED, regroup_all
 from crackle.fdem.laws import BilinearLaw
 from crackle.fdem.model import build_fdem_model
 from crackle.fdem.simulation import FdemSimulation
@@ -239,6 +239,29 @@ def test_a_run_split_across_the_end_of_the_tied_phase_is_the_same_bit_for_bit():
         states.append((model.nodes.x.copy(), model.nodes.v.copy(), model.ifs.damage.copy()))
     for a, b in zip(*states):
         assert np.array_equal(a, b)
+
+
+def test_clusters_kept_through_the_insertions_are_those_rebuilt_from_the_tied_faces():
+    """A step regroups only the mesh points of the faces it inserted, in parallel, and rewrites
+    only the faces of the copies whose leader changed (extrinsic.regroup_released): after the
+    pulled bar's insertions and break, its cluster tables (each node's leader, the faces' points
+    through it, the copies' order) equal those built from scratch from the faces still tied
+    (extrinsic.regroup_all, as at the model's build)."""
+    w1, period = _first_mode()
+    ramp = 2.0 * period
+    model = _bar(rock(insertion="extrinsic"), History.ramp(-2.0 * FT, ramp), 0.5 * w1)
+    sim = FdemSimulation(model)
+    dt = 0.8 * sim.stable_dt
+    sim.advance(int(2.0 * ramp / dt), dt)
+    ties = model.ties
+    assert len(_section_failures(model)) == 16  # the bar broke
+    assert np.count_nonzero(ties.tied != TIED) > 16  # and faces beyond the section were inserted
+    rebuilt = ties._replace(leader=ties.leader.copy(), vertex_nodes=ties.vertex_nodes.copy(),
+                            member_leader=np.full_like(ties.member_leader, -1), na_at=model.ifs.na.copy(),
+                            nb_at=model.ifs.nb.copy())
+    regroup_all(rebuilt, model.ifs.na, model.ifs.nb)
+    for table in ("leader", "na_at", "nb_at", "vertex_nodes", "member_leader"):
+        assert np.array_equal(getattr(ties, table), getattr(rebuilt, table)), table
 
 
 def test_clusters_move_on_their_leaders_and_every_copy_follows_when_advance_returns():
