@@ -321,12 +321,12 @@ def released_vertices(ties, na, released_blocks, block, touched, seen):
 # than the serial code (the Akantu bar's state hashes differed; found 2026-12-07).
 @njit(cache=True)
 def regroup_released(vertex, ties, na, nb, x, v):
-    """Mesh point `vertex` (released_vertices) after its faces' insertion: the clusters are
-    regrouped, each copy that changes cluster taking its old leader's state (x at t, v at t - dt /
-    2) for its new one.
-    Mesh points write only their own copies' rows and their faces' points: kernels.advance runs
-    them in parallel. A mesh point whose faces were inserted by several faces at once is regrouped
-    once: its clusters depend on which faces are tied, not on their order."""
+    """Mesh point `vertex` (released_vertices) after its faces' insertion: its clusters are
+    regrouped, each copy that changes cluster taking its old leader's state (x at t, v at
+    t - dt / 2) for its new one. A mesh point writes only its own copies' rows and their faces'
+    points, so kernels.advance runs them in parallel; one whose faces were inserted by several
+    faces at once is regrouped once: its clusters depend on which faces are tied, not on their
+    order."""
     _new_leaders(vertex, ties)
     # Within a call of kernels.advance only a leader's row is read (state_row) and copies_block
     # refreshes the others when it returns: only the copies that change cluster need their old
