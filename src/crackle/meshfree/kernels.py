@@ -40,7 +40,7 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint64
 
 from ..materials.elasticity import green_lagrange
 from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
@@ -99,8 +99,8 @@ def _gradient_block(lo, hi, p, links):
         ax = 0.0  # the MLS approximation of u at X_i
         ay = 0.0
         az = 0.0
-        for r in range(start[i], start[i + 1]):
-            j = neighbour[r]
+        for r in range(uint64(start[i]), uint64(start[i + 1])):  # unsigned: no wraparound (integrator.py)
+            j = uint64(neighbour[r])
             ux = x[j, 0] - X[j, 0]
             uy = x[j, 1] - X[j, 1]
             uz = x[j, 2] - X[j, 2]
@@ -169,8 +169,8 @@ def _stress_block(lo, hi, dt, p, columns, law):
         z6 = 0.0
         z7 = 0.0
         z8 = 0.0
-        for r in range(cstart[i], cstart[i + 1]):
-            j = member[r]
+        for r in range(uint64(cstart[i]), uint64(cstart[i + 1])):
+            j = uint64(member[r])
             c = coef[r]
             z0 += c * d[j, 0]
             z1 += c * d[j, 1]
@@ -226,8 +226,8 @@ def _through_wall_block(lo, hi, p, columns):
     (thickness.py): what J's F moves through its neighbours' Gauss points."""
     t, b, start, member, coef = p.internal, p.bending, columns.back_start, columns.back_member, columns.back_coef
     for j in range(lo, hi):
-        for r in range(start[j], start[j + 1]):
-            i = member[r]
+        for r in range(uint64(start[j]), uint64(start[j + 1])):
+            i = uint64(member[r])
             c = coef[r]
             for k in range(9):
                 t[j, k] += c * b[i, k]
@@ -241,8 +241,8 @@ def _link_force(g, p, links):
     fx = -q[g, 0]
     fy = -q[g, 1]
     fz = -q[g, 2]
-    for r in range(back_start[g], back_start[g + 1]):
-        i = back_row[r]  # the link (i, g): grad N_g and N_g at i
+    for r in range(uint64(back_start[g]), uint64(back_start[g + 1])):  # unsigned: no wraparound (integrator.py)
+        i = uint64(back_row[r])  # the link (i, g): grad N_g and N_g at i
         g0 = grad[r, 0]
         g1 = grad[r, 1]
         g2 = grad[r, 2]
@@ -263,8 +263,8 @@ def _contact_block(lo, hi, x, contact):
         fx = 0.0
         fy = 0.0
         fz = 0.0
-        for r in range(start[g], start[g + 1]):
-            j = other[r]
+        for r in range(uint64(start[g]), uint64(start[g + 1])):
+            j = uint64(other[r])
             dx = x[g, 0] - x[j, 0]
             dy = x[g, 1] - x[j, 1]
             dz = x[g, 2] - x[j, 2]

@@ -30,6 +30,12 @@ block_kernel = njit(cache=True, _nrt=False)
 # stay thread-count independent.
 FUSED_MATH = {"contract"}  # numba fastmath flags: fusion only, nothing reassociated
 fused_block_kernel = njit(cache=True, _nrt=False, fastmath=FUSED_MATH)
+# In the kernels' inner loops over CSR rows and neighbour lists, the row counter and the neighbour
+# index are cast to uint64 (`for r in range(uint64(start[i]), uint64(start[i + 1]))`,
+# `j = uint64(neighbour[r])`): numba gives a signed index Python's negative-index wraparound, a
+# compare-and-select per array access that also costs registers (spills in the meshfree gather);
+# unsigned, it drops them. Same loads, same arithmetic, bit-identical results: the meshfree gather
+# at 100k particles 22.4 -> 18.8 ms. Only for indices that are never negative (not -1 sentinels).
 
 # constraint[node]: FREE, or the node's row of the support table (row FIXED = 0: no motion).
 # Per row: projection[row], the velocity projector P (3, 3) of the supports that hold the node
