@@ -33,7 +33,7 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint64
 
 from ..loading.tools import (contact_with_tools, interp_history, load_cell_step, move_tools, tool_velocities,
                              tool_velocity_rows)
@@ -110,14 +110,14 @@ def _interaction_block(lo, hi, t, dt, particles, inter):
     x, v, w, radius = particles.x, particles.v, particles.spin, particles.radius
     a_of, b_of, state, d0, kn, kt = inter.a, inter.b, inter.state, inter.d0, inter.kn, inter.kt
     shear, transfer = inter.shear, inter.transfer
-    for i in range(lo, hi):
+    for i in range(uint64(lo), uint64(hi)):  # unsigned indices: no wraparound (solver/integrator.py)
         for d in range(TRANSFER_LEVER_A):  # no force, no moment unless stored below
             transfer[i, d] = 0.0
         st = state[i]
         if st == GONE:
             continue
-        a = a_of[i]
-        b = b_of[i]
+        a = uint64(a_of[i])
+        b = uint64(b_of[i])
         dist, dist2, dx, dy, dz = _distance(x, a, b)
         inv_dist = 1.0 / dist
         nx = dx * inv_dist
@@ -280,8 +280,8 @@ def _particle_block(lo, hi, slot, dt, particles, inter, tools, tool_v_prev, tool
         mx = 0.0
         my = 0.0
         mz = 0.0
-        for r in range(start[g], start[g + 1]):
-            i = entry[r]
+        for r in range(uint64(start[g]), uint64(start[g + 1])):
+            i = uint64(entry[r])
             s = sign[r]  # +1: g is the interaction's b, -1: its a
             fx += s * transfer[i, TRANSFER_FORCE]
             fy += s * transfer[i, TRANSFER_FORCE + 1]
