@@ -28,6 +28,32 @@ else:
 SLOW_FILES = {"test_determinism.py", "test_golden.py"}
 
 
+
+# Compiled once before the workers start (pytest_configure): in a fresh clone each worker would
+# compile every kernel family where it first meets it (about 215 s of one core: FDEM 86 s,
+# meshfree 66, shell 34, DEM 29), most of it twice, once per worker (a fresh clone's suite on
+# 2026-12-07 without this: its first FDEM test 125 s and its first meshfree one 94 s, each
+# compiling). Two processes, one family list each, fill numba's cache instead; the workers then
+# load it. Each runs a shipped example's quick form for a few steps.
+PRECOMPILE = (("three-point-bending", "shell-tear"), ("plate-impact", "dem-ucs"))
+
+
+def pytest_configure(config):
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+        return  # a worker, or a run without workers: each kernel compiles where it is first used
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as out:
+        jobs = [subprocess.Popen(
+            [sys.executable, "-c", "import sys; from crackle.cli import main; sys.exit(max(main(['run', name, "
+             f"'--quick', '--set', 'run.end_time=1e-5', '--out', '{out}/' + name]) for name in {list(names)!r}))"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+            for names in PRECOMPILE]
+        for job in jobs:
+            job.wait()  # a failure shows again, with its message, in the tests that run it
+
 def pytest_runtest_teardown(item):
     # A test that sets numba's thread count (a sweep's run on this thread, a 1-and-2-thread
     # comparison) leaves the worker on one thread again, for the tests after it.
