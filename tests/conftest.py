@@ -28,7 +28,6 @@ else:
 SLOW_FILES = {"test_determinism.py", "test_golden.py"}
 
 
-
 # Compiled once before the workers start (pytest_configure): in a fresh clone each worker would
 # compile every kernel family where it first meets it (about 215 s of one core: FDEM 86 s,
 # meshfree 66, shell 34, DEM 29), most of it twice, once per worker (a fresh clone's suite on
@@ -53,6 +52,7 @@ def pytest_configure(config):
             for names in PRECOMPILE]
         for job in jobs:
             job.wait()  # a failure shows again, with its message, in the tests that run it
+
 
 def pytest_runtest_teardown(item):
     # A test that sets numba's thread count (a sweep's run on this thread, a 1-and-2-thread
