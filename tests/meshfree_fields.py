@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from crackle.meshfree.kernels import LINK_FLOAT
 from crackle.meshfree.shape import neighbour_links, shape_functions, smoothed_gradients
+
+# The step stores the links' gradients and values in single precision (kernels.LINK_FLOAT): what
+# rests on their rounding holds to that precision, here with a margin of 10.
+ROUNDING = 10.0 * float(np.finfo(LINK_FLOAT).eps)
 
 # u = A X + b, the linear field of the patch tests.
 LINEAR_A = np.array([[0.3, -0.1, 0.2], [0.05, 0.1, -0.4], [0.7, 0.2, 0.1]])

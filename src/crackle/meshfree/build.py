@@ -16,7 +16,7 @@ from ..solver.integrator import support_constraints
 from ..solver.setup import tool_stiffness, tools_on_body
 from .contact import CONTACT_STIFFNESS, STEP_PAIRS, ParticleContact
 from .fracture import LinkBreaking
-from .kernels import BLOCK, Links, Particles, PressedFaces, stabilisation_stiffness
+from .kernels import BLOCK, LINK_FLOAT, Links, Particles, PressedFaces, rest_terms, stabilisation_stiffness
 from .material import T_REF, J2Law
 from .particles import WALL_SIDES, Cells, WallParticles, wall_columns
 from .shape import MAX_CONDITION, basis_terms, nodal_values, smoothed_gradients, support_radii, within_supports
@@ -85,10 +85,12 @@ def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[fl
     link_first = np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]])
     start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, link_first)])
     neighbour = np.concatenate([d.neighbour + o for d, o in zip(shapes, first)])
-    grad = np.concatenate([d.grad for d in shapes])
-    value = np.concatenate([d.value for d in shapes])
+    grad = np.concatenate([d.grad for d in shapes]).astype(LINK_FLOAT)
+    value = np.concatenate([d.value for d in shapes]).astype(LINK_FLOAT)
     row = np.repeat(np.arange(n), np.diff(start))
-    links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value))
+    links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value),
+                  rest_F=np.zeros((n, 9)), rest_eps=np.zeros((n, 3)), link_sums=np.zeros((n, 4)))
+    rest_terms(np.arange(n), X, links)
     columns = merge_columns([d.columns for d in shapes], first)
     laws = own.laws + [b.law for b in bodies]
     table = np.stack([w.table() for w in laws])

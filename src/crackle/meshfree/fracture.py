@@ -53,7 +53,7 @@ from scipy.spatial import cKDTree
 
 from ..materials.random_properties import draw, statistics
 from ..solver.stability import STEP_MARGIN
-from .kernels import gauss_strains, stabilisation_stiffness
+from .kernels import gauss_strains, rest_terms, stabilisation_stiffness
 from .material import thermal_strain
 from .shape import MAX_CONDITION, cell_gradients, csr_positions, nodal_values
 from .step import gershgorin_bounds, refresh_gershgorin_bounds
@@ -353,8 +353,7 @@ class LinkBreaking:
         """Per particle of `rows`, the Green-Lagrange strains (xx yy zz xy yz xz) at its two Gauss
         points through the wall (len(rows), 2, 6) at positions x (kernels.gauss_strains)."""
         strain = np.empty((len(rows), 2, 6))
-        gauss_strains(np.asarray(rows, dtype=np.int64), np.ascontiguousarray(x), self.X, sim.links.start,
-                      sim.links.neighbour, sim.links.grad, sim.columns, strain)
+        gauss_strains(np.asarray(rows, dtype=np.int64), np.ascontiguousarray(x), sim.links, sim.columns, strain)
         return strain
 
     def _block(self, keys):
@@ -411,6 +410,7 @@ class LinkBreaking:
             pos = np.concatenate(changed)
             links.back_grad[links.to_back[pos]] = links.grad[pos]
             links.back_value[links.to_back[pos]] = links.value[pos]
+            rest_terms(np.unique(self.row[pos]), self.X, links)
 
     def _stabilisation(self, links, particles, rows, pos):
         """The values N_K(X_J) and the stiffness k_J of the particles `rows` (their links at the

@@ -13,12 +13,20 @@ gradients smoothed over each particle's cell (stabilised conforming nodal integr
 shape.smoothed_gradients: it meets the integration constraint, so a uniform stress leaves
 every particle away from the boundary in equilibrium):
   F_I = I + sum_J u_J (x) grad N_J(I)                        (u = x - X, the nodal displacements)
+      = R_I + sum_J (x_J - x_I) (x) grad N_J(I),  R_I = I - sum_J (X_J - X_I) (x) grad N_J(I)
+(sum_J grad N_J = 0: the MLS holds the constants). The step uses the second form: it reads only
+the neighbours' x, and R_I (zero up to the stored gradients' rounding, links.rest_F) makes a body
+at rest exactly unstrained and a translation exactly strain-free whatever that rounding.
   f_L = - sum_{I ~ L} T_I grad N_L(I)                        (T_I = V_I P_I, P = F S, first Piola-Kirchhoff,
                                                                at two points through the wall: thickness.py)
+the derivative of the second form: at L's own link grad N_L(L) - sum_J grad N_J(L), so that the
+forces sum to zero exactly however the gradients are rounded (links.link_sums).
 One point per particle still leaves zero-energy modes (a field oscillating from particle to
 particle that no particle's gradient sees). The stabilisation penalises each particle's
 displacement against the MLS approximation of the displacement field at it:
   eps_I = u_I - sum_K N_K(X_I) u_K,   energy (1/2) sum_I k_I |eps_I|^2,
+(in the step eps_I = e_I - sum_K N_K(X_I) (x_K - x_I), e_I = sum_K N_K(X_I) (X_K - X_I): the same
+where sum_K N_K = 1, links.rest_eps),
 k_I = alpha E V_I sum_K w_IK / sum_K w_IK |X_K - X_I|^2 (alpha = particles.stabilisation, w the
 kernel weights over I's links: a strain energy density alpha E |eps / dX|^2 / 2 with dX the
 weighted mean link length). The MLS reproduces its basis, so eps is zero for every quadratic
@@ -45,7 +53,7 @@ from numba import njit, prange, uint64
 from ..materials.elasticity import green_lagrange
 from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
-from ..solver.integrator import block_kernel, fused_block_kernel, step_point
+from ..solver.integrator import FUSED_MATH, block_kernel, fused_block_kernel, step_point
 from .material import elastic_energy, stress_update
 from .shape import quartic_spline_array
 
@@ -65,8 +73,21 @@ Particles = namedtuple("Particles", BODY_FIELDS + " X volume plastic eq_plastic 
 # crack removed); back_start, back_row: the transpose, for particle L every link (I, L) and its I,
 # in order of I; to_back: each link's position in it. back_grad = grad and back_value = value in
 # the transposed order (kept equal by build and fracture), so that the gather reads them in
-# sequence (an indirect read per link made the gather 5 x slower).
-Links = namedtuple("Links", "start neighbour grad value back_start to_back back_row back_grad back_value")
+# sequence (an indirect read per link made the gather 5 x slower). rest_F (n, 9), rest_eps (n, 3):
+# each particle's R_I and e_I (module docstring); link_sums (n, 4): sum_J grad N_J(X_I) and
+# sum_K N_K(X_I) over its links (zero and one but for the stored values' rounding; the gather's
+# self terms), all from the stored grad and value in double: rest_terms keeps them in step with
+# every change of a particle's links.
+Links = namedtuple("Links", "start neighbour grad value back_start to_back back_row back_grad back_value rest_F rest_eps "
+                            "link_sums")
+# The links' grad and value (and their transposed copies) are stored in single precision: the step
+# streams them twice, at the memory's bandwidth (docs/validation.md, issue 68: with the relative
+# form, 1.2-1.3 x the particle-steps per second at 100k). Their rounding (6e-8 relative) is part of
+# the discretisation, the same for forces and energies (both read the stored values): a linear
+# field is reproduced to 6e-8 of its gradient, a rotation is strained by 3e-8 of its angle (rad). Every
+# sum is in double, and rest_F, rest_eps and link_sums keep exact what must not rest on the
+# rounding: a body at rest, a translation, the momentum.
+LINK_FLOAT = np.float32
 # The wall faces of the surface particles that pressures load: the faces of particle g are rows
 # start[g]:start[g + 1]; area: A0 N (reference area vector, out of the solid); load: the face's
 # row in the pressures' histories (a loading.arrays.HistoryTable, as FDEM's and the shell's);
@@ -81,58 +102,71 @@ PairContact = namedtuple("PairContact", "start other stiffness reach force")
 BLOCK = 128  # particles per parallel task
 
 
+@njit(cache=True, inline="always")
+def _relative_sums(i, x, start, neighbour, grad, value):
+    """Over particle i's links at positions x: sum_J (x_J - x_i) (x) grad N_J(X_i) (row-major) and
+    sum_K N_K(X_i) (x_K - x_i). One code for the step and for rest_terms at x = X, so that a body
+    at rest sums to exactly what rest_terms subtracts (module docstring)."""
+    x0 = x[i, 0]
+    x1 = x[i, 1]
+    x2 = x[i, 2]
+    f00 = 0.0
+    f01 = 0.0
+    f02 = 0.0
+    f10 = 0.0
+    f11 = 0.0
+    f12 = 0.0
+    f20 = 0.0
+    f21 = 0.0
+    f22 = 0.0
+    ax = 0.0
+    ay = 0.0
+    az = 0.0
+    for r in range(uint64(start[i]), uint64(start[i + 1])):  # unsigned: no wraparound (integrator.py)
+        j = uint64(neighbour[r])
+        ux = x[j, 0] - x0
+        uy = x[j, 1] - x1
+        uz = x[j, 2] - x2
+        nv = value[r]
+        ax += nv * ux
+        ay += nv * uy
+        az += nv * uz
+        g0 = grad[r, 0]
+        g1 = grad[r, 1]
+        g2 = grad[r, 2]
+        f00 += ux * g0
+        f01 += ux * g1
+        f02 += ux * g2
+        f10 += uy * g0
+        f11 += uy * g1
+        f12 += uy * g2
+        f20 += uz * g0
+        f21 += uz * g1
+        f22 += uz * g2
+    return f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az
+
+
 @fused_block_kernel
 def _gradient_block(lo, hi, p, links):
     """Each particle's smoothed F (into p.deformation) and its stabilisation force k eps."""
-    x, X, start, neighbour, grad, value = p.x, p.X, links.start, links.neighbour, links.grad, links.value
+    x, start, neighbour, grad, value = p.x, links.start, links.neighbour, links.grad, links.value
+    rest_F, rest_eps = links.rest_F, links.rest_eps
     d = p.deformation
     for i in range(lo, hi):
-        f00 = 1.0
-        f01 = 0.0
-        f02 = 0.0
-        f10 = 0.0
-        f11 = 1.0
-        f12 = 0.0
-        f20 = 0.0
-        f21 = 0.0
-        f22 = 1.0
-        ax = 0.0  # the MLS approximation of u at X_i
-        ay = 0.0
-        az = 0.0
-        for r in range(uint64(start[i]), uint64(start[i + 1])):  # unsigned: no wraparound (integrator.py)
-            j = uint64(neighbour[r])
-            ux = x[j, 0] - X[j, 0]
-            uy = x[j, 1] - X[j, 1]
-            uz = x[j, 2] - X[j, 2]
-            nv = value[r]
-            ax += nv * ux
-            ay += nv * uy
-            az += nv * uz
-            g0 = grad[r, 0]
-            g1 = grad[r, 1]
-            g2 = grad[r, 2]
-            f00 += ux * g0
-            f01 += ux * g1
-            f02 += ux * g2
-            f10 += uy * g0
-            f11 += uy * g1
-            f12 += uy * g2
-            f20 += uz * g0
-            f21 += uz * g1
-            f22 += uz * g2
-        d[i, 0] = f00
-        d[i, 1] = f01
-        d[i, 2] = f02
-        d[i, 3] = f10
-        d[i, 4] = f11
-        d[i, 5] = f12
-        d[i, 6] = f20
-        d[i, 7] = f21
-        d[i, 8] = f22
+        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, x, start, neighbour, grad, value)
+        d[i, 0] = rest_F[i, 0] + f00
+        d[i, 1] = rest_F[i, 1] + f01
+        d[i, 2] = rest_F[i, 2] + f02
+        d[i, 3] = rest_F[i, 3] + f10
+        d[i, 4] = rest_F[i, 4] + f11
+        d[i, 5] = rest_F[i, 5] + f12
+        d[i, 6] = rest_F[i, 6] + f20
+        d[i, 7] = rest_F[i, 7] + f21
+        d[i, 8] = rest_F[i, 8] + f22
         k = p.stab_k[i]
-        p.stab_force[i, 0] = k * (x[i, 0] - X[i, 0] - ax)
-        p.stab_force[i, 1] = k * (x[i, 1] - X[i, 1] - ay)
-        p.stab_force[i, 2] = k * (x[i, 2] - X[i, 2] - az)
+        p.stab_force[i, 0] = k * (rest_eps[i, 0] - ax)
+        p.stab_force[i, 1] = k * (rest_eps[i, 1] - ay)
+        p.stab_force[i, 2] = k * (rest_eps[i, 2] - az)
 
 
 @njit(cache=True, inline="always")
@@ -238,9 +272,13 @@ def _link_force(g, p, links):
     """The internal force on particle g gathered from the links (i, g) towards it (after _stress_block)."""
     back_start, back_row, grad, value, t, q = (links.back_start, links.back_row, links.back_grad, links.back_value,
                                                p.internal, p.stab_force)
-    fx = -q[g, 0]
-    fy = -q[g, 1]
-    fz = -q[g, 2]
+    # The exact derivative of the relative forms (module docstring) at g's own link: the loop's
+    # self terms less T_g sum_J grad N_J(g) and q_g sum_K N_K(X_g) (links.link_sums), so that
+    # the forces sum to zero (momentum) whatever the stored values' rounding.
+    s0, s1, s2, s3 = links.link_sums[g, 0], links.link_sums[g, 1], links.link_sums[g, 2], links.link_sums[g, 3]
+    fx = t[g, 0] * s0 + t[g, 1] * s1 + t[g, 2] * s2 - s3 * q[g, 0]
+    fy = t[g, 3] * s0 + t[g, 4] * s1 + t[g, 5] * s2 - s3 * q[g, 1]
+    fz = t[g, 6] * s0 + t[g, 7] * s1 + t[g, 8] * s2 - s3 * q[g, 2]
     for r in range(uint64(back_start[g]), uint64(back_start[g + 1])):  # unsigned: no wraparound (integrator.py)
         i = uint64(back_row[r])  # the link (i, g): grad N_g and N_g at i
         g0 = grad[r, 0]
@@ -398,42 +436,77 @@ def internal_forces(dt, particles, links, columns, law, force):
         force[g, 2] = fz
 
 
+@njit(parallel=True, cache=True, fastmath=FUSED_MATH)
+def rest_terms(rows, X, links):
+    """R_I, e_I (module docstring) and the link sums of the particles `rows` from their stored
+    links, into links.rest_F, rest_eps and link_sums: at set-up and after every change of their
+    grad or value. The step's own sums at x = X (same code, same fused arithmetic), so that at
+    rest R_I + sum is I and e_I - sum is 0 exactly (1 - s + s = 1 exactly for s near 1)."""
+    # The outputs bound to names before the prange: numba 0.61 dropped the writes made through
+    # links.rest_F[...] inside it (every row stayed 0).
+    start, neighbour, grad, value, rest_F, rest_eps, sums = (links.start, links.neighbour, links.grad, links.value,
+                                                            links.rest_F, links.rest_eps, links.link_sums)
+    for k in prange(rows.shape[0]):
+        i = rows[k]
+        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, X, start, neighbour, grad, value)
+        rest_F[i, 0] = 1.0 - f00
+        rest_F[i, 1] = -f01
+        rest_F[i, 2] = -f02
+        rest_F[i, 3] = -f10
+        rest_F[i, 4] = 1.0 - f11
+        rest_F[i, 5] = -f12
+        rest_F[i, 6] = -f20
+        rest_F[i, 7] = -f21
+        rest_F[i, 8] = 1.0 - f22
+        rest_eps[i, 0] = ax
+        rest_eps[i, 1] = ay
+        rest_eps[i, 2] = az
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        s3 = 0.0
+        for r in range(start[i], start[i + 1]):
+            s0 += grad[r, 0]
+            s1 += grad[r, 1]
+            s2 += grad[r, 2]
+            s3 += value[r]
+        sums[i, 0] = s0
+        sums[i, 1] = s1
+        sums[i, 2] = s2
+        sums[i, 3] = s3
+
+
 @njit(cache=True)
-def _smoothed_deformation(i, x, X, start, neighbour, grad, F):
-    """F_i = I + sum_J u_J (x) grad N_J(X_i) at positions x, into F (3, 3)."""
-    F[:] = 0.0
+def _smoothed_deformation(i, x, links, F):
+    """F_i = R_i + sum_J (x_J - x_i) (x) grad N_J(X_i) at positions x, into F (3, 3) (as the step)."""
+    sums = _relative_sums(i, x, links.start, links.neighbour, links.grad, links.value)
     for c in range(3):
-        F[c, c] = 1.0
-    for r in range(start[i], start[i + 1]):
-        j = neighbour[r]
-        for c in range(3):
-            u = x[j, c] - X[j, c]
-            for b in range(3):
-                F[c, b] += u * grad[r, b]
+        for b in range(3):
+            F[c, b] = links.rest_F[i, 3 * c + b] + sums[3 * c + b]
 
 
 @njit(cache=True)
-def _gauss_deformations(i, x, X, start, neighbour, grad, columns, out):
+def _gauss_deformations(i, x, links, columns, out):
     """The deformation gradients at particle i's two Gauss points through the wall
     (thickness.py) at positions x, into out (2, 3, 3)."""
     F = np.empty((3, 3))
     slope = np.zeros((3, 3))
     for r in range(columns.start[i], columns.start[i + 1]):
-        _smoothed_deformation(columns.member[r], x, X, start, neighbour, grad, F)
+        _smoothed_deformation(columns.member[r], x, links, F)
         slope += columns.coef[r] * F
-    _smoothed_deformation(i, x, X, start, neighbour, grad, F)
+    _smoothed_deformation(i, x, links, F)
     a = columns.offset[i]
     out[0] = F - a * slope
     out[1] = F + a * slope
 
 
 @njit(parallel=True, cache=True)
-def gauss_strains(rows, x, X, start, neighbour, grad, columns, strain):
+def gauss_strains(rows, x, links, columns, strain):
     """Per particle of `rows`, the Green-Lagrange strains (xx yy zz xy yz xz) at its two Gauss
     points at positions x, into strain (len(rows), 2, 6)."""
     for k in prange(rows.shape[0]):
         F = np.empty((2, 3, 3))
-        _gauss_deformations(rows[k], x, X, start, neighbour, grad, columns, F)
+        _gauss_deformations(rows[k], x, links, columns, F)
         for side in range(2):
             C = F[side].T @ F[side]
             strain[k, side, 0] = 0.5 * (C[0, 0] - 1.0)
@@ -445,15 +518,14 @@ def gauss_strains(rows, x, X, start, neighbour, grad, columns, strain):
 
 
 @njit(parallel=True, cache=True)
-def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbour, grad, value, columns, law,
-                    material, elastic, stabilisation):
+def strain_energies(rows, x, volume, plastic, thermal, stab_k, links, columns, law, material, elastic, stabilisation):
     """Per particle of `rows`, at positions x: the elastic energy sum over its two Gauss points of
     V / 2 (E - Ep) : C : (E - Ep) / 2 with their current plastic strain (and temperature), and its
-    stabilisation energy k |eps|^2 / 2 (J), into elastic[i] and stabilisation[i]."""
+    stabilisation energy k |eps|^2 / 2 (J, eps as the step's), into elastic[i] and stabilisation[i]."""
     for k in prange(rows.shape[0]):
         i = rows[k]
         F = np.empty((2, 3, 3))
-        _gauss_deformations(i, x, X, start, neighbour, grad, columns, F)
+        _gauss_deformations(i, x, links, columns, F)
         energy = 0.0
         for side in range(2):
             C = F[side].T @ F[side]
@@ -466,14 +538,10 @@ def strain_energies(rows, x, X, volume, plastic, thermal, stab_k, start, neighbo
             e5 = 0.5 * C[0, 2] - plastic[g, 5]
             energy += 0.5 * volume[i] * elastic_energy(g, e0, e1, e2, e3, e4, e5, thermal, law[material[i]])
         elastic[i] = energy
-        a = np.zeros(3)
-        for r in range(start[i], start[i + 1]):
-            j = neighbour[r]
-            for c in range(3):
-                a[c] += value[r] * (x[j, c] - X[j, c])
+        sums = _relative_sums(i, x, links.start, links.neighbour, links.grad, links.value)
         acc = 0.0
         for c in range(3):
-            d = x[i, c] - X[i, c] - a[c]
+            d = links.rest_eps[i, c] - sums[9 + c]
             acc += d * d
         stabilisation[i] = 0.5 * stab_k[i] * acc
 

@@ -131,8 +131,8 @@ class MeshfreeSimulation(SimulationBase):
         which = np.arange(len(x)) if rows is None else np.asarray(rows, dtype=np.int64)
         elastic = np.zeros(len(x))
         stab = np.zeros(len(x))
-        strain_energies(which, np.ascontiguousarray(x), p.X, p.volume, p.plastic, p.thermal, p.stab_k, s.start,
-                        s.neighbour, s.grad, s.value, self.columns, self.law, p.material, elastic, stab)
+        strain_energies(which, np.ascontiguousarray(x), p.volume, p.plastic, p.thermal, p.stab_k, s, self.columns,
+                        self.law, p.material, elastic, stab)
         return (elastic, stab) if rows is None else (elastic[which], stab[which])
 
     def own_energies(self, dt: float) -> dict[str, float]:
