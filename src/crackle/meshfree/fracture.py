@@ -381,6 +381,7 @@ class LinkBreaking:
                 raise RuntimeError("a rebuilt gradient has no link: the quadrature points' supports grew")
             links.grad[at] = grad
             self._stabilisation(links, p, rows, pos)
+            rest_terms(rows, self.X, links)  # before the next round's record reads these rows' energies
             changed.append(pos)
             bad = ~np.isfinite(condition) | (condition > REBUILD_CONDITION)
             steep = np.flatnonzero(_gradient_sums(r, grad, n) > self.gradient_limit)
@@ -397,6 +398,7 @@ class LinkBreaking:
             self._block(np.concatenate([keys, (keys % n) * n + keys // n]))
             links.grad[own] = 0.0
             links.value[own] = 0.0
+            rest_terms(lost, self.X, links)
             changed.append(own)
             p.stab_k[lost] = 0.0
             # Nor does a pressure push it: a free particle keeps no wall face (its F is I: the
@@ -410,7 +412,6 @@ class LinkBreaking:
             pos = np.concatenate(changed)
             links.back_grad[links.to_back[pos]] = links.grad[pos]
             links.back_value[links.to_back[pos]] = links.value[pos]
-            rest_terms(np.unique(self.row[pos]), self.X, links)
 
     def _stabilisation(self, links, particles, rows, pos):
         """The values N_K(X_J) and the stiffness k_J of the particles `rows` (their links at the
