@@ -276,18 +276,41 @@ def _link_force(g, p, links):
     # self terms less T_g sum_J grad N_J(g) and q_g sum_K N_K(X_g) (links.link_sums), so that
     # the forces sum to zero (momentum) whatever the stored values' rounding.
     s0, s1, s2, s3 = links.link_sums[g, 0], links.link_sums[g, 1], links.link_sums[g, 2], links.link_sums[g, 3]
-    fx = t[g, 0] * s0 + t[g, 1] * s1 + t[g, 2] * s2 - s3 * q[g, 0]
-    fy = t[g, 3] * s0 + t[g, 4] * s1 + t[g, 5] * s2 - s3 * q[g, 1]
-    fz = t[g, 6] * s0 + t[g, 7] * s1 + t[g, 8] * s2 - s3 * q[g, 2]
+    # One accumulator per product: no product waits for the one before it (a single running sum
+    # per component made the gather 1.25x slower).
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    a3 = 0.0
+    a4 = 0.0
+    a5 = 0.0
+    a6 = 0.0
+    a7 = 0.0
+    a8 = 0.0
+    bx = 0.0
+    by = 0.0
+    bz = 0.0
     for r in range(uint64(back_start[g]), uint64(back_start[g + 1])):  # unsigned: no wraparound (integrator.py)
         i = uint64(back_row[r])  # the link (i, g): grad N_g and N_g at i
         g0 = grad[r, 0]
         g1 = grad[r, 1]
         g2 = grad[r, 2]
         nv = value[r]
-        fx -= t[i, 0] * g0 + t[i, 1] * g1 + t[i, 2] * g2 - nv * q[i, 0]
-        fy -= t[i, 3] * g0 + t[i, 4] * g1 + t[i, 5] * g2 - nv * q[i, 1]
-        fz -= t[i, 6] * g0 + t[i, 7] * g1 + t[i, 8] * g2 - nv * q[i, 2]
+        a0 += t[i, 0] * g0
+        a1 += t[i, 1] * g1
+        a2 += t[i, 2] * g2
+        a3 += t[i, 3] * g0
+        a4 += t[i, 4] * g1
+        a5 += t[i, 5] * g2
+        a6 += t[i, 6] * g0
+        a7 += t[i, 7] * g1
+        a8 += t[i, 8] * g2
+        bx += nv * q[i, 0]
+        by += nv * q[i, 1]
+        bz += nv * q[i, 2]
+    fx = t[g, 0] * s0 + t[g, 1] * s1 + t[g, 2] * s2 - s3 * q[g, 0] + bx - (a0 + a1 + a2)
+    fy = t[g, 3] * s0 + t[g, 4] * s1 + t[g, 5] * s2 - s3 * q[g, 1] + by - (a3 + a4 + a5)
+    fz = t[g, 6] * s0 + t[g, 7] * s1 + t[g, 8] * s2 - s3 * q[g, 2] + bz - (a6 + a7 + a8)
     return fx, fy, fz
 
 
