@@ -85,10 +85,11 @@ def build_meshfree_simulation(plate: WallParticles, density: float | Sequence[fl
     link_first = np.cumsum([0] + [len(d.neighbour) for d in shapes[:-1]])
     start = np.concatenate([[0]] + [d.start[1:] + o for d, o in zip(shapes, link_first)])
     neighbour = np.concatenate([d.neighbour + o for d, o in zip(shapes, first)])
-    grad = np.concatenate([d.grad for d in shapes]).astype(LINK_FLOAT)
-    value = np.concatenate([d.value for d in shapes]).astype(LINK_FLOAT)
+    grad_value = np.empty((len(neighbour), 4), dtype=LINK_FLOAT)
+    grad_value[:, :3] = np.concatenate([d.grad for d in shapes])
+    grad_value[:, 3] = np.concatenate([d.value for d in shapes])
     row = np.repeat(np.arange(n), np.diff(start))
-    links = Links(start, neighbour, grad, value, *transposed_links(n, row, neighbour, grad, value),
+    links = Links(start, neighbour, grad_value, *transposed_links(n, row, neighbour, grad_value),
                   rest_F=np.zeros((n, 9)), rest_eps=np.zeros((n, 3)), link_sums=np.zeros((n, 4)))
     rest_terms(np.arange(n), X, links)
     columns = merge_columns([d.columns for d in shapes], first)
@@ -268,17 +269,17 @@ def merge_cells(cells) -> Cells:
                  np.concatenate([c.weight for c in cells]), np.concatenate([c.points for c in cells]))
 
 
-def transposed_links(n: int, row: np.ndarray, neighbour: np.ndarray, grad: np.ndarray, value: np.ndarray):
+def transposed_links(n: int, row: np.ndarray, neighbour: np.ndarray, grad_value: np.ndarray):
     """The transpose of the links of n particles (rows `row`, each in increasing `neighbour`
     order), for the gather: for particle L, every link (I, L) in order of I, as (back_start,
-    to_back, back_row, back_grad, back_value) of kernels.Links. A function of its own: the
+    to_back, back_row, back_grad_value) of kernels.Links. A function of its own: the
     sort's permutation is freed before the step estimate."""
     back_link = np.argsort(neighbour, kind="stable")  # ties in link order: increasing I
     back_start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(neighbour, minlength=n), out=back_start[1:])
     to_back = np.empty_like(back_link)
     to_back[back_link] = np.arange(len(back_link))
-    return back_start, to_back, row[back_link], np.ascontiguousarray(grad[back_link]), value[back_link]
+    return back_start, to_back, row[back_link], grad_value[back_link]
 
 
 def nodal_stabilisation(X, volume, radius, terms, start, neighbour, row, scale):

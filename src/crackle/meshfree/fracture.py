@@ -410,8 +410,7 @@ class LinkBreaking:
         # The gather's copies, in the transposed order (kernels.Links), where they changed.
         if changed:
             pos = np.concatenate(changed)
-            links.back_grad[links.to_back[pos]] = links.grad[pos]
-            links.back_value[links.to_back[pos]] = links.value[pos]
+            links.back_grad_value[links.to_back[pos]] = links.grad_value[pos]
 
     def _stabilisation(self, links, particles, rows, pos):
         """The values N_K(X_J) and the stiffness k_J of the particles `rows` (their links at the

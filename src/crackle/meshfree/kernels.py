@@ -53,7 +53,7 @@ from numba import njit, prange, uint64
 from ..materials.elasticity import green_lagrange
 from ..loading.tools import interp_history, load_cell_step, move_tools, tool_velocities, tool_velocity_rows
 from ..solver.body import BODY_FIELDS
-from ..solver.integrator import FUSED_MATH, block_kernel, fused_block_kernel, step_point
+from ..solver.integrator import FUSED_MATH, block_kernel, fused_block_kernel, slp_vectorised, step_point
 from .material import elastic_energy, stress_update
 from .shape import quartic_spline_array
 
@@ -68,18 +68,42 @@ Particles = namedtuple("Particles", BODY_FIELDS + " X volume plastic eq_plastic 
 # another material than its target). stress: the mean of the two points' second Piola-Kirchhoff stress; internal:
 # T_I = V P of the gather; bending: a V (P+ - P-) / 2 (thickness.py).
 # stab_k: k_I of the stabilisation (N/m); stab_force: k_I eps_I (N), written by the gradient pass.
-# start, neighbour: the CSR of each particle's links (I, J) (itself included); grad: grad N_J at
-# I (smoothed over I's cell); value: N_J(X_I) (the MLS at the particle itself, 0 on a link the
-# crack removed); back_start, back_row: the transpose, for particle L every link (I, L) and its I,
-# in order of I; to_back: each link's position in it. back_grad = grad and back_value = value in
-# the transposed order (kept equal by build and fracture), so that the gather reads them in
-# sequence (an indirect read per link made the gather 5 x slower). rest_F (n, 9), rest_eps (n, 3):
-# each particle's R_I and e_I (module docstring); link_sums (n, 4): sum_J grad N_J(X_I) and
-# sum_K N_K(X_I) over its links (zero and one but for the stored values' rounding; the gather's
-# self terms), all from the stored grad and value in double: rest_terms keeps them in step with
-# every change of a particle's links.
-Links = namedtuple("Links", "start neighbour grad value back_start to_back back_row back_grad back_value rest_F rest_eps "
-                            "link_sums")
+# start, neighbour: the CSR of each particle's links (I, J) (itself included); grad_value (links,
+# 4): per link grad N_J at I (smoothed over I's cell) and N_J(X_I) (the MLS at the particle itself,
+# 0 on a link the crack removed), side by side, so that the step's sums over a link are one
+# four-wide multiply-add per row of F (crackle/__init__.py: the SLP vectoriser); back_start,
+# back_row: the transpose, for particle L every link (I, L) and its I, in order of I; to_back: each
+# link's position in it. back_grad_value: grad_value in the transposed order (kept equal by build
+# and fracture), so that the gather reads it in sequence (an indirect read per link made the
+# gather 5 x slower). rest_F (n, 9), rest_eps (n, 3): each particle's R_I and e_I (module
+# docstring); link_sums (n, 4): sum_J grad N_J(X_I) and sum_K N_K(X_I) over its links (zero and
+# one but for the stored values' rounding; the gather's self terms), all from the stored values in
+# double: rest_terms keeps them in step with every change of a particle's links. grad, value,
+# back_grad, back_value: views of the two columns, for the numpy code (set-up, fracture, bounds).
+_LinkArrays = namedtuple("_LinkArrays", "start neighbour grad_value back_start to_back back_row back_grad_value rest_F "
+                                        "rest_eps link_sums")
+
+
+class Links(_LinkArrays):
+    __slots__ = ()
+
+    @property
+    def grad(self):
+        return self.grad_value[:, :3]
+
+    @property
+    def value(self):
+        return self.grad_value[:, 3]
+
+    @property
+    def back_grad(self):
+        return self.back_grad_value[:, :3]
+
+    @property
+    def back_value(self):
+        return self.back_grad_value[:, 3]
+
+
 # The links' grad and value (and their transposed copies) are stored in single precision: the step
 # streams them twice, at the memory's bandwidth (docs/validation.md, issue 68: with the relative
 # form, 1.2-1.3 x the particle-steps per second at 100k). Their rounding (6e-8 relative) is part of
@@ -102,58 +126,64 @@ PairContact = namedtuple("PairContact", "start other stiffness reach force")
 BLOCK = 128  # particles per parallel task
 
 
-@njit(cache=True, inline="always")
-def _relative_sums(i, x, start, neighbour, grad, value):
+@slp_vectorised
+@fused_block_kernel
+def _relative_sums(i, x, start, neighbour, grad_value):
     """Over particle i's links at positions x: sum_J (x_J - x_i) (x) grad N_J(X_i) (row-major) and
-    sum_K N_K(X_i) (x_K - x_i). One code for the step and for rest_terms at x = X, so that a body
-    at rest sums to exactly what rest_terms subtracts (module docstring)."""
+    sum_K N_K(X_i) (x_K - x_i). Each row of F and its component of the second sum take one
+    displacement component times the link's four stored numbers: one four-wide multiply-add (the
+    SLP vectoriser: the gradient pass 1.25 x faster at 100k), each lane the scalar arithmetic.
+    One compiled function for the step and for rest_terms at x = X, so that a body at rest sums to
+    exactly what rest_terms subtracts (module docstring): inlined into each (numba's
+    inline="always"), the vectoriser packed rest_terms' lanes otherwise than the step's, with
+    some products rounded before their sum."""
     x0 = x[i, 0]
     x1 = x[i, 1]
     x2 = x[i, 2]
     f00 = 0.0
     f01 = 0.0
     f02 = 0.0
+    ax = 0.0
     f10 = 0.0
     f11 = 0.0
     f12 = 0.0
+    ay = 0.0
     f20 = 0.0
     f21 = 0.0
     f22 = 0.0
-    ax = 0.0
-    ay = 0.0
     az = 0.0
     for r in range(uint64(start[i]), uint64(start[i + 1])):  # unsigned: no wraparound (integrator.py)
         j = uint64(neighbour[r])
         ux = x[j, 0] - x0
         uy = x[j, 1] - x1
         uz = x[j, 2] - x2
-        nv = value[r]
-        ax += nv * ux
-        ay += nv * uy
-        az += nv * uz
-        g0 = grad[r, 0]
-        g1 = grad[r, 1]
-        g2 = grad[r, 2]
+        g0 = np.float64(grad_value[r, 0])
+        g1 = np.float64(grad_value[r, 1])
+        g2 = np.float64(grad_value[r, 2])
+        nv = np.float64(grad_value[r, 3])
         f00 += ux * g0
         f01 += ux * g1
         f02 += ux * g2
+        ax += ux * nv
         f10 += uy * g0
         f11 += uy * g1
         f12 += uy * g2
+        ay += uy * nv
         f20 += uz * g0
         f21 += uz * g1
         f22 += uz * g2
+        az += uz * nv
     return f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az
 
 
 @fused_block_kernel
 def _gradient_block(lo, hi, p, links):
     """Each particle's smoothed F (into p.deformation) and its stabilisation force k eps."""
-    x, start, neighbour, grad, value = p.x, links.start, links.neighbour, links.grad, links.value
+    x, start, neighbour, grad_value = p.x, links.start, links.neighbour, links.grad_value
     rest_F, rest_eps = links.rest_F, links.rest_eps
     d = p.deformation
     for i in range(lo, hi):
-        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, x, start, neighbour, grad, value)
+        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, x, start, neighbour, grad_value)
         d[i, 0] = rest_F[i, 0] + f00
         d[i, 1] = rest_F[i, 1] + f01
         d[i, 2] = rest_F[i, 2] + f02
@@ -270,8 +300,7 @@ def _through_wall_block(lo, hi, p, columns):
 @njit(cache=True, inline="always")
 def _link_force(g, p, links):
     """The internal force on particle g gathered from the links (i, g) towards it (after _stress_block)."""
-    back_start, back_row, grad, value, t, q = (links.back_start, links.back_row, links.back_grad, links.back_value,
-                                               p.internal, p.stab_force)
+    back_start, back_row, grad_value, t, q = links.back_start, links.back_row, links.back_grad_value, p.internal, p.stab_force
     # The exact derivative of the relative forms (module docstring) at g's own link: the loop's
     # self terms less T_g sum_J grad N_J(g) and q_g sum_K N_K(X_g) (links.link_sums), so that
     # the forces sum to zero (momentum) whatever the stored values' rounding.
@@ -292,10 +321,10 @@ def _link_force(g, p, links):
     bz = 0.0
     for r in range(uint64(back_start[g]), uint64(back_start[g + 1])):  # unsigned: no wraparound (integrator.py)
         i = uint64(back_row[r])  # the link (i, g): grad N_g and N_g at i
-        g0 = grad[r, 0]
-        g1 = grad[r, 1]
-        g2 = grad[r, 2]
-        nv = value[r]
+        g0 = grad_value[r, 0]
+        g1 = grad_value[r, 1]
+        g2 = grad_value[r, 2]
+        nv = grad_value[r, 3]
         a0 += t[i, 0] * g0
         a1 += t[i, 1] * g1
         a2 += t[i, 2] * g2
@@ -467,11 +496,11 @@ def rest_terms(rows, X, links):
     rest R_I + sum is I and e_I - sum is 0 exactly (1 - s + s = 1 exactly for s near 1)."""
     # The outputs bound to names before the prange: numba 0.61 dropped the writes made through
     # links.rest_F[...] inside it (every row stayed 0).
-    start, neighbour, grad, value, rest_F, rest_eps, sums = (links.start, links.neighbour, links.grad, links.value,
-                                                            links.rest_F, links.rest_eps, links.link_sums)
+    start, neighbour, grad_value, rest_F, rest_eps, sums = (links.start, links.neighbour, links.grad_value, links.rest_F,
+                                                           links.rest_eps, links.link_sums)
     for k in prange(rows.shape[0]):
         i = rows[k]
-        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, X, start, neighbour, grad, value)
+        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, X, start, neighbour, grad_value)
         rest_F[i, 0] = 1.0 - f00
         rest_F[i, 1] = -f01
         rest_F[i, 2] = -f02
@@ -489,10 +518,10 @@ def rest_terms(rows, X, links):
         s2 = 0.0
         s3 = 0.0
         for r in range(start[i], start[i + 1]):
-            s0 += grad[r, 0]
-            s1 += grad[r, 1]
-            s2 += grad[r, 2]
-            s3 += value[r]
+            s0 += grad_value[r, 0]
+            s1 += grad_value[r, 1]
+            s2 += grad_value[r, 2]
+            s3 += grad_value[r, 3]
         sums[i, 0] = s0
         sums[i, 1] = s1
         sums[i, 2] = s2
@@ -502,7 +531,7 @@ def rest_terms(rows, X, links):
 @njit(cache=True)
 def _smoothed_deformation(i, x, links, F):
     """F_i = R_i + sum_J (x_J - x_i) (x) grad N_J(X_i) at positions x, into F (3, 3) (as the step)."""
-    sums = _relative_sums(i, x, links.start, links.neighbour, links.grad, links.value)
+    sums = _relative_sums(i, x, links.start, links.neighbour, links.grad_value)
     for c in range(3):
         for b in range(3):
             F[c, b] = links.rest_F[i, 3 * c + b] + sums[3 * c + b]
@@ -561,7 +590,7 @@ def strain_energies(rows, x, volume, plastic, thermal, stab_k, links, columns, l
             e5 = 0.5 * C[0, 2] - plastic[g, 5]
             energy += 0.5 * volume[i] * elastic_energy(g, e0, e1, e2, e3, e4, e5, thermal, law[material[i]])
         elastic[i] = energy
-        sums = _relative_sums(i, x, links.start, links.neighbour, links.grad, links.value)
+        sums = _relative_sums(i, x, links.start, links.neighbour, links.grad_value)
         acc = 0.0
         for c in range(3):
             d = links.rest_eps[i, c] - sums[9 + c]
