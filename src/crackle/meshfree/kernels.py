@@ -129,10 +129,12 @@ BLOCK = 128  # particles per parallel task
 @slp_vectorised
 @fused_block_kernel
 def _relative_sums(i, x, start, neighbour, grad_value):
-    """Over particle i's links at positions x: sum_J (x_J - x_i) (x) grad N_J(X_i) (row-major) and
-    sum_K N_K(X_i) (x_K - x_i). Each row of F and its component of the second sum take one
-    displacement component times the link's four stored numbers: one four-wide multiply-add (the
-    SLP vectoriser: the gradient pass 1.25 x faster at 100k), each lane the scalar arithmetic.
+    """Over particle i's links at positions x: sum_J (x_J - x_i) (x) grad N_J(X_i) and
+    sum_K N_K(X_i) (x_K - x_i), returned row by row: each row of the first followed by that
+    component of the second. A row and its component take one displacement component times the
+    link's four stored numbers: one four-wide multiply-add (the SLP vectoriser: the gradient pass
+    1.25 x faster at 100k), each lane the scalar arithmetic; returned in that order, the
+    vectoriser packs them so (in another order it shuffled lanes, slower than the scalar code).
     One compiled function for the step and for rest_terms at x = X, so that a body at rest sums to
     exactly what rest_terms subtracts (module docstring): inlined into each (numba's
     inline="always"), the vectoriser packed rest_terms' lanes otherwise than the step's, with
@@ -173,7 +175,7 @@ def _relative_sums(i, x, start, neighbour, grad_value):
         f21 += uz * g1
         f22 += uz * g2
         az += uz * nv
-    return f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az
+    return f00, f01, f02, ax, f10, f11, f12, ay, f20, f21, f22, az
 
 
 @fused_block_kernel
@@ -183,7 +185,7 @@ def _gradient_block(lo, hi, p, links):
     rest_F, rest_eps = links.rest_F, links.rest_eps
     d = p.deformation
     for i in range(lo, hi):
-        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, x, start, neighbour, grad_value)
+        f00, f01, f02, ax, f10, f11, f12, ay, f20, f21, f22, az = _relative_sums(i, x, start, neighbour, grad_value)
         d[i, 0] = rest_F[i, 0] + f00
         d[i, 1] = rest_F[i, 1] + f01
         d[i, 2] = rest_F[i, 2] + f02
@@ -500,7 +502,7 @@ def rest_terms(rows, X, links):
                                                            links.rest_eps, links.link_sums)
     for k in prange(rows.shape[0]):
         i = rows[k]
-        f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, az = _relative_sums(i, X, start, neighbour, grad_value)
+        f00, f01, f02, ax, f10, f11, f12, ay, f20, f21, f22, az = _relative_sums(i, X, start, neighbour, grad_value)
         rest_F[i, 0] = 1.0 - f00
         rest_F[i, 1] = -f01
         rest_F[i, 2] = -f02
@@ -534,7 +536,7 @@ def _smoothed_deformation(i, x, links, F):
     sums = _relative_sums(i, x, links.start, links.neighbour, links.grad_value)
     for c in range(3):
         for b in range(3):
-            F[c, b] = links.rest_F[i, 3 * c + b] + sums[3 * c + b]
+            F[c, b] = links.rest_F[i, 3 * c + b] + sums[4 * c + b]
 
 
 @njit(cache=True)
@@ -593,7 +595,7 @@ def strain_energies(rows, x, volume, plastic, thermal, stab_k, links, columns, l
         sums = _relative_sums(i, x, links.start, links.neighbour, links.grad_value)
         acc = 0.0
         for c in range(3):
-            d = links.rest_eps[i, c] - sums[9 + c]
+            d = links.rest_eps[i, c] - sums[4 * c + 3]
             acc += d * d
         stabilisation[i] = 0.5 * stab_k[i] * acc
 
