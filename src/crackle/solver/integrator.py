@@ -38,7 +38,7 @@ def slp_vectorised(dispatcher):
     same arithmetic as alone, so the results are the scalar code's. numba leaves it off (LLVM
     11-14 miscompiled some code with it, numba PR 8852); the kernel that is written for it turns it
     on for its own compilation only: the meshfree gradient pass, 1.25 x faster at 100k particles
-    with it (docs/validation.md, issue 68), where the DEM's step was 5 % slower. numba reads the
+    with it (docs/validation.md, issue 68), where the DEM's step was 6 % slower. numba reads the
     setting while it optimises a function, and compiles both on a first call and as a callee
     through `compile`."""
     compile_scalar = dispatcher.compile
