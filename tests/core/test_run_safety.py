@@ -551,7 +551,12 @@ def test_a_terminal_closed_after_ctrl_c_keeps_the_summary(tmp_path):
 
     out = tmp_path / "hung-up-while-stopping"
     code, err = _bending_run_printing(out, ctrl_c_then_hang_up)
-    _stopped_as_by_ctrl_c(out, code, err, "interrupted by the user")
+    # On a loaded machine both signals can land within one compiled piece (longer than the 50 ms
+    # between them); Python then runs the hang-up's handler first (the test below), so the stop
+    # names the hang-up. Either reason is right; what matters is that nothing is lost.
+    message = json.loads((out / "summary.json").read_text())["message"] if (out / "summary.json").is_file() else ""
+    why = "as its terminal closed (SIGHUP)" if "SIGHUP" in message else "interrupted by the user"
+    _stopped_as_by_ctrl_c(out, code, err, why)
 
 
 def test_only_a_second_ctrl_c_stops_at_once_whatever_order_signals_are_handled_in(capsys):
