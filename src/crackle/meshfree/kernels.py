@@ -71,7 +71,7 @@ Particles = namedtuple("Particles", BODY_FIELDS + " X volume plastic eq_plastic 
 # start, neighbour: the CSR of each particle's links (I, J) (itself included); grad_value (links,
 # 4): per link grad N_J at I (smoothed over I's cell) and N_J(X_I) (the MLS at the particle itself,
 # 0 on a link the crack removed), side by side, so that the step's sums over a link are one
-# four-wide multiply-add per row of F (crackle/__init__.py: the SLP vectoriser); back_start,
+# four-wide multiply-add per row of F (_relative_sums: the SLP vectoriser); back_start,
 # back_row: the transpose, for particle L every link (I, L) and its I, in order of I; to_back: each
 # link's position in it. back_grad_value: grad_value in the transposed order (kept equal by build
 # and fracture), so that the gather reads it in sequence (an indirect read per link made the
@@ -302,7 +302,8 @@ def _through_wall_block(lo, hi, p, columns):
 @njit(cache=True, inline="always")
 def _link_force(g, p, links):
     """The internal force on particle g gathered from the links (i, g) towards it (after _stress_block)."""
-    back_start, back_row, grad_value, t, q = links.back_start, links.back_row, links.back_grad_value, p.internal, p.stab_force
+    back_start, back_row, grad_value = links.back_start, links.back_row, links.back_grad_value
+    t, q = p.internal, p.stab_force
     # The exact derivative of the relative forms (module docstring) at g's own link: the loop's
     # self terms less T_g sum_J grad N_J(g) and q_g sum_K N_K(X_g) (links.link_sums), so that
     # the forces sum to zero (momentum) whatever the stored values' rounding.
@@ -498,8 +499,8 @@ def rest_terms(rows, X, links):
     rest R_I + sum is I and e_I - sum is 0 exactly (1 - s + s = 1 exactly for s near 1)."""
     # The outputs bound to names before the prange: numba 0.61 dropped the writes made through
     # links.rest_F[...] inside it (every row stayed 0).
-    start, neighbour, grad_value, rest_F, rest_eps, sums = (links.start, links.neighbour, links.grad_value, links.rest_F,
-                                                           links.rest_eps, links.link_sums)
+    start, neighbour, grad_value = links.start, links.neighbour, links.grad_value
+    rest_F, rest_eps, sums = links.rest_F, links.rest_eps, links.link_sums
     for k in prange(rows.shape[0]):
         i = rows[k]
         f00, f01, f02, ax, f10, f11, f12, ay, f20, f21, f22, az = _relative_sums(i, X, start, neighbour, grad_value)
